@@ -31,6 +31,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 from verticality import so3
+from verticality.models.kinematics import RigidMotion
 from verticality.params import PendulumParams, gravity_I
 
 
@@ -39,23 +40,19 @@ class PendulumState(NamedTuple):
     omega_S_rad_s: jnp.ndarray  # (3,) angular velocity of S w.r.t. I, in S
 
 
-class HeadMotion(NamedTuple):
-    """Kinematics of the head at one instant, as seen by a pendulum pivoting on it."""
-
-    R_I_H: jnp.ndarray  # (3, 3)
-    omega_H_rad_s: jnp.ndarray  # (3,) head angular velocity, head frame
-    omegadot_H_rad_s2: jnp.ndarray  # (3,) its time derivative, head frame
-    a_C_I_m_s2: jnp.ndarray  # (3,) linear acceleration of the head centre in I, gravity excluded
+HeadMotion = RigidMotion
+"""The head's kinematics as seen by a pendulum pivoting on it (``R_I_B`` is ``R_IH``, ``a_I_m_s2``
+the acceleration of the head centre C)."""
 
 
 def pivot_acceleration_I(head: HeadMotion, p: PendulumParams):
     """Linear acceleration of the pivot in frame I (gravity excluded), F 2.11's transport terms."""
     r = p.pivot_H_m
-    w = head.omega_H_rad_s
-    transport_H = p.euler * jnp.cross(head.omegadot_H_rad_s2, r) + p.centripetal * jnp.cross(
+    w = head.omega_B_rad_s
+    transport_H = p.euler * jnp.cross(head.omegadot_B_rad_s2, r) + p.centripetal * jnp.cross(
         w, jnp.cross(w, r)
     )
-    return head.a_C_I_m_s2 + head.R_I_H @ transport_H
+    return head.a_I_m_s2 + head.R_I_B @ transport_H
 
 
 def com_arm_S(p: PendulumParams):
@@ -72,7 +69,7 @@ def angular_acceleration(x: PendulumState, head: HeadMotion, p: PendulumParams):
     torque = (
         -p.gyroscopic * jnp.cross(w, J * w)
         + p.m_kg * jnp.cross(com_arm_S(p), R_S_I @ specific_gravity_I)
-        - p.beta_Nms * (w - R_S_I @ (head.R_I_H @ head.omega_H_rad_s))
+        - p.beta_Nms * (w - R_S_I @ (head.R_I_B @ head.omega_B_rad_s))
     )
     return torque / J
 
@@ -138,7 +135,7 @@ def rest_state(head: HeadMotion, p: PendulumParams) -> PendulumState:
     equals the head's.
     """
     up_I = -(gravity_I() - pivot_acceleration_I(head, p))
-    up_H = head.R_I_H.T @ up_I
-    R_I_S = rest_orientation(up_H, head.R_I_H)
-    omega_S = R_I_S.T @ (head.R_I_H @ head.omega_H_rad_s)
+    up_H = head.R_I_B.T @ up_I
+    R_I_S = rest_orientation(up_H, head.R_I_B)
+    omega_S = R_I_S.T @ (head.R_I_B @ head.omega_B_rad_s)
     return PendulumState(R_I_S=R_I_S, omega_S_rad_s=omega_S)

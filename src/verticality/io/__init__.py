@@ -1,0 +1,1 @@
+"""Reading and writing files: head motions (``motion``), IMU recordings (``imu``), BROAD (``broad``)."""
