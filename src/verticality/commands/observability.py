@@ -1,0 +1,82 @@
+"""``verticality observability [--model …] [--motion …] [--control …] [--chart …] [--json]``.
+
+The generic-rank observability test of the otolith models, one row per case of F Tables 3.1/3.2:
+model, motion, control, published answer, ours, and why (read from the unobservable directions).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from rich.console import Console
+from rich.table import Table
+
+from verticality.analysis.otolith_observability import CONTROLS, MODELS, MOTIONS
+
+
+def register(sub):
+    p = sub.add_parser("observability",
+                       help="nonlinear observability of the head's tilt from the otoliths (F §3.1)")
+    p.add_argument("--model", choices=MODELS, help="only this model (default both)")
+    p.add_argument("--motion", choices=MOTIONS, help="only this motion (default both)")
+    p.add_argument("--control", choices=CONTROLS, help="only this head control (default all)")
+    p.add_argument("--chart", choices=("tangent", "ambient"), default="tangent",
+                   help="tangent: rotations on SO(3) (default); ambient: matrix entries as free "
+                        "variables (the published formulation for the medial table)")
+    p.add_argument("--output", choices=("thesis", "axis"), default="thesis",
+                   help="otolith angles from the third row of R_HS as in F 2.8-2.9 (default) or "
+                        "from its third column (the pendulum axis in the head frame)")
+    p.add_argument("--params", choices=("generic", "p13"), default="generic",
+                   help="parameter values for the rank test (default: O(1) time scales)")
+    p.add_argument("--points", type=int, default=2, help="random points per case (default 2)")
+    p.add_argument("--json", action="store_true", help="print the rows as JSON")
+    p.set_defaults(func=run)
+
+
+def _yn(v) -> str:
+    return "–" if v is None else ("yes" if v else "no")
+
+
+def run(args) -> int:
+    from verticality.analysis import otolith_observability as oo
+    from verticality.errors import InputError
+    from verticality.reporting import to_jsonable
+
+    if args.points < 1:
+        raise InputError(f"--points must be >= 1, got {args.points}")
+    cases = [(m, mo, c) for m in MODELS for mo in MOTIONS for c in CONTROLS
+             if (args.model in (None, m) and args.motion in (None, mo)
+                 and args.control in (None, c))]
+    orders = dict(oo.ORDERS)
+    if args.chart == "ambient":
+        orders = dict(oo.AMBIENT_ORDERS)
+    t0 = time.perf_counter()
+    results = oo.run_table(chart=args.chart, params=args.params, output=args.output,
+                           points=args.points, orders=orders, cases=cases)
+    rows = [oo.row_dict(c) for c in results]
+    wall = time.perf_counter() - t0
+    if args.json:
+        json.dump(to_jsonable({"rows": rows, "agreement": sum(r["agrees"] for r in rows),
+                               "cases": len(rows), "wall_s": wall}), sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
+    table = Table(title=f"Observability of the head's tilt from the otoliths ({args.chart} chart, "
+                        f"{args.output} outputs, {args.params} parameters)")
+    for col in ("model", "motion", "control", "published tilt/acc", "ours tilt/acc", "", "why"):
+        table.add_column(col, overflow="fold")
+    for r in rows:
+        table.add_row(r["model"], r["motion"], r["control"],
+                      f"{_yn(r['published_orientation_observable'])} / "
+                      f"{_yn(r['published_acceleration_identifiable'])}",
+                      f"{_yn(r['orientation_observable'])} / {_yn(r['acceleration_identifiable'])}",
+                      "=" if r["agrees"] else "≠", r["why"])
+    console = Console()
+    console.width = max(console.width, 120)
+    console.print(table)
+    if any("[1]" in r["why"] for r in rows):
+        console.print(oo.FREE_ENTRY_NOTE)
+    console.print(f"agreement with F Tables 3.1/3.2: {sum(r['agrees'] for r in rows)}/{len(rows)}"
+                  f"  ({wall:.1f} s)")
+    return 0
