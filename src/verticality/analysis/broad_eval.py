@@ -1,0 +1,112 @@
+"""Running tilt filters over BROAD trials: ours and, when the optional ``peers`` extra is installed,
+VQF (vqf, 6D, defaults, ``VQF(Ts).updateBatch``), Madgwick and Mahony (ahrs, 6D, defaults).
+
+Peers are imported lazily; a missing one is reported by :func:`peer_status` with the reason and
+left out of the results (never silently replaced). Every filter gets the same gyro/accelerometer
+arrays; the score is the official BROAD inclination RMSE (:mod:`verticality.io.broad`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+import numpy as np
+
+from verticality.errors import InputError
+from verticality.io import broad
+
+OURS = "verticality"
+PEERS = ("vqf", "madgwick", "mahony")
+FILTERS = (OURS,) + PEERS
+_PEER_MODULE = {"vqf": "vqf", "madgwick": "ahrs", "mahony": "ahrs"}
+
+
+def peer_status() -> dict[str, str | None]:
+    """``{peer: None}`` when importable, else ``{peer: "reason"}``."""
+    import importlib
+
+    status: dict[str, str | None] = {}
+    for name in PEERS:
+        try:
+            importlib.import_module(_PEER_MODULE[name])
+            status[name] = None
+        except ImportError as exc:
+            status[name] = (f"{_PEER_MODULE[name]} not installed ({exc.msg}); "
+                            "install the peers extra: pip install 'verticality[peers]'")
+    return status
+
+
+def _ours(gyr, acc, dt_s):
+    from verticality.estimators import tilt
+
+    out = tilt.run(gyr, acc, dt_s)
+    return out.quat_E_S, out.bias_S_rad_s
+
+
+def _vqf(gyr, acc, dt_s):
+    from vqf import VQF
+
+    res = VQF(float(np.median(dt_s))).updateBatch(np.ascontiguousarray(gyr, dtype=np.float64),
+                                                  np.ascontiguousarray(acc, dtype=np.float64))
+    return res["quat6D"], res["bias"]
+
+
+def _madgwick(gyr, acc, dt_s):
+    from ahrs.filters import Madgwick
+
+    f = Madgwick(gyr=np.asarray(gyr), acc=np.asarray(acc), frequency=1.0 / float(np.median(dt_s)))
+    return f.Q, np.zeros_like(gyr)
+
+
+def _mahony(gyr, acc, dt_s):
+    from ahrs.filters import Mahony
+
+    f = Mahony(gyr=np.asarray(gyr), acc=np.asarray(acc), frequency=1.0 / float(np.median(dt_s)))
+    return f.Q, np.zeros_like(gyr)
+
+
+_RUNNERS: dict[str, Callable] = {OURS: _ours, "vqf": _vqf, "madgwick": _madgwick,
+                                 "mahony": _mahony}
+
+
+def run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
+    """Quaternions ``q_E_S`` (N, 4) wxyz and gyro bias (N, 3) of filter ``name``. Peers need a
+    constant rate (the median step is used) and finite samples; they report no bias except VQF
+    (zeros otherwise)."""
+    if name not in _RUNNERS:
+        raise InputError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}")
+    gyr = np.asarray(gyr_rad_s, dtype=np.float64)
+    acc = np.asarray(acc_m_s2, dtype=np.float64)
+    dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
+    if name != OURS:
+        reason = peer_status()[name]
+        if reason is not None:
+            raise InputError(f"filter {name}: {reason}")
+        if not (np.all(np.isfinite(gyr)) and np.all(np.isfinite(acc))):
+            raise InputError(f"filter {name} does not accept NaN samples; use --filter {OURS}")
+    return _RUNNERS[name](gyr, acc, dts)
+
+
+def evaluate_trials(paths: Iterable[Path], filters: Iterable[str],
+                    progress: Callable[[str], None] | None = None) -> dict:
+    """``{"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg},
+    "runtime_s": {FILTER: s}, "samples": int}`` for the given filters over the given trials."""
+    filters = list(filters)
+    trials: dict[str, dict[str, float]] = {}
+    runtime = {f: 0.0 for f in filters}
+    samples = 0
+    for path in paths:
+        trial = broad.load_trial(path)
+        samples += trial.gyr_rad_s.shape[0]
+        trials[trial.name] = {}
+        for name in filters:
+            if progress is not None:
+                progress(f"{trial.name}: {name}")
+            t0 = time.perf_counter()
+            quat, _ = run_filter(name, trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+            runtime[name] += time.perf_counter() - t0
+            trials[trial.name][name] = broad.inclination_rmse_deg(np.asarray(quat), trial)
+    mean = {f: float(np.mean([t[f] for t in trials.values()])) for f in filters}
+    return {"trials": trials, "mean": mean, "runtime_s": runtime, "samples": samples}

@@ -1,0 +1,61 @@
+"""``verticality evaluate broad DIR [--json]``: official BROAD inclination RMSE per trial and the
+mean, for our filter and the installed peers (vqf, madgwick, mahony) in the same run."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+
+def register(sub):
+    p = sub.add_parser("evaluate", help="score tilt filters on recorded benchmarks")
+    ev = p.add_subparsers(dest="benchmark", metavar="BENCHMARK")
+    ev.required = True
+    b = ev.add_parser("broad", help="BROAD inclination RMSE per trial (official metric)")
+    b.add_argument("directory", type=Path, metavar="DIR", help="folder of BROAD .hdf5 trials")
+    b.add_argument("--json", action="store_true",
+                   help='print {"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg}}')
+    b.add_argument("--filters", nargs="+", default=None, metavar="NAME",
+                   help="filters to run (default: verticality and every installed peer)")
+    b.set_defaults(func=run_broad)
+
+
+def run_broad(args) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
+    from verticality.analysis.broad_eval import OURS, PEERS, evaluate_trials, peer_status
+    from verticality.errors import InputError
+    from verticality.io import broad
+
+    err = Console(stderr=True)
+    paths = broad.list_trials(args.directory)
+    status = peer_status()
+    if args.filters is None:
+        filters = [OURS] + [p for p in PEERS if status[p] is None]
+    else:
+        filters = list(args.filters)
+        for f in filters:
+            if f != OURS and f not in PEERS:
+                raise InputError(f"unknown filter {f!r}; choose from {OURS}, {', '.join(PEERS)}")
+    for p in PEERS:
+        if status[p] is not None and p in (args.filters or PEERS):
+            err.print(f"note: skipping {p}: {status[p]}")
+    res = evaluate_trials(paths, filters, progress=lambda msg: err.print(f"running {msg} …"))
+    if args.json:
+        json.dump({"trials": res["trials"], "mean": res["mean"]}, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
+    table = Table(title=f"BROAD inclination RMSE (deg), {len(res['trials'])} trials")
+    table.add_column("trial")
+    for f in filters:
+        table.add_column(f, justify="right")
+    best = {name: min(v.values()) for name, v in res["trials"].items()}
+    for name, v in res["trials"].items():
+        table.add_row(name, *[(f"[bold]{v[f]:.3f}[/bold]" if v[f] == best[name] else f"{v[f]:.3f}")
+                              for f in filters])
+    table.add_row("mean", *[f"{res['mean'][f]:.3f}" for f in filters], end_section=True)
+    table.add_row("runtime (s)", *[f"{res['runtime_s'][f]:.2f}" for f in filters])
+    Console().print(table)
+    return 0

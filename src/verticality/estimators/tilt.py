@@ -1,0 +1,596 @@
+"""3-D otolith–canal tilt filter for recorded IMU data (gyroscope = canals, accelerometer = otoliths).
+
+Tahboub's stand-alone filter (T eq. 1–13) fuses, in one plane, a gyro reading
+``ω_g = ω + ω_drift + v_c`` (T eq. 1) whose drift is a random walk ``ω̇_drift = v_drift`` (T eq. 2)
+with an accelerometer read as a noisy inclinometer ``a_xa = g φ + v_a`` (T eq. 5): the inertial
+part of the specific force (T eq. 4) "is handled as a high-frequency noise". This module is its
+3-D generalization as an error-state extended Kalman filter:
+
+* nominal state: the orientation quaternion ``q_E_S`` (sensor → Earth, z up; its heading is
+  carried along but unobservable and irrelevant), the gyro bias ``b_S`` (rad/s, T eq. 2 drift) and
+  the horizontal velocity ``v_E`` (m/s) obtained by integrating the specific force rotated to Earth;
+* error state (7): tilt error ``δ = (δx, δy)`` about Earth's horizontal axes
+  (``R_true = exp([δ, 0]) R_est``), velocity error ``ṽ`` (2), bias error ``b̃ = b_true − b̂`` (3);
+* prediction: strapdown ``q ← q ⊗ exp((ω_g − b̂) Δt)`` with the true Δt of every sample;
+  ``δ̇ = −Π R b̃`` (3-D T eq. 7 with the drift subtracted), ``ṽ̇ = g J δ`` (a tilt error leaks gravity
+  into the integrated velocity), bias random walk (T eq. 2, 12);
+* gravito-inertial ambiguity (T §I: the otolith cannot tell tilt from translation): T eq. 4–5 treat
+  the inertial part as high-frequency noise because body accelerations "tend to be periodic and for
+  short time". Taken as a model: the velocity they produce stays small, pseudo-measurement
+  ``0 = v + n_v`` (``n_v`` ≈ 0 at rest). This observes the tilt through ``ṽ̇ = g J δ`` and rejects
+  translations with second-order attenuation; Joseph-form updates;
+* rest (T eq. 1 with ω = 0): when gyro and accelerometer are quiet for 1.5 s the gyro measures the
+  bias directly;
+* pre-integration: the gyro rotation and the specific force (in the block-start frame) are summed
+  sample by sample; the Kalman prediction and updates run every ``block`` samples. All noises are
+  spectral densities (``q = S Δt``, ``r = S / T``), so one parameter set serves every sampling rate.
+
+API (one estimator API for the project)::
+
+    state = init(x0, P0)                      # x0 = (q_E_S wxyz, b_S) ; P0 (7, 7)
+    state, out = step(state, u, y, dt)        # u = gyr (3,) rad/s, y = acc (3,) m/s²
+    state, outs = scan(state, us, ys, dts)    # the same step under jax.lax.scan
+    out = run(gyr_rad_s, acc_m_s2, dt_s)      # arrays (N, 3); dt_s scalar or (N,)
+
+``out`` is a :class:`TiltOutput` (roll, pitch, gravity direction, quaternion, bias, covariance,
+flags). A NaN in ``y`` means "no accelerometer": predict only (flag ``ACC_MISSING``); a NaN gyro
+sample propagates the covariance with ``omega_missing_rad_s`` as the unknown rate (flag
+``GYR_MISSING``); a non-finite or non-positive Δt skips the sample (flag ``BAD_DT``). Nothing turns
+a finite estimate into NaN.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+jax.config.update("jax_enable_x64", True)
+
+G_M_S2 = 9.81
+
+# Flag bits of TiltOutput.flags
+ACC_MISSING = 1  # accelerometer sample non-finite: predict only
+GYR_MISSING = 2  # gyroscope sample non-finite: orientation held, covariance inflated
+BAD_DT = 4  # Δt non-finite or <= 0: sample skipped entirely
+ACC_DISTURBED = 8  # inertial acceleration estimate large: accelerometer strongly down-weighted
+INIT = 16  # the sample that initialized the filter from the accelerometer
+
+
+class TiltParams(NamedTuple):
+    """One parameter set for all recordings (physically motivated; see docs/tilt.md).
+
+    Spectral densities, so that the filter behaves the same at any sampling rate:
+    ``gyr_noise`` gyro white noise (rad/s/√Hz, T's δ_c); ``bias_walk`` gyro bias random walk
+    (rad/s/√s, T's δ_drift, eq. 2); ``acc_noise`` accelerometer white noise entering the integrated
+    velocity (m/s²/√Hz, T's δ_a). Velocity prior: ``vel_m_s`` typical speed of the motion with
+    correlation time ``vel_corr_s``; ``vel_rest_m_s`` at rest. ``acc_missing_m_s2``: unknown
+    acceleration assumed while the accelerometer drops out; ``acc_tau_s``: low-pass of ``(|f|−g)²``
+    used for the ACC_DISTURBED flag. ``omega_missing_rad_s``: unknown rate assumed while the gyro
+    drops out.
+    ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. ``gyr_scale_noise`` (√s):
+    gyro errors that grow with the rate (scale factor, axis misalignment), process noise density
+    ``(k |ω|)²``. Rest (T eq. 1 with ω = 0, so the canal signal is the drift): when for
+    ``rest_min_s`` every block has gyro deviation below ``rest_gyr_rad_s`` and accelerometer
+    deviation below ``rest_acc_m_s2``, the block-mean gyro measures the bias, with the residual
+    motion ``rest_motion_rad_s`` as extra noise.
+    """
+
+    gyr_noise: float = 1e-3
+    bias_walk: float = 1e-4
+    acc_noise: float = 0.05
+    vel_m_s: float = 0.5
+    vel_corr_s: float = 1.0
+    vel_rest_m_s: float = 0.01
+    acc_missing_m_s2: float = 5.0
+    acc_tau_s: float = 0.5
+    gyr_scale_noise: float = 0.005
+    rest_gyr_rad_s: float = 0.035
+    rest_acc_m_s2: float = 0.5
+    rest_min_s: float = 1.5
+    rest_motion_rad_s: float = 0.002
+    omega_missing_rad_s: float = 1.0
+    acc_disturbed_m_s2: float = 1.0
+    g_m_s2: float = G_M_S2
+
+
+DEFAULT_PARAMS = TiltParams()
+DEFAULT_P0 = np.diag([0.05**2, 0.05**2, 0.1**2, 0.1**2, 0.01**2, 0.01**2, 0.01**2])
+BLOCK = 32  # samples per Kalman update (the canal signal is integrated in between)
+
+
+class TiltState(NamedTuple):
+    """Filter state. ``quat_E_S``, ``bias_S_rad_s`` and ``P`` hold at the start of the current
+    block; the ``blk_*`` fields accumulate the samples of the block (pre-integration)."""
+
+    quat_E_S: jax.Array  # (4,) wxyz at the block start
+    bias_S_rad_s: jax.Array  # (3,)
+    vel_E_m_s: jax.Array  # (2,) horizontal velocity in Earth (m/s), kept bounded
+    P: jax.Array  # (7, 7) covariance of (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z)
+    acc_dev_var: jax.Array  # () low-passed (|f| - g)² (m²/s⁴)
+    initialized: jax.Array  # () bool
+    blk_dquat: jax.Array  # (4,) raw gyro rotation since the block start
+    blk_tau: jax.Array  # () s integrated by a valid gyro in this block
+    blk_f: jax.Array  # (3,) Σ f (block-start sensor frame) Δt over valid accelerometer samples
+    blk_t_acc: jax.Array  # () Σ Δt over valid accelerometer samples
+    blk_dev2: jax.Array  # () Σ (|f| - g)² Δt
+    blk_w2: jax.Array  # () Σ |ω|² Δt
+    blk_t: jax.Array  # () Σ Δt (valid Δt)
+    blk_qmiss: jax.Array  # () Σ (ω_missing Δt)² over gyro dropouts
+    blk_gsum: jax.Array  # (3,) Σ gyr Δt over valid gyro samples
+    blk_asum: jax.Array  # (3,) Σ f Δt (sensor frame) over valid accelerometer samples
+    blk_a2: jax.Array  # () Σ |f|² Δt over valid accelerometer samples
+    rest_s: jax.Array  # () time at rest so far (s)
+    blk_count: jax.Array  # () int samples in the block
+
+
+class TiltOutput(NamedTuple):
+    roll_rad: jax.Array
+    pitch_rad: jax.Array
+    up_S: jax.Array  # (3,) unit vector "up" (opposite to gravity) in the sensor frame
+    quat_E_S: jax.Array  # (4,) wxyz, heading arbitrary
+    bias_S_rad_s: jax.Array  # (3,)
+    var: jax.Array  # (7,) variances of (δx, δy [rad²], ṽx, ṽy [m²/s²], b̃x, b̃y, b̃z [rad²/s²])
+    flags: jax.Array  # int32 bit set
+
+
+# --- small quaternion helpers, written out so that XLA fuses them (batched over leading axes) ---
+
+def _qmul(p, q):
+    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return jnp.stack([pw * qw - px * qx - py * qy - pz * qz,
+                      pw * qx + px * qw + py * qz - pz * qy,
+                      pw * qy - px * qz + py * qw + pz * qx,
+                      pw * qz + px * qy - py * qx + pz * qw], axis=-1)
+
+
+def _qexp(v):
+    """Quaternion of the rotation vector v (rad), batched; smooth near 0."""
+    th2 = jnp.sum(v * v, axis=-1)
+    small = th2 < 1e-12
+    th = jnp.sqrt(jnp.where(small, 1.0, th2))
+    k = jnp.where(small, 0.5 - th2 / 48.0, jnp.sin(0.5 * th) / th)
+    c = jnp.where(small, 1.0 - th2 / 8.0, jnp.cos(0.5 * th))
+    return jnp.concatenate([c[..., None], k[..., None] * v], axis=-1)
+
+
+def _qnormalize(q):
+    return q / jnp.sqrt(jnp.sum(q * q, axis=-1, keepdims=True))
+
+
+def _qrotate(q, v):
+    """R(q) v for unit q, batched."""
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * jnp.cross(u, v)
+    return v + w * t + jnp.cross(u, t)
+
+
+def _rotmat(q):
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return jnp.stack([
+        jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
+        jnp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)]),
+        jnp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]),
+    ])
+
+
+def quat_from_acc(acc_m_s2):
+    """Quaternion ``q_E_S`` with zero heading whose up axis matches the accelerometer direction
+    (the minimal rotation taking the measured specific-force direction to e3)."""
+    a = jnp.asarray(acc_m_s2, dtype=jnp.float64)
+    n = jnp.linalg.norm(a)
+    u = jnp.where(n > 0, a / jnp.where(n > 0, n, 1.0), jnp.array([0.0, 0.0, 1.0]))
+    w = 1.0 + u[2]
+    v = jnp.stack([u[1], -u[0], 0.0])
+    flip = w < 1e-9  # upside down: rotate by pi about x
+    q = jnp.where(flip, jnp.array([0.0, 1.0, 0.0, 0.0]), jnp.concatenate([w[None], v]))
+    return q / jnp.linalg.norm(q)
+
+
+def _zero_block():
+    z = jnp.array(0.0)
+    return dict(blk_dquat=jnp.array([1.0, 0.0, 0.0, 0.0]), blk_tau=z, blk_f=jnp.zeros(3),
+                blk_t_acc=z, blk_dev2=z, blk_w2=z, blk_t=z, blk_qmiss=z, blk_gsum=jnp.zeros(3),
+                blk_asum=jnp.zeros(3), blk_a2=z,
+                blk_count=jnp.array(0, dtype=jnp.int32))
+
+
+def init(x0=None, P0=None) -> TiltState:
+    """Initial state. ``x0 = (quat_E_S wxyz, bias_S rad/s)``, or None: then the first finite
+    accelerometer sample initializes the tilt (heading 0, zero bias, flag ``INIT``)."""
+    P0 = jnp.asarray(DEFAULT_P0 if P0 is None else P0, dtype=jnp.float64)
+    if P0.shape != (7, 7):
+        raise ValueError(f"P0 must be (7, 7) for (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z); got {P0.shape}")
+    if x0 is None:
+        q0, b0, initialized = jnp.array([1.0, 0.0, 0.0, 0.0]), jnp.zeros(3), jnp.array(False)
+    else:
+        q0 = _qnormalize(jnp.asarray(x0[0], dtype=jnp.float64))
+        b0 = jnp.asarray(x0[1], dtype=jnp.float64)
+        initialized = jnp.array(True)
+    return TiltState(q0, b0, jnp.zeros(2), P0, jnp.array(0.0), initialized, rest_s=jnp.array(0.0),
+                     **_zero_block())
+
+
+def _sample_masks(gyr, acc, dt):
+    dt_ok = jnp.isfinite(dt) & (dt > 0)
+    gyr_ok = jnp.all(jnp.isfinite(gyr), axis=-1) & dt_ok
+    acc_n2 = jnp.where(jnp.all(jnp.isfinite(acc), axis=-1), jnp.sum(acc * acc, axis=-1), 0.0)
+    acc_ok = dt_ok & (acc_n2 > 1e-6)
+    return dt_ok, gyr_ok, acc_ok, acc_n2
+
+
+def _kf_update(P, H, z, r):
+    """Kalman update of the error state for a linear measurement ``z = H x + n``, ``n ~ N(0, r I)``
+    (2 or 3 rows); Joseph form, symmetrized. Returns (dx, P)."""
+    m = H.shape[0]
+    PHt = P @ H.T
+    S = H @ PHt + r * jnp.eye(m)
+    if m == 2:
+        det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+        S_inv = jnp.stack([jnp.stack([S[1, 1], -S[0, 1]]), jnp.stack([-S[1, 0], S[0, 0]])]) / det
+    else:
+        S_inv = _inv3(S)
+    K = PHt @ S_inv
+    IKH = jnp.eye(P.shape[0]) - K @ H
+    P = IKH @ P @ IKH.T + r * (K @ K.T)
+    return K @ z, 0.5 * (P + P.T)
+
+
+_J = np.array([[0.0, 1.0], [-1.0, 0.0]])  # (δ × e3)_{x,y} = J δ
+_H_VEL = np.hstack([np.zeros((2, 2)), np.eye(2), np.zeros((2, 3))])
+_H_BIAS = np.hstack([np.zeros((3, 4)), np.eye(3)])
+
+
+def _block_update(state: TiltState, params: TiltParams):
+    """Kalman prediction over the block and the otolith updates (T eq. 7–13 in 3-D).
+    Returns (new state with empty block, disturbed flag)."""
+    p = params
+    g = p.g_m_s2
+    b = state.bias_S_rad_s
+    q0 = state.quat_E_S
+    q_end = _qnormalize(_qmul(_qmul(q0, state.blk_dquat), _qexp(-b * state.blk_tau)))
+    R = _rotmat(q_end)
+    T = state.blk_t
+    t_acc = state.blk_t_acc
+    has_acc = t_acc > 0
+    t_acc_s = jnp.where(has_acc, t_acc, 1.0)
+
+    # velocity prediction with the measured specific force rotated to Earth (block-start frame)
+    f_E_sum = _qrotate(q0, state.blk_f)  # Σ R f Δt
+    vel = state.vel_E_m_s + f_E_sum[:2]
+
+    # error-state prediction: δ̇ = −Π R b̃ ; ṽ̇ = g J δ ; ḃ = w_drift (T eq. 2, 7, 12)
+    A = -T * R[:2, :]
+    gJ = g * _J
+    F = jnp.eye(7)
+    F = F.at[:2, 4:].set(A)
+    F = F.at[2:4, :2].set(T * gJ)
+    F = F.at[2:4, 4:].set(0.5 * T * gJ @ A)
+    q_gyr = (p.gyr_noise**2 * state.blk_tau + p.gyr_scale_noise**2 * state.blk_w2
+             + state.blk_qmiss)
+    q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2
+    Q = jnp.diag(jnp.stack([q_gyr, q_gyr, q_vel, q_vel] + [p.bias_walk**2 * T] * 3))
+    P = F @ state.P @ F.T + Q
+
+    # size of the inertial acceleration seen by the norm (for the ACC_DISTURBED flag only)
+    dev2 = state.blk_dev2 / t_acc_s
+    alpha = 1.0 - jnp.exp(-t_acc / p.acc_tau_s)
+    acc_dev_var = jnp.where(has_acc, state.acc_dev_var + alpha * (dev2 - state.acc_dev_var),
+                            state.acc_dev_var)
+    disturbed = has_acc & (acc_dev_var > p.acc_disturbed_m_s2**2)
+
+    # rest detection: the canal signal is the drift alone (T eq. 1 with ω = 0)
+    tau = state.blk_tau
+    has_gyr = tau > 0
+    tau_s = jnp.where(has_gyr, tau, 1.0)
+    g_mean = state.blk_gsum / tau_s
+    g_var = jnp.maximum(state.blk_w2 / jnp.where(T > 0, T, 1.0) - g_mean @ g_mean, 0.0)
+    a_mean = state.blk_asum / t_acc_s
+    a_var = jnp.maximum(state.blk_a2 / t_acc_s - a_mean @ a_mean, 0.0)
+    gd = g_mean - b
+    quiet = (has_gyr & has_acc & (g_var < p.rest_gyr_rad_s**2) & (gd @ gd < p.rest_gyr_rad_s**2)
+             & (a_var < p.rest_acc_m_s2**2))
+    rest_s = jnp.where(quiet, state.rest_s + T, 0.0)
+    at_rest = rest_s >= p.rest_min_s
+
+    # otolith update: accelerations are short and periodic (T §I), so the velocity they produce
+    # stays small: pseudo-measurement 0 = v + n_v (n_v ~ 0 at rest). Since v integrates the
+    # specific force rotated by the estimate, its error grows as g J δ: this observes the tilt
+    # (T eq. 5) with the inertial part integrated out rather than taken as white noise.
+    s_vel = jnp.where(at_rest, p.vel_rest_m_s**2, p.vel_m_s**2) * p.vel_corr_s
+    dx1, P1 = _kf_update(P, _H_VEL, -vel, s_vel / t_acc_s)
+    dx = jnp.where(has_acc, dx1, 0.0)
+    P = jnp.where(has_acc, P1, P)
+    # rest: the block-mean gyro measures the bias
+    r_b = p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2
+    dx3, P3 = _kf_update(P, _H_BIAS, g_mean - (b + dx[4:]), r_b)
+    dx = dx + jnp.where(at_rest, dx3, 0.0)
+    P = jnp.where(at_rest, P3, P)
+
+    q_new = _qnormalize(_qmul(_qexp(jnp.stack([dx[0], dx[1], 0.0])), q_end))
+    new = state._replace(quat_E_S=q_new, bias_S_rad_s=b + dx[4:], vel_E_m_s=vel + dx[2:4], P=P,
+                         acc_dev_var=acc_dev_var, rest_s=rest_s, **_zero_block())
+    return new, disturbed
+
+
+def _inv3(S):
+    """Inverse of a symmetric positive definite 3x3 matrix by cofactors."""
+    a, b, c = S[0, 0], S[0, 1], S[0, 2]
+    d, e, f = S[1, 1], S[1, 2], S[2, 2]
+    cof = jnp.stack([jnp.stack([d * f - e * e, c * e - b * f, b * e - c * d]),
+                     jnp.stack([c * e - b * f, a * f - c * c, b * c - a * e]),
+                     jnp.stack([b * e - c * d, b * c - a * e, a * d - b * b])])
+    det = a * (d * f - e * e) + b * (c * e - b * f) + c * (b * e - c * d)
+    return cof / det
+
+
+def _outputs(quat, bias, P, flags) -> TiltOutput:
+    w, x, y, z = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
+    up = jnp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1)
+    roll = jnp.arctan2(up[..., 1], up[..., 2])
+    pitch = jnp.arctan2(-up[..., 0], jnp.sqrt(up[..., 1] ** 2 + up[..., 2] ** 2))
+    return TiltOutput(roll, pitch, up, quat, bias, jnp.diagonal(P, axis1=-2, axis2=-1), flags)
+
+
+def _flags(dt_ok, gyr_ok, acc_ok, init_now=False, disturbed=False):
+    f = (jnp.where(acc_ok | ~dt_ok, 0, ACC_MISSING) | jnp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
+         | jnp.where(dt_ok, 0, BAD_DT) | jnp.where(disturbed, ACC_DISTURBED, 0)
+         | jnp.where(init_now, INIT, 0))
+    return f.astype(jnp.int32)
+
+
+def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK):
+    """One sample: ``u`` gyro (3,) rad/s, ``y`` accelerometer (3,) m/s², ``dt`` s since the
+    previous sample. The gyro rotation and the accelerometer are pre-integrated, and every
+    ``block`` samples the Kalman prediction and update run. Returns ``(state, TiltOutput)``."""
+    p = params
+    gyr = jnp.asarray(u, dtype=jnp.float64)
+    acc = jnp.asarray(y, dtype=jnp.float64)
+    dt = jnp.asarray(dt, dtype=jnp.float64)
+    dt_ok, gyr_ok, acc_ok, acc_n2 = _sample_masks(gyr, acc, dt)
+    dts = jnp.where(dt_ok, dt, 0.0)
+    gyr0 = jnp.where(gyr_ok, gyr, 0.0)
+    acc0 = jnp.where(acc_ok, acc, 0.0)
+
+    # accumulate the sample into the block (pre-integration), branch-free
+    st = state
+    dq = _qmul(st.blk_dquat, _qexp(gyr0 * dts))
+    wa = jnp.where(acc_ok, dts, 0.0)
+    dev2 = (jnp.sqrt(acc_n2) - p.g_m_s2) ** 2
+    acc_state = st._replace(
+        blk_dquat=dq, blk_tau=st.blk_tau + jnp.where(gyr_ok, dts, 0.0),
+        blk_f=st.blk_f + _qrotate(dq, acc0) * wa, blk_t_acc=st.blk_t_acc + wa,
+        blk_dev2=st.blk_dev2 + dev2 * wa, blk_w2=st.blk_w2 + (gyr0 @ gyr0) * dts,
+        blk_t=st.blk_t + dts,
+        blk_qmiss=st.blk_qmiss + jnp.where(gyr_ok, 0.0, (p.omega_missing_rad_s * dts) ** 2),
+        blk_gsum=st.blk_gsum + gyr0 * dts, blk_asum=st.blk_asum + acc0 * wa,
+        blk_a2=st.blk_a2 + acc_n2 * wa, blk_count=st.blk_count + 1)
+    # before initialization: the first usable accelerometer sample sets the tilt
+    init_now = ~st.initialized & acc_ok
+    init_state = st._replace(quat_E_S=jnp.where(init_now, quat_from_acc(acc0), st.quat_E_S),
+                             initialized=init_now)
+    state = jax.tree_util.tree_map(lambda x, y: jnp.where(st.initialized, x, y), acc_state,
+                                   init_state)
+    state, disturbed = jax.lax.cond(state.initialized & (state.blk_count >= block),
+                                    lambda s: _block_update(s, p),
+                                    lambda s: (s, jnp.array(False)), state)
+    at_start = state.blk_count == 0
+    quat = jnp.where(at_start, state.quat_E_S, _qnormalize(_qmul(
+        _qmul(state.quat_E_S, state.blk_dquat), _qexp(-state.bias_S_rad_s * state.blk_tau))))
+    out = _outputs(quat, state.bias_S_rad_s, state.P,
+                   _flags(dt_ok, gyr_ok, acc_ok, init_now, disturbed))
+    return state, out
+
+
+step_jit = jax.jit(step, static_argnames=("block",))
+
+
+class Stepper(NamedTuple):
+    """Real-time form of :func:`step` (see :func:`make_step`): the state travels as one flat
+    float64 vector and the output as ``[roll, pitch, up(3), quat(4), bias(3), flags]``, so that a
+    call costs little more than JAX's dispatch."""
+
+    init: object  # () -> packed state
+    step: object  # (x, gyr(3,), acc(3,), dt) -> (x, out(13,))
+    unpack: object  # x -> TiltState
+
+
+def make_step(params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK, x0=None, P0=None
+              ) -> Stepper:
+    """A jitted per-sample step for Python loops (parameters baked in as constants)."""
+    template = init(x0, P0)
+    leaves, treedef = jax.tree_util.tree_flatten(template)
+    shapes = [np.shape(v) for v in leaves]
+    dtypes = [jnp.asarray(v).dtype for v in leaves]
+    sizes = [int(np.prod(sh)) for sh in shapes]
+
+    def pack(state):
+        return jnp.concatenate([jnp.ravel(jnp.asarray(v, dtype=jnp.float64))
+                                for v in jax.tree_util.tree_leaves(state)])
+
+    def unpack(x):
+        out, i = [], 0
+        for sh, dt, sz in zip(shapes, dtypes, sizes, strict=True):
+            out.append(jnp.reshape(x[i:i + sz], sh).astype(dt))
+            i += sz
+        return jax.tree_util.tree_unflatten(treedef, out)
+
+    @jax.jit
+    def fast_step(x, u, y, dt):
+        state, o = step(unpack(x), u, y, dt, params, block)
+        vec = jnp.concatenate([o.roll_rad[None], o.pitch_rad[None], o.up_S, o.quat_E_S,
+                               o.bias_S_rad_s, o.flags.astype(jnp.float64)[None]])
+        return pack(state), vec
+
+    x_init = np.asarray(pack(template))
+    return Stepper(lambda: jnp.asarray(x_init), fast_step, unpack)
+
+
+@partial(jax.jit, static_argnames=("block",))
+def scan(state: TiltState, us, ys, dts, params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK):
+    """:func:`step` over a recording under ``jax.lax.scan`` (sample by sample; the reference for
+    the faster, equivalent :func:`run`). ``us``, ``ys`` (N, 3), ``dts`` (N,)."""
+    def body(s, x):
+        return step(s, x[0], x[1], x[2], params, block)
+
+    return jax.lax.scan(body, state, (us, ys, dts))
+
+
+@partial(jax.jit, static_argnames=("block",))
+def _run_blocks(state: TiltState, gyr, acc, dt, params: TiltParams, block: int):
+    """Blocked run from a block boundary of an initialized state: per-sample work vectorized over
+    all blocks (pre-integration by an associative scan of quaternion products), then one
+    lax.scan over the blocks for the Kalman steps. Shapes (B, block, 3) and (B, block)."""
+    p = params
+    dt_ok, gyr_ok, acc_ok, acc_n2 = _sample_masks(gyr, acc, dt)
+    dts = jnp.where(dt_ok, dt, 0.0)
+    gyr0 = jnp.where(gyr_ok[..., None], gyr, 0.0)
+    acc0 = jnp.where(acc_ok[..., None], acc, 0.0)
+    e = _qexp(gyr0 * dts[..., None])
+    dq = jax.lax.associative_scan(_qmul, e, axis=1)
+    tau = jnp.cumsum(jnp.where(gyr_ok, dts, 0.0), axis=1)
+    wa = jnp.where(acc_ok, dts, 0.0)
+    f_sum = jnp.sum(_qrotate(dq, acc0) * wa[..., None], axis=1)
+    dev2 = (jnp.sqrt(acc_n2) - p.g_m_s2) ** 2
+    sums = dict(
+        blk_dquat=dq[:, -1], blk_tau=tau[:, -1], blk_f=f_sum, blk_t_acc=jnp.sum(wa, axis=1),
+        blk_dev2=jnp.sum(dev2 * wa, axis=1), blk_w2=jnp.sum(jnp.sum(gyr0 * gyr0, -1) * dts, axis=1),
+        blk_t=jnp.sum(dts, axis=1),
+        blk_qmiss=jnp.sum(jnp.where(gyr_ok, 0.0, (p.omega_missing_rad_s * dts) ** 2), axis=1),
+        blk_gsum=jnp.sum(gyr0 * dts[..., None], axis=1),
+        blk_asum=jnp.sum(acc0 * wa[..., None], axis=1),
+        blk_a2=jnp.sum(jnp.where(acc_ok, acc_n2, 0.0) * wa, axis=1),
+        blk_count=jnp.full(dt.shape[:1], block, dtype=jnp.int32))
+
+    def body(s, blk):
+        start = (s.quat_E_S, s.bias_S_rad_s, s.P)
+        s, disturbed = _block_update(s._replace(**blk), p)
+        return s, (start, s.quat_E_S, s.P, disturbed)
+
+    state, ((q0, b0, P0), q_end, P_end, disturbed) = jax.lax.scan(body, state, sums)
+    quat = _qnormalize(_qmul(_qmul(q0[:, None, :], dq), _qexp(-b0[:, None, :] * tau[..., None])))
+    quat = quat.at[:, -1].set(q_end)
+    dist = jnp.zeros(dt.shape, dtype=bool).at[:, -1].set(disturbed)
+    flags = _flags(dt_ok, gyr_ok, acc_ok, False, dist)
+    # per-block bias and variances: at the block start, and after the update (last sample)
+    b_end = jnp.concatenate([b0[1:], state.bias_S_rad_s[None]], axis=0)
+    return state, (quat, flags, b0, b_end, jnp.diagonal(P0, axis1=1, axis2=2),
+                   jnp.diagonal(P_end, axis1=1, axis2=2))
+
+
+def _expand_blocks(out, start, end, block):
+    """Per-sample copy of per-block values into ``out``: ``start`` on the block, ``end`` on its
+    last sample."""
+    m = out.shape[0]
+    nb = -(-m // block)
+    view = np.empty((nb * block,) + out.shape[1:])
+    view.reshape((nb, block) + out.shape[1:])[:] = start[:nb, None]
+    view[block - 1::block] = end[:nb]
+    out[:] = view[:m]
+
+
+CHUNK_BLOCKS = 256
+
+
+def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
+        state: TiltState | None = None, block: int = BLOCK, return_state: bool = False):
+    """Filter a whole recording: gyro (N, 3) rad/s, accelerometer (N, 3) m/s², ``dt_s`` a scalar
+    sampling period or (N,) per-sample steps (``dt_s[k]`` is the time from sample k−1 to k).
+    Returns a :class:`TiltOutput` of NumPy arrays (and the final state if ``return_state``;
+    a trailing partial block is closed, i.e. its update is applied). Gives the
+    outputs of :func:`step` applied sample by sample (to rounding), but vectorizes the per-sample
+    work and runs lax.scan over blocks only, in chunks of fixed shape (one compilation).
+
+    Example::
+
+        from verticality.estimators import tilt
+        out = tilt.run(gyr, acc, 1 / 285.7)
+        out.roll_rad, out.pitch_rad, out.up_S, out.bias_S_rad_s, out.flags
+    """
+    gyr = np.asarray(gyr_rad_s, dtype=np.float64)
+    acc = np.asarray(acc_m_s2, dtype=np.float64)
+    if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
+        raise ValueError(f"gyr and acc must both have shape (N, 3); got {gyr.shape}, {acc.shape}")
+    n = gyr.shape[0]
+    dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,)).copy()
+    if state is None:
+        state = init()
+    res = TiltOutput(np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 4)),
+                     np.zeros((n, 3)), np.zeros((n, 7)), np.zeros(n, dtype=np.int32))
+
+    def put(k0, o):
+        for dst, src in zip(res, o, strict=True):
+            dst[k0:k0 + len(src)] = np.asarray(src)
+
+    k = 0
+    if not bool(state.initialized):
+        # samples before the first usable accelerometer sample: no estimate yet (flagged); that
+        # sample initializes the tilt (as step does, without a scan of variable length)
+        dt_ok = np.isfinite(dts) & (dts > 0)
+        acc_fin = np.all(np.isfinite(acc), axis=1)
+        ok = dt_ok & acc_fin & (np.sum(np.where(acc_fin[:, None], acc, 0.0) ** 2, 1) > 1e-6)
+        k = int(np.argmax(ok)) + 1 if ok.any() else n
+        gyr_fin = np.all(np.isfinite(gyr), axis=1)
+        flags = (np.where(ok[:k] | ~dt_ok[:k], 0, ACC_MISSING)
+                 | np.where((gyr_fin & dt_ok)[:k] | ~dt_ok[:k], 0, GYR_MISSING)
+                 | np.where(dt_ok[:k], 0, BAD_DT)).astype(np.int32)
+        quat = np.tile(np.asarray(state.quat_E_S), (k, 1))
+        if ok.any():
+            q0 = quat_from_acc(acc[k - 1])
+            quat[-1] = np.asarray(q0)
+            flags[-1] |= INIT
+            state = state._replace(quat_E_S=q0, initialized=jnp.array(True))
+        put(0, _outputs_np(quat, np.tile(np.asarray(state.bias_S_rad_s), (k, 1)),
+                           np.tile(np.diagonal(np.asarray(state.P)), (k, 1)), flags))
+    if int(state.blk_count) != 0:  # finish the current block sample by sample
+        for j in range(k, min(n, k + block - int(state.blk_count))):
+            state, o = step_jit(state, gyr[j], acc[j], dts[j], params, block)
+            put(j, jax.tree_util.tree_map(lambda x: np.asarray(x)[None], o))
+            k = j + 1
+    chunk = CHUNK_BLOCKS * block
+    while k < n:
+        m = min(chunk, n - k)
+        if m == chunk:
+            g, a, d = gyr[k:k + m], acc[k:k + m], dts[k:k + m]
+        else:  # pad the last chunk with skipped samples (BAD_DT): one compiled shape
+            g = np.zeros((chunk, 3))
+            a = np.zeros((chunk, 3))
+            d = np.full(chunk, np.nan)
+            g[:m], a[:m], d[:m] = gyr[k:k + m], acc[k:k + m], dts[k:k + m]
+        state, (quat, flags, b0, b1, v0, v1) = _run_blocks(
+            state, g.reshape(-1, block, 3), a.reshape(-1, block, 3), d.reshape(-1, block), params,
+            block)
+        quat = np.asarray(quat).reshape(-1, 4)[:m]
+        sl = slice(k, k + m)
+        res.quat_E_S[sl] = quat
+        res.flags[sl] = np.asarray(flags).reshape(-1)[:m]
+        _expand_blocks(res.bias_S_rad_s[sl], np.asarray(b0), np.asarray(b1), block)
+        _expand_blocks(res.var[sl], np.asarray(v0), np.asarray(v1), block)
+        k += m
+    _angles_np(res)
+    return (res, state) if return_state else res
+
+
+def _angles_np(res: TiltOutput):
+    """Fill roll, pitch and up of ``res`` from its quaternions (in place)."""
+    q = res.quat_E_S
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    up = res.up_S
+    up[:, 0] = 2 * (x * z - w * y)
+    up[:, 1] = 2 * (y * z + w * x)
+    up[:, 2] = 1 - 2 * (x * x + y * y)
+    res.roll_rad[:] = np.arctan2(up[:, 1], up[:, 2])
+    res.pitch_rad[:] = np.arctan2(-up[:, 0], np.sqrt(up[:, 1] ** 2 + up[:, 2] ** 2))
+
+
+def _outputs_np(quat, bias, var, flags) -> TiltOutput:
+    """NumPy twin of :func:`_outputs` (host side of :func:`run`)."""
+    k = quat.shape[0]
+    res = TiltOutput(np.zeros(k), np.zeros(k), np.zeros((k, 3)), quat, bias, var, flags)
+    _angles_np(res)
+    return res

@@ -1,0 +1,129 @@
+"""BROAD recordings (HDF5) and the official BROAD inclination metric.
+
+BROAD: D. Laidig, M. Caruso, A. Cereatti, T. Seel, "BROAD — A Benchmark for Robust Inertial
+Orientation Estimation", Data 2021, 6(7), 72 (CC BY 4.0). Each file holds ``imu_gyr`` (N,3) rad/s,
+``imu_acc`` (N,3) m/s², ``imu_mag`` (N,3) µT in the sensor frame; ``opt_quat`` (N,4) scalar-first
+orientation of the IMU w.r.t. an East-North-Up frame (NaN rows during optical dropouts);
+``opt_pos`` (N,3) m; ``movement`` (N,) bool; attribute ``sampling_rate`` in Hz.
+
+Official metric (BROAD example code): error quaternion ``e = q_est ⊗ q_opt⁻¹``; inclination error
+``2·arccos(sqrt(e_w² + e_z²))``; RMS over the samples with ``movement`` true (NaN rows skipped).
+The heading of the estimate does not enter (a rotation of ``q_est`` about the vertical leaves
+``e_w² + e_z²`` unchanged), so 6D estimates need no heading alignment.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from verticality.errors import InputError
+
+REQUIRED = ("imu_gyr", "imu_acc", "opt_quat", "movement")
+
+
+class BroadTrial(NamedTuple):
+    name: str
+    gyr_rad_s: np.ndarray  # (N, 3)
+    acc_m_s2: np.ndarray  # (N, 3)
+    mag_uT: np.ndarray | None  # (N, 3) or None
+    quat_E_S_opt: np.ndarray  # (N, 4) wxyz, NaN rows during dropouts
+    movement: np.ndarray  # (N,) bool
+    sampling_rate_hz: float
+
+    @property
+    def dt_s(self) -> float:
+        return 1.0 / self.sampling_rate_hz
+
+    @property
+    def t_s(self) -> np.ndarray:
+        return np.arange(self.gyr_rad_s.shape[0]) / self.sampling_rate_hz
+
+
+def is_broad_file(path: Path) -> bool:
+    """True when ``path`` is an HDF5 file (by signature), whatever its extension."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(8) == b"\x89HDF\r\n\x1a\n"
+    except OSError:
+        return False
+
+
+def load_trial(path) -> BroadTrial:
+    """Read one BROAD-layout HDF5 file; missing datasets raise :class:`InputError`."""
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise InputError(f"{path}: not a readable HDF5 file ({exc})") from None
+    with f:
+        missing = [k for k in ("imu_gyr", "imu_acc") if k not in f]
+        if missing:
+            raise InputError(f"{path}: missing dataset(s) {', '.join(missing)} (BROAD layout expected)")
+        gyr = np.asarray(f["imu_gyr"], dtype=np.float64)
+        acc = np.asarray(f["imu_acc"], dtype=np.float64)
+        n = gyr.shape[0]
+        if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
+            raise InputError(f"{path}: imu_gyr and imu_acc must both have shape (N, 3), "
+                             f"got {gyr.shape} and {acc.shape}")
+        mag = np.asarray(f["imu_mag"], dtype=np.float64) if "imu_mag" in f else None
+        quat = (np.asarray(f["opt_quat"], dtype=np.float64) if "opt_quat" in f
+                else np.full((n, 4), np.nan))
+        movement = (np.asarray(f["movement"], dtype=bool) if "movement" in f
+                    else np.ones(n, dtype=bool))
+        if "sampling_rate" not in f.attrs:
+            raise InputError(f"{path}: attribute sampling_rate is missing (BROAD layout expected)")
+        rate = float(np.asarray(f.attrs["sampling_rate"]).reshape(-1)[0])
+    if not (np.isfinite(rate) and rate > 0):
+        raise InputError(f"{path}: sampling_rate must be a positive number, got {rate}")
+    if quat.shape != (n, 4) or movement.shape != (n,):
+        raise InputError(f"{path}: opt_quat must be (N, 4) and movement (N,) with N = {n}")
+    return BroadTrial(path.stem, gyr, acc, mag, quat, movement, rate)
+
+
+def list_trials(directory) -> list[Path]:
+    """The ``*.hdf5`` / ``*.h5`` files of a BROAD folder, sorted by name."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise InputError(f"{directory}: not a directory (expected a folder of BROAD .hdf5 files)")
+    files = sorted(p for p in directory.iterdir() if p.suffix.lower() in (".hdf5", ".h5"))
+    if not files:
+        raise InputError(f"{directory}: no .hdf5 files found")
+    return files
+
+
+def _quat_mul(p, q):
+    pw, px, py, pz = np.moveaxis(p, -1, 0)
+    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
+    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
+                     pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx,
+                     pw * qz + px * qy - py * qx + pz * qw], axis=-1)
+
+
+def inclination_error_deg(quat_est_wxyz, quat_ref_wxyz) -> np.ndarray:
+    """Official BROAD inclination error per sample (deg): ``e = q_est ⊗ q_ref⁻¹``,
+    ``2·arccos(sqrt(e_w² + e_z²))``. Quaternions are normalized first; NaN rows give NaN."""
+    qe = np.asarray(quat_est_wxyz, dtype=np.float64)
+    qr = np.asarray(quat_ref_wxyz, dtype=np.float64)
+    qe = qe / np.linalg.norm(qe, axis=-1, keepdims=True)
+    qr = qr / np.linalg.norm(qr, axis=-1, keepdims=True)
+    qr_inv = qr * np.array([1.0, -1.0, -1.0, -1.0])
+    e = _quat_mul(qe, qr_inv)
+    c = np.sqrt(e[..., 0] ** 2 + e[..., 3] ** 2)
+    return np.degrees(2.0 * np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+def inclination_rmse_deg(quat_est_wxyz, trial: BroadTrial) -> float:
+    """RMS of :func:`inclination_error_deg` over ``movement`` samples with a valid reference."""
+    err = inclination_error_deg(quat_est_wxyz, trial.quat_E_S_opt)
+    sel = trial.movement & np.isfinite(err)
+    if not np.any(sel):
+        raise InputError(f"{trial.name}: no movement samples with a valid optical reference")
+    return float(np.sqrt(np.mean(err[sel] ** 2)))

@@ -1,0 +1,208 @@
+"""IMU recordings in CSV: ``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z`` (s, rad/s, m/s²), and the
+estimate CSV ``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags`` written by
+``verticality estimate``.
+
+Unit checks: a recording whose accelerometer norm has a median near 1 looks like it is in g; a gyro
+looks like deg/s when it exceeds 35 rad/s (≈ 2000 deg/s, the largest common MEMS range) in more
+than 1 % of the samples, or when it turns the accelerometer direction ~57x faster than that
+direction actually turns (:func:`looks_like_deg_s`). Such data are refused with an
+:class:`InputError` unless the caller states the units (``gyr_units="deg/s"``, ``acc_units="g"``),
+which converts them. NaN cells are kept (the filter skips and flags them).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from verticality.errors import InputError
+
+IMU_COLUMNS = ("t", "gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z")
+ESTIMATE_COLUMNS = ("t", "roll_rad", "pitch_rad", "gx", "gy", "gz", "bias_x", "bias_y", "bias_z",
+                    "flags")
+G_M_S2 = 9.81
+GYR_UNITS = {"rad/s": 1.0, "deg/s": np.pi / 180.0}
+ACC_UNITS = {"m/s2": 1.0, "m/s^2": 1.0, "g": G_M_S2}
+MAX_PLAUSIBLE_RATE_RAD_S = 35.0  # ~2000 deg/s: the largest range of common MEMS gyros
+
+
+class ImuRecording(NamedTuple):
+    t_s: np.ndarray  # (N,)
+    gyr_rad_s: np.ndarray  # (N, 3)
+    acc_m_s2: np.ndarray  # (N, 3)
+
+    @property
+    def dt_s(self) -> np.ndarray:
+        """Per-sample steps: ``dt[k] = t[k] − t[k−1]``, the first one the median step."""
+        return dt_from_t(self.t_s)
+
+
+def dt_from_t(t_s) -> np.ndarray:
+    t = np.asarray(t_s, dtype=np.float64)
+    if t.size < 2:
+        return np.full(t.shape, np.nan)
+    d = np.diff(t)
+    first = np.nanmedian(d) if np.any(np.isfinite(d)) else np.nan
+    return np.concatenate([[first], d])
+
+
+def check_units(gyr, acc, *, gyr_units: str | None = None, acc_units: str | None = None,
+                source: str = "input", dt_s=None) -> tuple[np.ndarray, np.ndarray]:
+    """Convert to rad/s and m/s² when units are given; otherwise refuse data that look like deg/s
+    or g (one-line :class:`InputError` naming the fix)."""
+    gyr = np.asarray(gyr, dtype=np.float64)
+    acc = np.asarray(acc, dtype=np.float64)
+    if gyr_units is not None:
+        if gyr_units not in GYR_UNITS:
+            raise InputError(f"unknown gyro unit {gyr_units!r}; use one of {', '.join(GYR_UNITS)}")
+        gyr = gyr * GYR_UNITS[gyr_units]
+    if acc_units is not None:
+        if acc_units not in ACC_UNITS:
+            raise InputError(f"unknown accelerometer unit {acc_units!r}; use one of "
+                             f"{', '.join(ACC_UNITS)}")
+        acc = acc * ACC_UNITS[acc_units]
+    acc_norm = np.linalg.norm(acc, axis=1)
+    acc_norm = acc_norm[np.isfinite(acc_norm)]
+    if acc_norm.size == 0:
+        raise InputError(f"{source}: no finite accelerometer sample")
+    med = float(np.median(acc_norm))
+    if acc_units is None and 0.5 < med < 2.0:
+        raise InputError(f"{source}: accelerometer norm is about {med:.2f}: this looks like g, "
+                         "not m/s²; pass --units g (or acc_units='g') to convert")
+    if not 5.0 < med < 20.0:
+        raise InputError(f"{source}: median accelerometer norm {med:.3g} m/s² is not near "
+                         f"{G_M_S2}: wrong units or not a specific-force recording")
+    rate = np.abs(gyr[np.all(np.isfinite(gyr), axis=1)])
+    if gyr_units is None and rate.size and np.mean(rate > MAX_PLAUSIBLE_RATE_RAD_S) > 0.01:
+        raise InputError(f"{source}: gyro rates above {MAX_PLAUSIBLE_RATE_RAD_S:.0f} rad/s in "
+                         "more than 1% of samples: this looks like deg/s; pass --units deg/s "
+                         "(or gyr_units='deg/s') to convert")
+    if gyr_units is None and dt_s is not None and looks_like_deg_s(gyr, acc, dt_s):
+        raise InputError(f"{source}: the accelerometer direction turns as the gyro would in deg/s, "
+                         "not rad/s; pass --units deg/s (or gyr_units='deg/s') to convert")
+    return gyr, acc
+
+
+def _direction_residual(gyr, acc, dt, starts, w, scale):
+    """Median angle (rad) between the accelerometer direction after ``w`` samples and the one
+    predicted by turning the initial direction with ``scale × gyr`` (u̇ = u × ω)."""
+    u = acc[starts] / np.linalg.norm(acc[starts], axis=1, keepdims=True)
+    for j in range(w):
+        u = u + np.cross(u, scale * gyr[starts + j + 1]) * dt
+        u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    v = acc[starts + w] / np.linalg.norm(acc[starts + w], axis=1, keepdims=True)
+    return float(np.median(np.arccos(np.clip(np.sum(u * v, 1), -1.0, 1.0))))
+
+
+def looks_like_deg_s(gyr, acc, dt_s, window_s: float = 0.3) -> bool:
+    """True when the accelerometer direction is explained much better by the gyro read as deg/s
+    than as rad/s (model comparison over windows where the direction turns by > 3°)."""
+    dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
+    dt = float(np.nanmedian(dts)) if np.any(np.isfinite(dts)) else np.nan
+    n = gyr.shape[0]
+    if not np.isfinite(dt) or dt <= 0:
+        return False
+    w = max(2, int(round(window_s / dt)))
+    if n < 2 * w + 2:
+        return False
+    ok = np.all(np.isfinite(gyr), 1) & np.all(np.isfinite(acc), 1)
+    starts = np.arange(0, n - w - 1, max(1, w // 2))
+    good = np.array([ok[s:s + w + 1].all() for s in starts], dtype=bool)
+    starts = starts[good]
+    if starts.size == 0:
+        return False
+    a0 = acc[starts] / np.linalg.norm(acc[starts], axis=1, keepdims=True)
+    a1 = acc[starts + w] / np.linalg.norm(acc[starts + w], axis=1, keepdims=True)
+    turned = np.arccos(np.clip(np.sum(a0 * a1, 1), -1.0, 1.0)) > np.radians(3.0)
+    starts = starts[turned]
+    if starts.size < 5:
+        return False
+    e_rad = _direction_residual(gyr, acc, dt, starts, w, 1.0)
+    e_deg = _direction_residual(gyr, acc, dt, starts, w, np.pi / 180.0)
+    return e_deg < 0.5 * e_rad
+
+
+def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = None,
+                 ) -> ImuRecording:
+    """Read an IMU CSV with header ``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z`` (column order free,
+    extra columns ignored; empty or ``nan`` cells become NaN)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    with open(path, encoding="utf-8") as fh:
+        header = fh.readline().strip()
+    names = [c.strip() for c in header.split(",")]
+    missing = [c for c in IMU_COLUMNS if c not in names]
+    if missing:
+        raise InputError(f"{path}: missing column(s) {', '.join(missing)}; expected header "
+                         f"{','.join(IMU_COLUMNS)}")
+    try:
+        data = np.genfromtxt(path, delimiter=",", skip_header=1, dtype=np.float64,
+                             filling_values=np.nan, invalid_raise=True, ndmin=2)
+    except ValueError as exc:
+        raise InputError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
+    if data.size == 0:
+        raise InputError(f"{path}: no data rows")
+    if data.shape[1] != len(names):
+        raise InputError(f"{path}: {data.shape[1]} values per row but {len(names)} header columns")
+    col = {n: data[:, i] for i, n in enumerate(names)}
+    t = col["t"]
+    if not np.all(np.isfinite(t)):
+        raise InputError(f"{path}: column t has empty or non-numeric cells at rows "
+                         f"{(np.flatnonzero(~np.isfinite(t))[:5] + 2).tolist()}")
+    if np.any(np.diff(t) <= 0):
+        bad = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 3
+        raise InputError(f"{path}: time t must increase strictly (line {bad})")
+    gyr = np.stack([col["gyr_x"], col["gyr_y"], col["gyr_z"]], axis=1)
+    acc = np.stack([col["acc_x"], col["acc_y"], col["acc_z"]], axis=1)
+    gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=str(path),
+                           dt_s=dt_from_t(t))
+    return ImuRecording(t, gyr, acc)
+
+
+def write_imu_csv(path, rec: ImuRecording) -> Path:
+    path = Path(path)
+    data = np.column_stack([rec.t_s, rec.gyr_rad_s, rec.acc_m_s2])
+    np.savetxt(path, data, delimiter=",", header=",".join(IMU_COLUMNS), comments="", fmt="%.17g")
+    return path
+
+
+def write_estimate_csv(path, t_s, out) -> Path:
+    """Write a :class:`verticality.estimators.tilt.TiltOutput` (or any object with roll_rad,
+    pitch_rad, up_S, bias_S_rad_s, flags) as ``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,
+    flags``; ``(gx, gy, gz)`` is the unit gravity direction (down) in the sensor frame."""
+    path = Path(path)
+    grav = -np.asarray(out.up_S)
+    data = np.column_stack([np.asarray(t_s), np.asarray(out.roll_rad), np.asarray(out.pitch_rad),
+                            grav, np.asarray(out.bias_S_rad_s)])
+    lines = [",".join(ESTIMATE_COLUMNS)]
+    flags = np.asarray(out.flags).astype(int)
+    for row, f in zip(data, flags, strict=True):
+        lines.append(",".join(f"{v:.17g}" for v in row) + f",{f}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+class EstimateTable(NamedTuple):
+    t_s: np.ndarray
+    roll_rad: np.ndarray
+    pitch_rad: np.ndarray
+    gravity_S: np.ndarray  # (N, 3)
+    bias_S_rad_s: np.ndarray  # (N, 3)
+    flags: np.ndarray  # (N,) int
+
+
+def read_estimate_csv(path) -> EstimateTable:
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    with open(path, encoding="utf-8") as fh:
+        header = fh.readline().strip().split(",")
+    if tuple(header) != ESTIMATE_COLUMNS:
+        raise InputError(f"{path}: expected header {','.join(ESTIMATE_COLUMNS)}")
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return EstimateTable(data[:, 0], data[:, 1], data[:, 2], data[:, 3:6], data[:, 6:9],
+                         data[:, 9].astype(int))

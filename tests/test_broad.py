@@ -1,0 +1,107 @@
+"""BROAD reader, the official inclination metric, and `verticality evaluate broad` on a slice."""
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from verticality import cli, so3
+from verticality.errors import InputError
+from verticality.estimators import tilt
+from verticality.io import broad
+
+BROAD_DIR = Path(__file__).parents[2] / "shared" / "data" / "broad"
+TRIAL = "01_undisturbed_slow_rotation_A.hdf5"
+
+
+def _broad_dir() -> Path:
+    if not (BROAD_DIR / TRIAL).is_file():
+        pytest.fail(f"BROAD data not found: expected {BROAD_DIR / TRIAL} (the shared/data/broad "
+                    "folder beside the repository clone)")
+    return BROAD_DIR
+
+
+def _q(axis, deg):
+    return np.asarray(so3.quat_exp(np.radians(deg) * np.asarray(axis, dtype=float)))
+
+
+def test_inclination_error_hand_computed():
+    ident = np.array([1.0, 0, 0, 0])
+    # pure tilt of 10° about x: e = q_est, w = cos 5°, z = 0 -> 2 acos(cos 5°) = 10°
+    assert broad.inclination_error_deg(_q([1, 0, 0], 10.0), ident) == pytest.approx(10.0, abs=1e-9)
+    # pure heading error does not count
+    assert broad.inclination_error_deg(_q([0, 0, 1], 70.0), ident) == pytest.approx(0.0, abs=1e-6)
+    # heading 40° after a 10° tilt about y, against the same tilt: e = q_z(40): 0°
+    q_ref = _q([0, 1, 0], 10.0)
+    q_est = np.asarray(so3.quat_multiply(_q([0, 0, 1], 40.0), q_ref))
+    assert broad.inclination_error_deg(q_est, q_ref) == pytest.approx(0.0, abs=1e-6)
+    # e = q_z(30) ⊗ q_x(6): sqrt(w² + z²) = cos 3° -> 6°
+    q_est = np.asarray(so3.quat_multiply(so3.quat_multiply(_q([0, 0, 1], 30.0), _q([1, 0, 0], 6.0)),
+                                         q_ref))
+    assert broad.inclination_error_deg(q_est, q_ref) == pytest.approx(6.0, abs=1e-9)
+
+
+def _write_trial(path, n=400, rate=100.0, quat_est_err_deg=None):
+    rng = np.random.default_rng(0)
+    with h5py.File(path, "w") as f:
+        f["imu_gyr"] = rng.normal(0, 1e-3, (n, 3))
+        f["imu_acc"] = np.tile([0.0, 0.0, 9.81], (n, 1)) + rng.normal(0, 0.02, (n, 3))
+        quat = np.tile([1.0, 0, 0, 0], (n, 1))
+        quat[5:10] = np.nan
+        f["opt_quat"] = quat
+        mv = np.zeros(n, bool)
+        mv[n // 2:] = True
+        f["movement"] = mv
+        f.attrs["sampling_rate"] = rate
+
+
+def test_rmse_uses_movement_and_skips_nan_rows(tmp_path):
+    p = tmp_path / "t.hdf5"
+    _write_trial(p)
+    trial = broad.load_trial(p)
+    n = trial.gyr_rad_s.shape[0]
+    q_est = np.tile([1.0, 0, 0, 0], (n, 1))
+    q_est[n // 2: n // 2 + 100] = _q([1, 0, 0], 4.0)  # 100 of the 200 movement samples 4° off
+    q_est[: n // 2] = _q([0, 1, 0], 30.0)  # outside movement: ignored
+    assert broad.inclination_rmse_deg(q_est, trial) == pytest.approx(np.sqrt(16 / 2), rel=1e-9)
+    trial_nan = trial._replace(quat_E_S_opt=np.where(np.arange(n)[:, None] >= n // 2 + 100,
+                                                     np.nan, trial.quat_E_S_opt))
+    assert broad.inclination_rmse_deg(q_est, trial_nan) == pytest.approx(4.0, rel=1e-9)
+
+
+def test_reader_errors(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        broad.load_trial(tmp_path / "missing.hdf5")
+    p = tmp_path / "x.hdf5"
+    with h5py.File(p, "w") as f:
+        f["imu_gyr"] = np.zeros((3, 3))
+    with pytest.raises(InputError, match="imu_acc"):
+        broad.load_trial(p)
+    with pytest.raises(InputError, match="not a directory"):
+        broad.list_trials(tmp_path / "missing_dir")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match="no .hdf5"):
+        broad.list_trials(tmp_path / "empty")
+
+
+def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
+    """A 45 s slice (rest, then motion) of one shared trial: our filter's official inclination
+    RMSE stays under 1°, and `evaluate broad --json` reports it in the contract's shape."""
+    src = _broad_dir() / TRIAL
+    n = 13000
+    with h5py.File(src, "r") as f, h5py.File(tmp_path / "slice.hdf5", "w") as g:
+        for key in ("imu_gyr", "imu_acc", "opt_quat", "movement"):
+            g[key] = f[key][:n]
+        g.attrs["sampling_rate"] = f.attrs["sampling_rate"]
+    trial = broad.load_trial(tmp_path / "slice.hdf5")
+    assert trial.movement.sum() > 2000
+    out = tilt.run(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+    rmse = broad.inclination_rmse_deg(out.quat_E_S, trial)
+    assert rmse < 1.0
+    assert cli.main(["evaluate", "broad", str(tmp_path), "--json", "--filters", "verticality"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert set(res) == {"trials", "mean"}
+    assert res["trials"]["slice"]["verticality"] == pytest.approx(rmse, rel=1e-9)
+    assert res["mean"]["verticality"] == pytest.approx(rmse, rel=1e-9)

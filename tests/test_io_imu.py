@@ -1,0 +1,93 @@
+"""IMU CSV in/out, unit checks, and `verticality estimate` round-tripping through io."""
+
+import numpy as np
+import pytest
+
+from verticality import cli, so3
+from verticality.errors import InputError
+from verticality.estimators import tilt
+from verticality.io import imu
+
+G = 9.81
+
+
+def _rotating_recording(n=1500, dt=0.01, seed=0):
+    """A tilted sensor swinging about its x axis (±40°, 0.5 Hz): gyro in rad/s, acc in m/s²."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    angle = np.radians(40.0) * np.sin(np.pi * t)
+    rate = np.radians(40.0) * np.pi * np.cos(np.pi * t)
+    R0 = np.asarray(so3.rot_y(np.radians(15.0)))
+    R = np.einsum("ij,njk->nik", R0, np.asarray(so3.exp(angle[:, None] * np.array([1.0, 0, 0]))))
+    acc = G * R[:, 2, :] + rng.normal(0, 0.02, (n, 3))
+    gyr = np.column_stack([rate, np.zeros(n), np.zeros(n)]) + rng.normal(0, 1e-3, (n, 3))
+    return imu.ImuRecording(t, gyr, acc)
+
+
+def test_csv_round_trip(tmp_path):
+    rec = _rotating_recording(n=200)
+    rec.acc_m_s2[10] = np.nan
+    path = imu.write_imu_csv(tmp_path / "rec.csv", rec)
+    back = imu.read_imu_csv(path)
+    np.testing.assert_array_equal(back.t_s, rec.t_s)
+    np.testing.assert_array_equal(back.gyr_rad_s, rec.gyr_rad_s)
+    np.testing.assert_array_equal(np.isnan(back.acc_m_s2), np.isnan(rec.acc_m_s2))
+    np.testing.assert_allclose(back.dt_s, 0.01, rtol=1e-9)
+
+
+def test_units_g_and_deg_s_are_refused_unless_stated():
+    rec = _rotating_recording()
+    with pytest.raises(InputError, match="looks like g"):
+        imu.check_units(rec.gyr_rad_s, rec.acc_m_s2 / G)
+    with pytest.raises(InputError, match="deg/s"):
+        imu.check_units(np.degrees(rec.gyr_rad_s), rec.acc_m_s2, dt_s=0.01)
+    gyr, acc = imu.check_units(np.degrees(rec.gyr_rad_s), rec.acc_m_s2 / G, gyr_units="deg/s",
+                               acc_units="g", dt_s=0.01)
+    np.testing.assert_allclose(gyr, rec.gyr_rad_s, rtol=1e-12)
+    np.testing.assert_allclose(acc, rec.acc_m_s2, rtol=1e-12)
+    # SI data pass untouched
+    gyr, acc = imu.check_units(rec.gyr_rad_s, rec.acc_m_s2, dt_s=0.01)
+    np.testing.assert_array_equal(gyr, rec.gyr_rad_s)
+    assert not imu.looks_like_deg_s(rec.gyr_rad_s, rec.acc_m_s2, 0.01)
+    with pytest.raises(InputError, match="unknown gyro unit"):
+        imu.check_units(rec.gyr_rad_s, rec.acc_m_s2, gyr_units="rpm")
+
+
+def test_bad_csv_gives_one_line_errors(tmp_path):
+    p = tmp_path / "bad.csv"
+    p.write_text("t,gyr_x,gyr_y,acc_x,acc_y,acc_z\n0,0,0,0,0,9.81\n")
+    with pytest.raises(InputError, match="missing column"):
+        imu.read_imu_csv(p)
+    p.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n0,0,0,0,0,0,9.81\n0,0,0,0,0,0,9.81\n")
+    with pytest.raises(InputError, match="increase"):
+        imu.read_imu_csv(p)
+    with pytest.raises(InputError, match="no such file"):
+        imu.read_imu_csv(tmp_path / "nope.csv")
+
+
+def test_estimate_cli_round_trips_through_io(tmp_path, capsys):
+    rec = _rotating_recording()
+    rec.acc_m_s2[100:110] = np.nan
+    src = imu.write_imu_csv(tmp_path / "rec.csv", rec)
+    out_csv = tmp_path / "est.csv"
+    png = tmp_path / "est.png"
+    assert cli.main(["estimate", str(src), "--out", str(out_csv), "--plot", str(png)]) == 0
+    table = imu.read_estimate_csv(out_csv)
+    ref = tilt.run(rec.gyr_rad_s, rec.acc_m_s2, imu.dt_from_t(rec.t_s))
+    np.testing.assert_allclose(table.t_s, rec.t_s, rtol=1e-15)
+    np.testing.assert_allclose(table.roll_rad, ref.roll_rad, atol=1e-12)
+    np.testing.assert_allclose(table.pitch_rad, ref.pitch_rad, atol=1e-12)
+    np.testing.assert_allclose(table.gravity_S, -ref.up_S, atol=1e-12)
+    np.testing.assert_allclose(table.bias_S_rad_s, ref.bias_S_rad_s, atol=1e-15)
+    np.testing.assert_array_equal(table.flags, ref.flags)
+    assert np.all(table.flags[100:110] & tilt.ACC_MISSING)
+    np.testing.assert_allclose(np.linalg.norm(table.gravity_S, axis=1), 1.0, atol=1e-12)
+    assert png.stat().st_size > 10_000
+    # unit mistake: one line on stderr, exit status 2, unless --units says so
+    g_csv = imu.write_imu_csv(tmp_path / "g.csv", rec._replace(acc_m_s2=rec.acc_m_s2 / G))
+    assert cli.main(["estimate", str(g_csv), "--out", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "looks like g" in err and len(err.strip().splitlines()) == 1
+    assert cli.main(["estimate", str(g_csv), "--out", str(tmp_path / "x.csv"), "--units", "g"]) == 0
+    np.testing.assert_allclose(imu.read_estimate_csv(tmp_path / "x.csv").roll_rad,
+                               ref.roll_rad, atol=1e-9)
