@@ -1,0 +1,154 @@
+"""Head-motion files (MOTION.csv) in, otolith responses (OUT.csv) out.
+
+MOTION.csv (issue 2 item 9): a header row, then one row per sample with the columns
+
+    t            s, strictly increasing
+    qw,qx,qy,qz  q_I_H, scalar first (rotates head vectors into frame I), unit norm
+    wx,wy,wz     head angular velocity w.r.t. I, head frame, rad/s
+    ax,ay,az     linear acceleration of the head centre in frame I, m/s², gravity NOT included
+
+Other columns are ignored; column order is free. A bad file raises
+:class:`verticality.errors.InputError` with one line naming the line number and column.
+
+OUT.csv: ``t,sx,sy,sz,phi_x,phi_y`` (s_H: unit vector from pivot to mass, head frame; the otolith
+angles of F 2.8–2.9, rad); for several pendulums the same columns with a suffix per pendulum
+(``_left``, ``_right`` for the lateral model).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from verticality.errors import InputError
+
+MOTION_COLUMNS = ("t", "qw", "qx", "qy", "qz", "wx", "wy", "wz", "ax", "ay", "az")
+QUATERNION_NORM_TOL = 1e-3
+"""|‖q‖ − 1| above this is refused (rounding to 6 significant digits stays far below it)."""
+
+
+class MotionRecord(NamedTuple):
+    t_s: np.ndarray  # (N,)
+    q_I_H_wxyz: np.ndarray  # (N, 4), normalized
+    omega_H_rad_s: np.ndarray  # (N, 3)
+    a_I_m_s2: np.ndarray  # (N, 3)
+
+
+def read_motion_csv(path) -> MotionRecord:
+    """Read and validate a MOTION.csv. Errors name the data row (from 1) and the file line (the
+    header is line 1) and the column."""
+    path = Path(path)
+    try:
+        fh = path.open(newline="")
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror}") from None
+    with fh:
+        reader = csv.reader(fh)
+        try:
+            header = next(reader)
+        except StopIteration:
+            raise InputError(f"{path}: empty file (expected a header row)") from None
+        except csv.Error as exc:
+            raise InputError(f"{path}: line 1: {exc}") from None
+        names = [h.strip() for h in header]
+        missing = [c for c in MOTION_COLUMNS if c not in names]
+        if missing:
+            raise InputError(f"{path}: missing column(s) {', '.join(missing)} in the header "
+                             f"(line 1); expected {','.join(MOTION_COLUMNS)}")
+        index = {c: names.index(c) for c in MOTION_COLUMNS}
+        rows = []
+        try:
+            for line_no, row in enumerate(reader, start=2):
+                if not row or all(not cell.strip() for cell in row):
+                    continue  # blank line
+                values = []
+                for c in MOTION_COLUMNS:
+                    j = index[c]
+                    if j >= len(row) or not row[j].strip():
+                        raise InputError(f"{path}: {_where(line_no)}, column {c}: missing value")
+                    cell = row[j].strip()
+                    try:
+                        v = float(cell)
+                    except ValueError:
+                        raise InputError(
+                            f"{path}: {_where(line_no)}, column {c}: not a number: {cell!r}") from None
+                    if not math.isfinite(v):
+                        raise InputError(f"{path}: {_where(line_no)}, column {c}: {cell} is not finite")
+                    values.append(v)
+                rows.append((line_no, values))
+        except csv.Error as exc:
+            raise InputError(f"{path}: line {reader.line_num}: {exc}") from None
+    if not rows:
+        raise InputError(f"{path}: no data rows after the header")
+    lines = np.array([r[0] for r in rows])
+    data = np.array([r[1] for r in rows], dtype=float)
+    t = data[:, 0]
+    bad = np.nonzero(np.diff(t) <= 0.0)[0]
+    if bad.size:
+        i = bad[0] + 1
+        raise InputError(f"{path}: {_where(lines[i])}, column t: time {float(t[i])!r} does not increase "
+                         f"(previous row has t = {float(t[i - 1])!r})")
+    q = data[:, 1:5]
+    norm = np.linalg.norm(q, axis=1)
+    bad = np.nonzero(np.abs(norm - 1.0) > QUATERNION_NORM_TOL)[0]
+    if bad.size:
+        i = bad[0]
+        raise InputError(f"{path}: {_where(lines[i])}, columns qw,qx,qy,qz: quaternion norm "
+                         f"{norm[i]:.6g} is not 1 (tolerance {QUATERNION_NORM_TOL:g})")
+    return MotionRecord(t, q / norm[:, None], data[:, 5:8], data[:, 8:11])
+
+
+def _where(line_no) -> str:
+    """'row k (line n)': data rows count from 1, lines from the header (line 1)."""
+    return f"row {int(line_no) - 1} (line {int(line_no)})"
+
+
+def write_motion_csv(path, record: MotionRecord) -> Path:
+    """Write a MOTION.csv (17 significant digits: the file reads back exactly)."""
+    path = Path(path)
+    data = np.column_stack([record.t_s, record.q_I_H_wxyz, record.omega_H_rad_s, record.a_I_m_s2])
+    _write(path, list(MOTION_COLUMNS), data)
+    return path
+
+
+def otolith_columns(suffixes=("",)) -> list[str]:
+    cols = ["t"]
+    for sfx in suffixes:
+        cols += [f"{c}{sfx}" for c in ("sx", "sy", "sz", "phi_x", "phi_y")]
+    return cols
+
+
+def write_otolith_csv(path, t_s, s_H, phi_rad, suffixes=("",)) -> Path:
+    """Write OUT.csv. ``s_H`` (N, P, 3), ``phi_rad`` (N, P, 2) for P pendulums named by ``suffixes``."""
+    path = Path(path)
+    s_H = np.asarray(s_H, float)
+    phi = np.asarray(phi_rad, float)
+    blocks = [np.asarray(t_s, float)[:, None]]
+    for k in range(len(suffixes)):
+        blocks += [s_H[:, k, :], phi[:, k, :]]
+    _write(path, otolith_columns(suffixes), np.concatenate(blocks, axis=1))
+    return path
+
+
+def read_otolith_csv(path) -> dict[str, np.ndarray]:
+    """OUT.csv back as {column: array} (for tests and scripts)."""
+    with Path(path).open(newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader)
+        data = np.array([[float(v) for v in row] for row in reader if row], dtype=float)
+    return {name: data[:, j] for j, name in enumerate(header)}
+
+
+def _write(path: Path, header: list[str], data: np.ndarray) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("w", newline="") as fh:
+            fh.write(",".join(header) + "\n")
+            # repr: the shortest text that reads back to the same float64
+            fh.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror}") from None

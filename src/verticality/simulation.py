@@ -1,0 +1,574 @@
+"""Closed-loop simulator: trunk trajectory → head on the gimbal → otolith pendulum(s) → sensors →
+estimator → controller → motors (P13 §3 and §5; REPRODUCTION.md `ekf-impact`, `ekf-jump`).
+
+Three clocks, each an integer multiple of the one below::
+
+    plant       fixed-step RK4, dt_plant_s (1 ms)          state: gimbal (θ, θ̇) + pendulum(s)
+    control     every dt_control_s (1 ms)                  m = controller(R̂_IH, θ, θ̇), held (ZOH)
+    estimator   every dt_estimator_s (20 ms)               y measured, estimator.step(u, y, dt)
+
+One run is one jitted ``lax.scan`` over estimator ticks, with a scan over control ticks inside and a
+scan over plant steps inside that. Batches of runs are ``jax.vmap`` of the same function over keys,
+plant parameters and initial estimator states (:func:`simulate_batch`).
+
+Conditions (static): ``"fixed"`` — the head is rigid on the trunk (P13: ᵀR_H = I), the gimbal is
+locked at θ = 0 and no controller runs; ``"stabilized"`` — the gimbal's joint dynamics
+(:func:`verticality.models.gimbal.joint_acceleration`) under the motor torques of the controller.
+
+Plug-in API
+-----------
+*Estimator* (:class:`Estimator`): any object with
+
+    step(state, u, y, dt) -> (state, out)       the common estimator API (DESIGN.md)
+    R_I_H(state) -> (3, 3)                      the head-orientation estimate the controller uses
+
+called once per estimator tick t_k (k ≥ 1) with
+
+    u  (u_blocks, 6)   rows (a_I (3), τ_H (3)): the head centre's linear acceleration in frame I
+                       (gravity excluded) and the total torque on the head in frame H
+                       (:func:`gimbal.head_torque_total`: motors plus gimbal constraint, the torque
+                       that drives the free-head model of F 2.3), each row the exact (RK4-quadrature)
+                       mean over one of ``u_blocks`` equal sub-intervals of (t_{k−1}, t_k];
+    y  (2·P + 3,)      the P otolith pendulums' angles (φ_x, φ_y) of F 2.8–2.9, each with white noise
+                       σ = ``noise.otolith_std_rad``, then the gyro (ω_H + bias + noise), at t_k;
+    dt                 dt_estimator_s.
+
+``verticality.estimators.ekf.medial_filter`` fits this directly::
+
+    filt = ekf.medial_filter(P13_EKF_PENDULUM, P13_EKF_HEAD)
+    est = Estimator(step=filt.step, R_I_H=lambda s: ekf.head_orientation(s.x))
+    run = make_simulator(trajectories.impact(), SimConfig(condition="stabilized"),
+                         estimator=est, controller=p13_controller())
+    result = run(key, PlantParams(), NoiseParams(), filt.init(x0, P0))
+
+``estimator=None`` feeds the controller the true R_IH at every control tick (and the record's
+estimate is the truth).
+
+*Controller*: ``controller(R_I_H_est, theta_rad, thetadot_rad_s) -> motor torques (2,)``; the
+estimate is the latest one (held between estimator ticks), the joint angles and rates are measured
+(the encoders, exact) at each control tick. :func:`p13_controller` is P13 §3's joint-space PD
+(k_p = 32 N·m/rad, k_d = 5 N·m·s/rad, θ_d = Λ⁻¹ of the upright head for R̂_IT = R̂_IH Λ(θ)ᵀ).
+
+Records (:class:`Record`, leading axis = estimator ticks t_1 … t_K, plus the optional per-control-tick
+:class:`ControlRecord`) hold the truth, the estimate, measurements and inputs, and the tilt error of
+REPRODUCTION.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from verticality import so3
+from verticality.models import gimbal, pendulum
+from verticality.models.gimbal import GimbalState
+from verticality.models.kinematics import RigidMotion
+from verticality.params import (
+    LATERAL_R_M,
+    P13_HEAD,
+    P13_KD_NMS_RAD,
+    P13_KP_NM_RAD,
+    P13_PENDULUM,
+    HeadParams,
+    PendulumParams,
+)
+from verticality.sensors import GyroParams
+
+CONDITIONS = ("fixed", "stabilized")
+
+
+class SimConfig(NamedTuple):
+    """Static settings (a change recompiles)."""
+
+    duration_s: float = 10.0
+    condition: str = "stabilized"
+    dt_plant_s: float = 1e-3
+    dt_control_s: float = 1e-3
+    dt_estimator_s: float = 0.02
+    u_blocks: int = 1  # sub-interval means of u handed to the estimator per tick
+    record_control: bool = False  # also record the truth at every control tick
+
+
+class PlantParams(NamedTuple):
+    """Physical parameters of the plant (a pytree: batchable with vmap)."""
+
+    head: HeadParams = P13_HEAD
+    pendulums: tuple = (P13_PENDULUM,)  # medial by default; see lateral_pendulums()
+
+
+class NoiseParams(NamedTuple):
+    """Sensor noise (P13 §5: σ = 0.02 on the two inclinometer angles and the three gyro rates)."""
+
+    otolith_std_rad: float = 0.02
+    gyro: GyroParams = GyroParams(noise_std_rad_s=0.02, bias_rw_q_rad2_s3=0.0)
+
+
+DEFAULT_PARAMS = PlantParams()
+DEFAULT_NOISE = NoiseParams()
+
+
+def noiseless() -> NoiseParams:
+    return NoiseParams(otolith_std_rad=0.0, gyro=GyroParams(0.0, 0.0))
+
+
+def lateral_pendulums(p: PendulumParams = P13_PENDULUM, r_m: float = LATERAL_R_M) -> tuple:
+    """The lateral model's two pendulums (F 2.12): pivots at ±r along the head's y (left, right)."""
+    p = p.resolved()
+    return (p._replace(pivot_H_m=jnp.array([0.0, r_m, 0.0])),
+            p._replace(pivot_H_m=jnp.array([0.0, -r_m, 0.0])))
+
+
+class Estimator(NamedTuple):
+    """Adapter for any estimator with the common API (see the module docstring)."""
+
+    step: Callable  # (state, u (u_blocks, 6), y (2P+3,), dt) -> (state, out)
+    R_I_H: Callable  # state -> (3, 3)
+
+
+class PlantState(NamedTuple):
+    gimbal: GimbalState
+    pendulums: tuple  # of PendulumState
+
+
+class Record(NamedTuple):
+    """Per estimator tick (leading axis), at t_k = k · dt_estimator_s, k = 1 … K."""
+
+    t_s: jnp.ndarray
+    R_I_H: jnp.ndarray  # true head orientation (K, 3, 3)
+    R_I_T: jnp.ndarray  # trunk orientation
+    R_I_H_est: jnp.ndarray  # the estimate after the tick's update (truth if no estimator)
+    tilt_error_deg: jnp.ndarray  # REPRODUCTION.md tilt error of R_I_H_est
+    theta_rad: jnp.ndarray  # (K, 2) joint angles
+    thetadot_rad_s: jnp.ndarray
+    otolith_rad: jnp.ndarray  # (K, P, 2) true (noise-free) otolith angles
+    y: jnp.ndarray  # (K, 2P+3) the measurements handed to the estimator
+    u: jnp.ndarray  # (K, u_blocks, 6) the inputs handed to the estimator
+    motor_torque_Nm: jnp.ndarray  # (K, 2) last motor torque of the interval
+    estimator_out: Any  # the estimator's ``out`` pytree (None without estimator)
+
+
+class ControlRecord(NamedTuple):
+    """Per control tick (leading axis), at the *start* of each control interval."""
+
+    t_s: jnp.ndarray
+    R_I_H: jnp.ndarray
+    R_I_H_est: jnp.ndarray  # the held estimate the controller used
+    tilt_error_deg: jnp.ndarray
+    theta_rad: jnp.ndarray
+    otolith_rad: jnp.ndarray
+    motor_torque_Nm: jnp.ndarray
+
+
+class SimResult(NamedTuple):
+    record: Record
+    control: ControlRecord | None
+    final_plant: PlantState
+    final_estimator: Any
+
+
+# ----------------------------------------------------------------------------------------------
+# Controllers
+# ----------------------------------------------------------------------------------------------
+
+
+def p13_controller(kp: float = P13_KP_NM_RAD, kd: float = P13_KD_NMS_RAD) -> Callable:
+    """P13 §3 joint-space PD (via :mod:`verticality.control`): θ_d = Λ⁻¹ of the upright head for
+    the trunk estimate R̂_IT = R̂_IH Λ(θ)ᵀ, m = k_p (θ_d − θ) − k_d θ̇."""
+    from verticality import control
+
+    def controller(R_I_H_est, theta_rad, thetadot_rad_s):
+        R_I_T_est = control.trunk_orientation_estimate(R_I_H_est, theta_rad)
+        return control.joint_space_pd(theta_rad, thetadot_rad_s, R_I_T_est, kp, kd)
+
+    return controller
+
+
+# ----------------------------------------------------------------------------------------------
+# Plant
+# ----------------------------------------------------------------------------------------------
+
+
+def _solve_2x2(M, b):
+    """M⁻¹ b for a 2×2 matrix by Cramer's rule (M is the joint-space inertia, SPD: det > 0).
+
+    Inside the 1 ms loop a LAPACK call costs ~10× the rest of the gimbal's dynamics."""
+    det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    return jnp.stack([M[1, 1] * b[0] - M[0, 1] * b[1], M[0, 0] * b[1] - M[1, 0] * b[0]]) / det
+
+
+def Lambda_closed_form(theta_rad):
+    """Λ(θ1, θ2) = Ry(θ1) Rx(θ2) entry by entry (equal to :func:`gimbal.Lambda`, tested)."""
+    c1, s1 = jnp.cos(theta_rad[0]), jnp.sin(theta_rad[0])
+    c2, s2 = jnp.cos(theta_rad[1]), jnp.sin(theta_rad[1])
+    z = jnp.zeros_like(c1)
+    return jnp.stack([jnp.stack([c1, s1 * s2, s1 * c2]),
+                      jnp.stack([z, c2, -s2]),
+                      jnp.stack([-s1, c1 * s2, c1 * c2])])
+
+
+def body_jacobian_closed_form(theta_rad):
+    """E(θ) of Λ = Ry(θ1)Rx(θ2): ω_rel,H = θ̇1 Rx(θ2)ᵀ e_y + θ̇2 e_x, so
+    E = [[0, 1], [cos θ2, 0], [−sin θ2, 0]] (equal to :func:`gimbal.body_jacobian`, tested)."""
+    c2, s2 = jnp.cos(theta_rad[1]), jnp.sin(theta_rad[1])
+    z, one = jnp.zeros_like(c2), jnp.ones_like(c2)
+    return jnp.stack([jnp.stack([z, one]), jnp.stack([c2, z]), jnp.stack([-s2, z])])
+
+
+def gimbal_head_motion(x: GimbalState, m, trunk, p: HeadParams):
+    """Head motion and θ̈ of the head on the gimbal under motor torques ``m``: the equations of
+    :func:`gimbal.joint_acceleration` and :func:`gimbal.head_motion` (P13 §3) evaluated together,
+    with one forward-mode pass for ω_H and its θ̈-free derivative and a closed-form 2×2 solve
+    (tested equal to the gimbal module's functions)."""
+
+    def omega_head(theta, thetadot, omega_T):
+        return Lambda_closed_form(theta).T @ omega_T + body_jacobian_closed_form(theta) @ thetadot
+
+    omega_H, omegadot_bias = jax.jvp(
+        omega_head, (x.theta_rad, x.thetadot_rad_s, trunk.omega_B_rad_s),
+        (x.thetadot_rad_s, jnp.zeros(2), trunk.omegadot_B_rad_s2))
+    E = body_jacobian_closed_form(x.theta_rad)
+    J = p.J_H
+    bias_torque = J * omegadot_bias + p.gyroscopic * jnp.cross(omega_H, J * omega_H)
+    thdd = _solve_2x2(E.T @ (J[:, None] * E), m - E.T @ bias_torque)
+    head = RigidMotion(R_I_B=trunk.R_I_B @ Lambda_closed_form(x.theta_rad), omega_B_rad_s=omega_H,
+                       omegadot_B_rad_s2=omegadot_bias + E @ thdd, a_I_m_s2=trunk.a_I_m_s2)
+    return head, thdd
+
+
+def _head(trunk, x: GimbalState, m, head_p: HeadParams, stabilized: bool):
+    """Head motion and θ̈ for the condition."""
+    if stabilized:
+        return gimbal_head_motion(x, m, trunk, head_p)
+    return gimbal.fixed(trunk), jnp.zeros(2)
+
+
+def _plant_derivative(stabilized: bool):
+    def f(trunk, x: PlantState, m, params: PlantParams):
+        head, thdd = _head(trunk, x.gimbal, m, params.head, stabilized)
+        g_dot = GimbalState(x.gimbal.thetadot_rad_s, thdd) if stabilized else None
+        p_dot = tuple(pendulum.dynamics(xp, head, pp)
+                      for xp, pp in zip(x.pendulums, params.pendulums, strict=True))
+        if not stabilized:  # the head is the trunk: u is open-loop, computed outside the loop
+            return PlantState(g_dot, p_dot), jnp.zeros(0)
+        return PlantState(g_dot, p_dot), estimator_input(head, params.head)
+
+    return f
+
+
+def estimator_input(head, head_p: HeadParams):
+    """u = (a_I (3), τ_H (3)) of the head motion ``head`` (see the module docstring)."""
+    return jnp.concatenate([head.a_I_m_s2, gimbal.head_torque_total(head, head_p)], axis=-1)
+
+
+def _project(x: PlantState) -> PlantState:
+    return PlantState(x.gimbal, tuple(pendulum.project(p) for p in x.pendulums))
+
+
+def _axpy(a, dx, x):
+    return jax.tree_util.tree_map(lambda xi, di: xi + a * di, x, dx)
+
+
+def rk4_step_with_mean(f, inputs3, x, h, *args):
+    """Classical RK4 of ``x' = f(w(t), x)[0]`` for an exogenous input ``w`` given at the start,
+    middle and end of the step (``inputs3``: pytree with a leading axis of 3), that also returns
+    the RK4 quadrature of the auxiliary output ``f(w, x)[1]`` over the step (its mean to 4th
+    order); the result is projected back onto SO(3)."""
+
+    def w(i):
+        return jax.tree_util.tree_map(lambda a: a[i], inputs3)
+
+    k1, a1 = f(w(0), x, *args)
+    k2, a2 = f(w(1), _axpy(0.5 * h, k1, x), *args)
+    k3, a3 = f(w(1), _axpy(0.5 * h, k2, x), *args)
+    k4, a4 = f(w(2), _axpy(h, k3, x), *args)
+    x_next = jax.tree_util.tree_map(
+        lambda xi, a, b, c, d: xi + (h / 6.0) * (a + 2.0 * b + 2.0 * c + d), x, k1, k2, k3, k4)
+    return _project(x_next), (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0
+
+
+def initial_plant_state(traj, params: PlantParams, condition: str, theta0_rad=None) -> PlantState:
+    """θ0: the upright head for the trunk at t = 0 (``stabilized``) or 0 (``fixed``), at rest
+    relative to the trunk; pendulums at rest relative to the head along the gravito-inertial
+    vertical (:func:`pendulum.rest_state`)."""
+    trunk = traj.motion(0.0)
+    if condition == "fixed":
+        theta0 = jnp.zeros(2)
+    elif theta0_rad is None:
+        theta0 = gimbal.joint_angles_for_up(so3.up_in_frame(trunk.R_I_B))
+    else:
+        theta0 = jnp.asarray(theta0_rad, float)
+    g0 = GimbalState(theta0, jnp.zeros(2))
+    # θ̈ = 0 for the initial head kinematics (the motors hold the head at rest relative to the trunk)
+    head = gimbal.head_motion(g0, jnp.zeros(2), trunk) if condition != "fixed" else trunk
+    pends = tuple(pendulum.rest_state(head, pp) for pp in params.pendulums)
+    return PlantState(g0, pends)
+
+
+def _otolith(x: PlantState, R_I_H):
+    return jnp.stack([pendulum.otolith_angles(pendulum.R_H_S(p, R_I_H)) for p in x.pendulums])
+
+
+# ----------------------------------------------------------------------------------------------
+# The simulator
+# ----------------------------------------------------------------------------------------------
+
+
+def _ratio(a: float, b: float, what: str) -> int:
+    n = round(a / b)
+    if n < 1 or abs(n * b - a) > 1e-9 * max(a, 1.0):
+        raise ValueError(f"{what}: {a} is not an integer multiple of {b}")
+    return n
+
+
+def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
+                   controller: Callable | None = None, theta0_rad=None) -> Callable:
+    """Build ``run(key, params, noise, estimator_state0) -> SimResult`` (jitted).
+
+    ``traj`` is a :class:`verticality.trajectories.Trajectory` of the trunk (closed over, static).
+    Use ``jax.vmap(run)`` (or :func:`simulate_batch`) for batches.
+    """
+    if config.condition not in CONDITIONS:
+        raise ValueError(f"condition must be one of {CONDITIONS}, not {config.condition!r}")
+    stabilized = config.condition == "stabilized"
+    if stabilized and controller is None:
+        raise ValueError("the stabilized condition needs a controller (e.g. p13_controller())")
+    n_c = _ratio(config.dt_control_s, config.dt_plant_s, "dt_control_s")
+    n_e = _ratio(config.dt_estimator_s, config.dt_control_s, "dt_estimator_s")
+    n_k = _ratio(config.duration_s, config.dt_estimator_s, "duration_s")
+    nb = int(config.u_blocks)
+    if n_e % nb:
+        raise ValueError(f"u_blocks={nb} must divide the {n_e} control ticks of an estimator tick")
+    h = config.dt_plant_s
+    f = _plant_derivative(stabilized)
+
+    def estimate(est_state, R_true):
+        return R_true if estimator is None else estimator.R_I_H(est_state)
+
+    def head_R(R_I_T, x: PlantState):
+        return R_I_T @ Lambda_closed_form(x.gimbal.theta_rad) if stabilized else R_I_T
+
+    def control_tick(x, trunk_steps, params, t0, est_state):
+        # trunk_steps: the trunk's motion at (start, middle, end) of each of the n_c plant steps
+        R_I_H = head_R(trunk_steps.R_I_B[0, 0], x)
+        R_est = estimate(est_state, R_I_H)
+        m = controller(R_est, x.gimbal.theta_rad, x.gimbal.thetadot_rad_s) if stabilized \
+            else jnp.zeros(2)
+        locked = x.gimbal
+        if not stabilized:  # the locked gimbal stays out of the integration
+            x = x._replace(gimbal=None)
+        if n_c == 1:  # one plant step per control tick: no inner loop (its overhead is per step)
+            x_new, u_step = rk4_step_with_mean(
+                f, jax.tree_util.tree_map(lambda a: a[0], trunk_steps), x, h, m, params)
+            u_steps = u_step[None]
+        else:
+            x_new, u_steps = jax.lax.scan(
+                lambda c, w3: rk4_step_with_mean(f, w3, c, h, m, params), x, trunk_steps)
+        if not stabilized:
+            x, x_new = x._replace(gimbal=locked), x_new._replace(gimbal=locked)
+        rec = None
+        if config.record_control:
+            rec = ControlRecord(t0, R_I_H, R_est, so3.tilt_error_deg(R_I_H, R_est),
+                                x.gimbal.theta_rad, _otolith(x, R_I_H), m)
+        return x_new, (jnp.mean(u_steps, 0), m, rec)
+
+    def estimator_tick(carry, inp, params, noise, key):
+        x, est_state, bias = carry
+        k, trunk_ticks = inp  # trunk_ticks: (n_e, n_c, 3, ...) stage motions of this interval
+        t_ctrl = (k * n_e + jnp.arange(n_e)) * (n_c * h)
+        x, (u_ticks, m_ticks, crec) = jax.lax.scan(
+            lambda c, a: control_tick(c, a[0], params, a[1], est_state), x, (trunk_ticks, t_ctrl))
+        if not stabilized:  # Simpson (= RK4) mean over each plant step of the trunk's u, vectorised
+            u_stage = jax.vmap(jax.vmap(jax.vmap(lambda w: estimator_input(w, params.head))))(
+                trunk_ticks)  # (n_e, n_c, 3, 6)
+            u_ticks = jnp.mean((u_stage[:, :, 0] + 4.0 * u_stage[:, :, 1] + u_stage[:, :, 2]) / 6.0,
+                               axis=1)
+        u = jnp.mean(u_ticks.reshape(nb, n_e // nb, 6), axis=1)
+        t = (k + 1) * n_e * n_c * h
+        trunk = jax.tree_util.tree_map(lambda a: a[-1, -1, 2], trunk_ticks)  # at t_{k+1}
+        R_I_H = head_R(trunk.R_I_B, x)
+        # the head's angular velocity (θ̈ does not enter ω)
+        omega_H = (Lambda_closed_form(x.gimbal.theta_rad).T @ trunk.omega_B_rad_s
+                   + body_jacobian_closed_form(x.gimbal.theta_rad) @ x.gimbal.thetadot_rad_s) \
+            if stabilized else trunk.omega_B_rad_s
+        phi = _otolith(x, R_I_H)
+        k_phi, k_gyro, k_bias = jax.random.split(jax.random.fold_in(key, k), 3)
+        y_phi = phi + noise.otolith_std_rad * jax.random.normal(k_phi, phi.shape)
+        y_gyro = omega_H + bias + noise.gyro.noise_std_rad_s * jax.random.normal(k_gyro, (3,))
+        bias = bias + jnp.sqrt(noise.gyro.bias_rw_q_rad2_s3 * config.dt_estimator_s) \
+            * jax.random.normal(k_bias, (3,))
+        y = jnp.concatenate([y_phi.reshape(-1), y_gyro])
+        if estimator is None:
+            out = None
+            R_est = R_I_H
+        else:
+            est_state, out = estimator.step(est_state, u, y, config.dt_estimator_s)
+            R_est = estimator.R_I_H(est_state)
+        rec = Record(
+            t_s=t, R_I_H=R_I_H, R_I_T=trunk.R_I_B, R_I_H_est=R_est,
+            tilt_error_deg=so3.tilt_error_deg(R_I_H, R_est), theta_rad=x.gimbal.theta_rad,
+            thetadot_rad_s=x.gimbal.thetadot_rad_s, otolith_rad=phi, y=y, u=u,
+            motor_torque_Nm=m_ticks[-1], estimator_out=out)
+        return (x, est_state, bias), (rec, crec)
+
+    n_steps = n_k * n_e * n_c
+
+    def trunk_stages():
+        """The trunk's motion at the start, middle and end of every plant step, evaluated in one
+        vectorised pass (the trajectory is open-loop), shaped (n_k, n_e, n_c, 3, ...)."""
+        M = jax.vmap(traj.motion)(jnp.arange(2 * n_steps + 1) * (0.5 * h))
+        stages = jax.tree_util.tree_map(
+            lambda a: jnp.stack([a[0:-1:2], a[1::2], a[2::2]], axis=1), M)
+        return jax.tree_util.tree_map(lambda a: a.reshape((n_k, n_e, n_c) + a.shape[1:]), stages)
+
+    def run(key, params: PlantParams = DEFAULT_PARAMS, noise: NoiseParams = DEFAULT_NOISE,
+            estimator_state0=None, gyro_bias0_rad_s=None):
+        params = PlantParams(params.head.resolved(), tuple(p.resolved() for p in params.pendulums))
+        x0 = initial_plant_state(traj, params, config.condition, theta0_rad)
+        bias0 = jnp.zeros(3) if gyro_bias0_rad_s is None else jnp.asarray(gyro_bias0_rad_s, float)
+        (x, est, _), (rec, crec) = jax.lax.scan(
+            lambda c, inp: estimator_tick(c, inp, params, noise, key),
+            (x0, estimator_state0, bias0), (jnp.arange(n_k), trunk_stages()))
+        if crec is not None:
+            crec = jax.tree_util.tree_map(lambda a: a.reshape((-1,) + a.shape[2:]), crec)
+        return SimResult(rec, crec, x, est)
+
+    return jax.jit(run)
+
+
+def simulate(traj, config: SimConfig, key=None, params: PlantParams = DEFAULT_PARAMS,
+             noise: NoiseParams = DEFAULT_NOISE, estimator: Estimator | None = None,
+             estimator_state0=None, controller: Callable | None = None) -> SimResult:
+    """One run (builds, compiles and runs; keep :func:`make_simulator`'s ``run`` to reuse it)."""
+    key = jax.random.PRNGKey(0) if key is None else key
+    run = make_simulator(traj, config, estimator, controller)
+    return run(key, params, noise, estimator_state0)
+
+
+def simulate_batch(run: Callable, keys, params: PlantParams = DEFAULT_PARAMS,
+                   noise: NoiseParams = DEFAULT_NOISE, estimator_states0=None,
+                   batched_params: bool = False, batched_estimator: bool = False) -> SimResult:
+    """``jax.vmap`` of a :func:`make_simulator` ``run`` over ``keys`` (B, 2) and, optionally, over a
+    leading batch axis of ``params`` and of the initial estimator states."""
+    in_axes = (0, 0 if batched_params else None, None, 0 if batched_estimator else None)
+    return jax.jit(jax.vmap(run, in_axes=in_axes))(keys, params, noise, estimator_states0)
+
+
+def tilt_metrics(record: Record, t_min_s: float = 2.0) -> dict:
+    """``max`` and ``rms`` tilt error (deg) after ``t_min_s`` (REPRODUCTION.md `ekf-*`)."""
+    mask = record.t_s >= t_min_s
+    e = jnp.where(mask, record.tilt_error_deg, 0.0)
+    n = jnp.maximum(jnp.sum(mask), 1)
+    return {"max_tilt_error_deg": jnp.max(e), "rms_tilt_error_deg": jnp.sqrt(jnp.sum(e * e) / n)}
+
+
+# ----------------------------------------------------------------------------------------------
+# Open-loop replay of a recorded head motion (the `verticality otolith` command)
+# ----------------------------------------------------------------------------------------------
+
+
+def _lerp(a, b, f):
+    return a + f * (b - a)
+
+
+def _replay_chunk(pendulums: tuple, x0: tuple, rows, xs):
+    """RK4 over a chunk of sub-steps; inputs interpolated linearly between rows (the quaternion
+    interpolated then normalized, ω̇ the slope of ω). Returns the states and (s_H, φ) after each."""
+    t_rows, q_rows, w_rows, a_rows = rows
+
+    def head_at(i, f):
+        q = _lerp(q_rows[i], q_rows[i + 1], f)
+        w = _lerp(w_rows[i], w_rows[i + 1], f)
+        dt = jnp.maximum(t_rows[i + 1] - t_rows[i], 1e-300)
+        return RigidMotion(R_I_B=so3.matrix_from_quat(q / jnp.linalg.norm(q)), omega_B_rad_s=w,
+                           omegadot_B_rad_s2=(w_rows[i + 1] - w_rows[i]) / dt,
+                           a_I_m_s2=_lerp(a_rows[i], a_rows[i + 1], f))
+
+    def f(head, x, _m, _p):
+        return tuple(pendulum.dynamics(xp, head, pp) for xp, pp in zip(x, pendulums, strict=True)), \
+            jnp.zeros(0)
+
+    def body(x, inp):
+        i, f0, fh, h = inp
+        heads = jax.tree_util.tree_map(lambda *a: jnp.stack(a),
+                                       head_at(i, f0), head_at(i, f0 + 0.5 * fh), head_at(i, f0 + fh))
+        x_new, _ = _rk4_generic(f, heads, x, h)
+        R_I_H = heads.R_I_B[2]
+        s = jnp.stack([pendulum.arm_direction_H(xp, R_I_H) for xp in x_new])
+        phi = jnp.stack([pendulum.otolith_angles(pendulum.R_H_S(xp, R_I_H)) for xp in x_new])
+        return x_new, (s, phi)
+
+    return jax.lax.scan(body, x0, xs)
+
+
+def _rk4_generic(f, inputs3, x, h):
+    def w(i):
+        return jax.tree_util.tree_map(lambda a: a[i], inputs3)
+
+    k1, _ = f(w(0), x, None, None)
+    k2, _ = f(w(1), _axpy(0.5 * h, k1, x), None, None)
+    k3, _ = f(w(1), _axpy(0.5 * h, k2, x), None, None)
+    k4, _ = f(w(2), _axpy(h, k3, x), None, None)
+    x_next = jax.tree_util.tree_map(
+        lambda xi, a, b, c, d: xi + (h / 6.0) * (a + 2.0 * b + 2.0 * c + d), x, k1, k2, k3, k4)
+    return tuple(pendulum.project(p) for p in x_next), None
+
+
+_replay_chunk_jit = jax.jit(_replay_chunk)
+
+
+def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendulums: tuple,
+                   max_substep_s: float = 1e-3, chunk: int = 8192, progress=None):
+    """What the otolith pendulum(s) report for a recorded head motion (issue 2 item 9).
+
+    Between rows the inputs are interpolated linearly (the quaternion then normalized; ω̇ is the
+    slope of ω over the interval) and integrated by RK4 with ⌈Δt / max_substep_s⌉ equal sub-steps.
+    The pendulums start at rest relative to the head, along the gravito-inertial vertical of the
+    first row (:func:`pendulum.rest_state`). Returns ``s_H`` (N, P, 3) and ``φ`` (N, P, 2) on the
+    rows. ``progress(done, total)`` is called after each chunk of sub-steps.
+    """
+    t = np.asarray(t_s, float)
+    q = np.array(q_I_H_wxyz, float)
+    for i in range(1, len(q)):  # q and −q are one rotation: interpolate along the short arc
+        if np.dot(q[i], q[i - 1]) < 0.0:
+            q[i] = -q[i]
+    w = np.asarray(omega_H_rad_s, float)
+    a = np.asarray(a_I_m_s2, float)
+    pendulums = tuple(p.resolved() for p in pendulums)
+    n_rows = t.size
+    dt = np.diff(t)
+    n_sub = np.maximum(np.ceil(dt / max_substep_s - 1e-9).astype(int), 1)
+    total = int(n_sub.sum())
+    idx = np.repeat(np.arange(n_rows - 1), n_sub)
+    k = np.arange(total) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub)
+    fh = 1.0 / n_sub[idx] if total else np.zeros(0)
+    f0 = k * fh
+    h = dt[idx] / n_sub[idx] if total else np.zeros(0)
+    pad = (-total) % chunk if total else 0
+    xs = (np.concatenate([idx, np.zeros(pad, int)]), np.concatenate([f0, np.zeros(pad)]),
+          np.concatenate([fh, np.zeros(pad)]), np.concatenate([h, np.zeros(pad)]))
+    # a last, duplicated row keeps the gathers of padded sub-steps in range
+    rows = tuple(jnp.asarray(np.concatenate([v, v[-1:]])) for v in (t + 0.0, q, w, a))
+    rows = (rows[0].at[-1].add(1.0),) + rows[1:]
+    w_dot0 = (w[1] - w[0]) / dt[0] if n_rows > 1 else np.zeros(3)
+    R0 = so3.matrix_from_quat(jnp.asarray(q[0]))
+    head0 = RigidMotion(R0, jnp.asarray(w[0]), jnp.asarray(w_dot0), jnp.asarray(a[0]))
+    x = tuple(pendulum.rest_state(head0, p) for p in pendulums)
+    s_out = [np.stack([np.asarray(pendulum.arm_direction_H(xp, R0)) for xp in x])[None]]
+    phi_out = [np.stack([np.asarray(pendulum.otolith_angles(pendulum.R_H_S(xp, R0)))
+                         for xp in x])[None]]
+    n_chunks = (total + pad) // chunk
+    for c in range(n_chunks):
+        sl = slice(c * chunk, (c + 1) * chunk)
+        x, (s_c, phi_c) = _replay_chunk_jit(pendulums, x, rows, tuple(jnp.asarray(v[sl]) for v in xs))
+        s_out.append(np.asarray(s_c))
+        phi_out.append(np.asarray(phi_c))
+        if progress is not None:
+            progress(c + 1, n_chunks)
+    s_all = np.concatenate(s_out)[: total + 1]
+    phi_all = np.concatenate(phi_out)[: total + 1]
+    at_rows = np.concatenate([[0], np.cumsum(n_sub)]) if total else np.zeros(1, int)
+    return s_all[at_rows], phi_all[at_rows]

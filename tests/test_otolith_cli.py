@@ -1,0 +1,65 @@
+"""`verticality motion` and `verticality otolith` end to end (through cli.main)."""
+
+import math
+
+import numpy as np
+
+from verticality import cli, so3
+from verticality.io import motion as io
+from verticality.params import G_M_S2
+
+
+def test_recorded_impact_medial_lateral_and_refusals(tmp_path, capsys):
+    motion = tmp_path / "motion.csv"
+    assert cli.main(["motion", "impact", "--out", str(motion), "--duration", "6",
+                     "--rate", "250"]) == 0
+    rec = io.read_motion_csv(motion)
+    assert rec.t_s.size == 1501
+    out = tmp_path / "out.csv"
+    assert cli.main(["otolith", str(motion), "--out", str(out)]) == 0
+    o = io.read_otolith_csv(out)
+    assert list(o) == ["t", "sx", "sy", "sz", "phi_x", "phi_y"]
+    np.testing.assert_array_equal(o["t"], rec.t_s)
+    s = np.column_stack([o["sx"], o["sy"], o["sz"]])
+    np.testing.assert_allclose(np.linalg.norm(s, axis=1), 1.0, atol=1e-12)
+    assert np.max(np.abs(o["phi_x"]) + np.abs(o["phi_y"])) > 0.5  # the spike swings it
+    # lateral with r = 0 is the medial model (issue 2 validation: 1e-12)
+    lat = tmp_path / "lat.csv"
+    assert cli.main(["otolith", str(motion), "--out", str(lat), "--model", "lateral",
+                     "--param", "r=0"]) == 0
+    o2 = io.read_otolith_csv(lat)
+    for side in ("_left", "_right"):
+        np.testing.assert_allclose(o2["phi_x" + side], o["phi_x"], atol=1e-12)
+        np.testing.assert_allclose(o2["sy" + side], o["sy"], atol=1e-12)
+    # refusals: one line, exit status 2
+    capsys.readouterr()
+    bad = tmp_path / "bad.csv"
+    bad.write_text(motion.read_text().replace("\n0.008,", "\n0.004,", 1))
+    assert cli.main(["otolith", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "row 3 (line 4), column t" in err and "\n" not in err
+    assert cli.main(["otolith", str(motion), "--out", str(out), "--param", "Jxx=-1"]) == 2
+    assert cli.main(["otolith", str(motion), "--out", str(out), "--param", "mass=1"]) == 2
+
+
+def test_still_tilted_head_and_constant_acceleration(tmp_path):
+    """A still head tilted by θ reads φ = −θ (docs/conventions.md); a constant horizontal
+    acceleration a deflects the pendulum by atan(a/g) — both exactly, from the rest start."""
+    theta, accel = 0.3, 2.0
+    n = 401
+    t = np.arange(n) * 0.005
+    q = np.tile(np.asarray(so3.quat_from_matrix(so3.rot_x(theta))), (n, 1))
+    a = np.tile([0.0, accel, 0.0], (n, 1))
+    motion = io.write_motion_csv(tmp_path / "m.csv", io.MotionRecord(t, q, np.zeros((n, 3)), a))
+    out = tmp_path / "o.csv"
+    assert cli.main(["otolith", str(motion), "--out", str(out), "--param", "beta=0.002",
+                     "--param", "l=0.05"]) == 0
+    o = io.read_otolith_csv(out)
+    # the gravito-inertial up (−(g − a)) in I, then in the head frame
+    up_I = np.array([0.0, accel, G_M_S2])
+    expected = -theta - math.atan2(accel, G_M_S2)  # GIF up leans to +y, the head to −y
+    np.testing.assert_allclose(o["phi_x"], expected, atol=1e-9)
+    np.testing.assert_allclose(o["phi_y"], 0.0, atol=1e-12)
+    s_I = -up_I / np.linalg.norm(up_I)
+    s_H = np.asarray(so3.rot_x(theta)).T @ s_I
+    np.testing.assert_allclose(np.column_stack([o["sx"], o["sy"], o["sz"]])[-1], s_H, atol=1e-9)
