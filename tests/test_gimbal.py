@@ -104,3 +104,27 @@ def test_joint_space_pd_zero_at_target():
     R_I_H = R_I_T @ gimbal.Lambda(jnp.array([0.1, 0.2]))
     np.testing.assert_allclose(trunk_orientation_estimate(R_I_H, jnp.array([0.1, 0.2])), R_I_T,
                                atol=1e-12)
+
+
+def test_closed_forms_equal_their_definitions():
+    """Λ entry by entry equals Ry·Rx; E equals vee(Λᵀ∂Λ/∂θ) by autodiff; the driven head's θ̈
+    equals a general linear solve of the joint-space equation."""
+    from verticality import trajectories as tr
+
+    theta = jnp.array([0.3, -0.7])
+    np.testing.assert_allclose(gimbal.Lambda(theta), so3.rot_y(0.3) @ so3.rot_x(-0.7), atol=1e-15)
+    np.testing.assert_allclose(gimbal.body_jacobian(theta), gimbal.body_jacobian_autodiff(theta),
+                               atol=1e-15)
+    x = gimbal.GimbalState(theta, jnp.array([0.4, -1.1]))
+    trunk = jax.jit(tr.impact().motion)(2.3)
+    m = jnp.array([1.5, -0.8])
+    head, thdd = jax.jit(gimbal.driven_head_motion)(x, m, trunk, P13_HEAD)
+    E = gimbal.body_jacobian(theta)
+    J = P13_HEAD.J_H
+    w = head.omega_B_rad_s
+    # Eᵀ (J ω̇ + ω × Jω) = m must hold for the returned head motion
+    np.testing.assert_allclose(E.T @ (J * head.omegadot_B_rad_s2 + jnp.cross(w, J * w)), m,
+                               rtol=1e-12, atol=1e-12)
+    head_ref = gimbal.head_motion(x, thdd, trunk)
+    for a, b in zip(head, head_ref, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)

@@ -11,28 +11,7 @@ from verticality import simulation as sim
 from verticality import so3
 from verticality import trajectories as tr
 from verticality.models import gimbal
-from verticality.params import P13_HEAD, PendulumParams
-
-
-def test_closed_form_gimbal_equals_gimbal_module():
-    theta = jnp.array([0.3, -0.7])
-    np.testing.assert_allclose(sim.Lambda_closed_form(theta), gimbal.Lambda(theta), atol=1e-15)
-    np.testing.assert_allclose(sim.body_jacobian_closed_form(theta), gimbal.body_jacobian(theta),
-                               atol=1e-15)
-    x = gimbal.GimbalState(theta, jnp.array([0.4, -1.1]))
-    trunk = jax.jit(tr.impact().motion)(2.3)
-    m = jnp.array([1.5, -0.8])
-
-    @jax.jit
-    def both(x, m, trunk):
-        thdd_ref = gimbal.joint_acceleration(x, m, trunk, P13_HEAD)
-        return sim.gimbal_head_motion(x, m, trunk, P13_HEAD), thdd_ref, gimbal.head_motion(
-            x, thdd_ref, trunk)
-
-    (head, thdd), thdd_ref, head_ref = both(x, m, trunk)
-    np.testing.assert_allclose(thdd, thdd_ref, rtol=1e-12, atol=1e-12)
-    for a, b in zip(head, head_ref, strict=True):
-        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+from verticality.params import PendulumParams
 
 
 class Probe(NamedTuple):

@@ -13,7 +13,7 @@ plant parameters and initial estimator states (:func:`simulate_batch`).
 
 Conditions (static): ``"fixed"`` — the head is rigid on the trunk (P13: ᵀR_H = I), the gimbal is
 locked at θ = 0 and no controller runs; ``"stabilized"`` — the gimbal's joint dynamics
-(:func:`verticality.models.gimbal.joint_acceleration`) under the motor torques of the controller.
+(:func:`verticality.models.gimbal.driven_head_motion`) under the motor torques of the controller.
 
 Plug-in API
 -----------
@@ -192,57 +192,10 @@ def p13_controller(kp: float = P13_KP_NM_RAD, kd: float = P13_KD_NMS_RAD) -> Cal
 # ----------------------------------------------------------------------------------------------
 
 
-def _solve_2x2(M, b):
-    """M⁻¹ b for a 2×2 matrix by Cramer's rule (M is the joint-space inertia, SPD: det > 0).
-
-    Inside the 1 ms loop a LAPACK call costs ~10× the rest of the gimbal's dynamics."""
-    det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
-    return jnp.stack([M[1, 1] * b[0] - M[0, 1] * b[1], M[0, 0] * b[1] - M[1, 0] * b[0]]) / det
-
-
-def Lambda_closed_form(theta_rad):
-    """Λ(θ1, θ2) = Ry(θ1) Rx(θ2) entry by entry (equal to :func:`gimbal.Lambda`, tested)."""
-    c1, s1 = jnp.cos(theta_rad[0]), jnp.sin(theta_rad[0])
-    c2, s2 = jnp.cos(theta_rad[1]), jnp.sin(theta_rad[1])
-    z = jnp.zeros_like(c1)
-    return jnp.stack([jnp.stack([c1, s1 * s2, s1 * c2]),
-                      jnp.stack([z, c2, -s2]),
-                      jnp.stack([-s1, c1 * s2, c1 * c2])])
-
-
-def body_jacobian_closed_form(theta_rad):
-    """E(θ) of Λ = Ry(θ1)Rx(θ2): ω_rel,H = θ̇1 Rx(θ2)ᵀ e_y + θ̇2 e_x, so
-    E = [[0, 1], [cos θ2, 0], [−sin θ2, 0]] (equal to :func:`gimbal.body_jacobian`, tested)."""
-    c2, s2 = jnp.cos(theta_rad[1]), jnp.sin(theta_rad[1])
-    z, one = jnp.zeros_like(c2), jnp.ones_like(c2)
-    return jnp.stack([jnp.stack([z, one]), jnp.stack([c2, z]), jnp.stack([-s2, z])])
-
-
-def gimbal_head_motion(x: GimbalState, m, trunk, p: HeadParams):
-    """Head motion and θ̈ of the head on the gimbal under motor torques ``m``: the equations of
-    :func:`gimbal.joint_acceleration` and :func:`gimbal.head_motion` (P13 §3) evaluated together,
-    with one forward-mode pass for ω_H and its θ̈-free derivative and a closed-form 2×2 solve
-    (tested equal to the gimbal module's functions)."""
-
-    def omega_head(theta, thetadot, omega_T):
-        return Lambda_closed_form(theta).T @ omega_T + body_jacobian_closed_form(theta) @ thetadot
-
-    omega_H, omegadot_bias = jax.jvp(
-        omega_head, (x.theta_rad, x.thetadot_rad_s, trunk.omega_B_rad_s),
-        (x.thetadot_rad_s, jnp.zeros(2), trunk.omegadot_B_rad_s2))
-    E = body_jacobian_closed_form(x.theta_rad)
-    J = p.J_H
-    bias_torque = J * omegadot_bias + p.gyroscopic * jnp.cross(omega_H, J * omega_H)
-    thdd = _solve_2x2(E.T @ (J[:, None] * E), m - E.T @ bias_torque)
-    head = RigidMotion(R_I_B=trunk.R_I_B @ Lambda_closed_form(x.theta_rad), omega_B_rad_s=omega_H,
-                       omegadot_B_rad_s2=omegadot_bias + E @ thdd, a_I_m_s2=trunk.a_I_m_s2)
-    return head, thdd
-
-
 def _head(trunk, x: GimbalState, m, head_p: HeadParams, stabilized: bool):
     """Head motion and θ̈ for the condition."""
     if stabilized:
-        return gimbal_head_motion(x, m, trunk, head_p)
+        return gimbal.driven_head_motion(x, m, trunk, head_p)
     return gimbal.fixed(trunk), jnp.zeros(2)
 
 
@@ -349,7 +302,7 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
         return R_true if estimator is None else estimator.R_I_H(est_state)
 
     def head_R(R_I_T, x: PlantState):
-        return R_I_T @ Lambda_closed_form(x.gimbal.theta_rad) if stabilized else R_I_T
+        return R_I_T @ gimbal.Lambda(x.gimbal.theta_rad) if stabilized else R_I_T
 
     def control_tick(x, trunk_steps, params, t0, est_state):
         # trunk_steps: the trunk's motion at (start, middle, end) of each of the n_c plant steps
@@ -391,8 +344,8 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
         trunk = jax.tree_util.tree_map(lambda a: a[-1, -1, 2], trunk_ticks)  # at t_{k+1}
         R_I_H = head_R(trunk.R_I_B, x)
         # the head's angular velocity (θ̈ does not enter ω)
-        omega_H = (Lambda_closed_form(x.gimbal.theta_rad).T @ trunk.omega_B_rad_s
-                   + body_jacobian_closed_form(x.gimbal.theta_rad) @ x.gimbal.thetadot_rad_s) \
+        omega_H = (gimbal.Lambda(x.gimbal.theta_rad).T @ trunk.omega_B_rad_s
+                   + gimbal.body_jacobian(x.gimbal.theta_rad) @ x.gimbal.thetadot_rad_s) \
             if stabilized else trunk.omega_B_rad_s
         phi = _otolith(x, R_I_H)
         k_phi, k_gyro, k_bias = jax.random.split(jax.random.fold_in(key, k), 3)

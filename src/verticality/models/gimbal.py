@@ -39,12 +39,28 @@ class GimbalState(NamedTuple):
 
 
 def Lambda(theta_rad):
-    """R_TH = Λ(θ1, θ2) = Ry(θ1) Rx(θ2)."""
-    return so3.rot_y(theta_rad[0]) @ so3.rot_x(theta_rad[1])
+    """R_TH = Λ(θ1, θ2) = Ry(θ1) Rx(θ2), entry by entry (tested equal to the product)."""
+    c1, s1 = jnp.cos(theta_rad[0]), jnp.sin(theta_rad[0])
+    c2, s2 = jnp.cos(theta_rad[1]), jnp.sin(theta_rad[1])
+    z = jnp.zeros_like(c1)
+    return jnp.stack([jnp.stack([c1, s1 * s2, s1 * c2]),
+                      jnp.stack([z, c2, -s2]),
+                      jnp.stack([-s1, c1 * s2, c1 * c2])])
 
 
 def body_jacobian(theta_rad):
-    """E(θ) (3×2): head-frame angular velocity of the head relative to the trunk per joint rate."""
+    """E(θ) (3×2): head-frame angular velocity of the head relative to the trunk per joint rate.
+
+    For Λ = Ry(θ1) Rx(θ2), ω_rel = θ̇1 Rx(θ2)ᵀ e_y + θ̇2 e_x, so E = [[0, 1], [cos θ2, 0],
+    [−sin θ2, 0]] (tested equal to :func:`body_jacobian_autodiff`).
+    """
+    c2, s2 = jnp.cos(theta_rad[1]), jnp.sin(theta_rad[1])
+    z, one = jnp.zeros_like(c2), jnp.ones_like(c2)
+    return jnp.stack([jnp.stack([z, one]), jnp.stack([c2, z]), jnp.stack([-s2, z])])
+
+
+def body_jacobian_autodiff(theta_rad):
+    """E(θ) from the definition, vee(Λᵀ ∂Λ/∂θ_i), by forward-mode autodiff (the reference)."""
     dLambda = jax.jacfwd(Lambda)(theta_rad)  # (3, 3, 2)
     R = Lambda(theta_rad)
     return jnp.stack([so3.vee(R.T @ dLambda[..., i]) for i in range(2)], axis=-1)
@@ -67,34 +83,54 @@ def _omega_head(theta, thetadot, omega_T):
     return Lambda(theta).T @ omega_T + body_jacobian(theta) @ thetadot
 
 
-def head_motion(x: GimbalState, thetaddot_rad_s2, trunk: RigidMotion) -> RigidMotion:
-    """The head's kinematics from the gimbal state, its acceleration and the trunk's motion."""
-    omega_H, omegadot_bias = jax.jvp(
+def _omega_and_bias(x: GimbalState, trunk: RigidMotion):
+    """ω_H and the part of ω̇_H that does not depend on θ̈ (one forward-mode pass)."""
+    return jax.jvp(
         _omega_head,
         (x.theta_rad, x.thetadot_rad_s, trunk.omega_B_rad_s),
         (x.thetadot_rad_s, jnp.zeros(2), trunk.omegadot_B_rad_s2),
     )
-    omegadot_H = omegadot_bias + body_jacobian(x.theta_rad) @ thetaddot_rad_s2
+
+
+def _solve_spd_2x2(M, b):
+    """M⁻¹ b by Cramer's rule for the 2×2 joint-space inertia (SPD, det > 0); inside the 1 ms loop
+    a LAPACK call costs ~10× the rest of the gimbal's dynamics."""
+    det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    return jnp.stack([M[1, 1] * b[0] - M[0, 1] * b[1], M[0, 0] * b[1] - M[1, 0] * b[0]]) / det
+
+
+def head_motion(x: GimbalState, thetaddot_rad_s2, trunk: RigidMotion) -> RigidMotion:
+    """The head's kinematics from the gimbal state, its acceleration and the trunk's motion."""
+    omega_H, omegadot_bias = _omega_and_bias(x, trunk)
     return RigidMotion(
         R_I_B=trunk.R_I_B @ Lambda(x.theta_rad),
         omega_B_rad_s=omega_H,
-        omegadot_B_rad_s2=omegadot_H,
+        omegadot_B_rad_s2=omegadot_bias + body_jacobian(x.theta_rad) @ thetaddot_rad_s2,
         a_I_m_s2=trunk.a_I_m_s2,
     )
 
 
-def joint_acceleration(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, p: HeadParams):
-    """θ̈ from the motor torques m (2,) for the head on the moving trunk."""
+def driven_head_motion(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, p: HeadParams):
+    """The head's kinematics and θ̈ under the motor torques m (2,), for the head on the moving trunk:
+    Eᵀ (J_H ω̇_H + γ ω_H × J_H ω_H) = m solved for θ̈."""
+    omega_H, omegadot_bias = _omega_and_bias(x, trunk)
     E = body_jacobian(x.theta_rad)
     J = p.J_H
-    omega_H, omegadot_bias = jax.jvp(
-        _omega_head,
-        (x.theta_rad, x.thetadot_rad_s, trunk.omega_B_rad_s),
-        (x.thetadot_rad_s, jnp.zeros(2), trunk.omegadot_B_rad_s2),
-    )
     bias_torque = J * omegadot_bias + p.gyroscopic * jnp.cross(omega_H, J * omega_H)
     M = E.T @ (J[:, None] * E)  # joint-space inertia, 2×2, positive definite
-    return jnp.linalg.solve(M, motor_torque_Nm - E.T @ bias_torque)
+    thetaddot = _solve_spd_2x2(M, motor_torque_Nm - E.T @ bias_torque)
+    head = RigidMotion(
+        R_I_B=trunk.R_I_B @ Lambda(x.theta_rad),
+        omega_B_rad_s=omega_H,
+        omegadot_B_rad_s2=omegadot_bias + E @ thetaddot,
+        a_I_m_s2=trunk.a_I_m_s2,
+    )
+    return head, thetaddot
+
+
+def joint_acceleration(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, p: HeadParams):
+    """θ̈ from the motor torques m (2,) for the head on the moving trunk."""
+    return driven_head_motion(x, motor_torque_Nm, trunk, p)[1]
 
 
 def dynamics(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, p: HeadParams) -> GimbalState:
