@@ -77,3 +77,24 @@ def test_head_torque_from_motor_torques_is_consistent():
     m = jnp.array([0.7, -0.2])
     tau = head_torque_from_motor_torques(theta, m)
     np.testing.assert_allclose(gimbal.motor_torques_from_head_torque(theta, tau), m, atol=1e-8)
+
+
+def test_desired_joint_rates_match_finite_differences_and_trunk_rate_inverts_head_rate():
+    from verticality import control
+
+    R_I_T = so3.exp(jnp.array([0.2, -0.3, 0.5]))
+    omega_T = jnp.array([0.7, -1.1, 0.4])
+    h = 1e-6
+    th = lambda R: gimbal.joint_angles_for_up(so3.up_in_frame(R))  # noqa: E731
+    fd = (th(R_I_T @ so3.exp(h * omega_T)) - th(R_I_T @ so3.exp(-h * omega_T))) / (2 * h)
+    np.testing.assert_allclose(control.desired_joint_rates(R_I_T, omega_T), fd, atol=1e-8)
+    theta, thetadot = jnp.array([0.3, -0.2]), jnp.array([0.5, 1.5])
+    omega_H = gimbal.Lambda(theta).T @ omega_T + gimbal.body_jacobian(theta) @ thetadot
+    np.testing.assert_allclose(control.trunk_rate_from_head(theta, thetadot, omega_H), omega_T,
+                               atol=1e-14)
+    # on the joint error: zero torque when the head tracks θ_d at θ̇_d exactly
+    theta_d = th(R_I_T)
+    thetadot_d = control.desired_joint_rates(R_I_T, omega_T)
+    omega_H_d = gimbal.Lambda(theta_d).T @ omega_T + gimbal.body_jacobian(theta_d) @ thetadot_d
+    m = control.joint_space_pd_tracking(theta_d, thetadot_d, R_I_T, omega_H_d, 32.0, 5.0)
+    np.testing.assert_allclose(m, 0.0, atol=1e-12)

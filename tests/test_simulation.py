@@ -68,7 +68,8 @@ def test_fixed_condition_api_so3_and_replay_cross_check():
     batch = sim.simulate_batch(run, keys, sim.PlantParams(), sim.NoiseParams(), PROBE0)
     np.testing.assert_allclose(batch.record.R_I_H[1], rec.R_I_H, atol=1e-15)
     noise = np.asarray(batch.record.y[0] - batch.record.y[1])
-    assert 0.02 < noise.std() / np.sqrt(2) < 0.03  # P13: σ = 0.02 on every channel
+    # P13: σ = 0.02 on every channel; 1500 samples put the estimate within ±0.0004 (1σ)
+    assert 0.018 < noise.std() / np.sqrt(2) < 0.022
     np.testing.assert_allclose(batch.record.y[0, :, :2] - rec.otolith_rad[:, 0], 0.0, atol=0.12)
 
 

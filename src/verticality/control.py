@@ -24,6 +24,7 @@ scalars, per-axis vectors or (for the global law) 3×3 matrices.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from verticality import so3
@@ -114,6 +115,36 @@ def joint_space_pd(theta, thetadot, R_I_T_est, kp, kd):
     up_T = so3.up_in_frame(R_I_T_est)
     theta_d = gimbal.joint_angles_for_up(up_T)
     return jnp.asarray(kp) * (theta_d - theta) - jnp.asarray(kd) * thetadot
+
+
+def desired_joint_rates(R_I_T_est, omega_T_rad_s):
+    """θ̇_d: the rate of θ_d = Λ⁻¹(upright) as the trunk turns at ω_T (trunk frame).
+
+    ``u_T = R_ITᵀ e3`` changes as ``u̇_T = −ω_T × u_T``; θ̇_d is the forward-mode derivative of
+    :func:`gimbal.joint_angles_for_up` along it.
+    """
+    up_T = so3.up_in_frame(R_I_T_est)
+    return jax.jvp(gimbal.joint_angles_for_up, (up_T,), (-jnp.cross(omega_T_rad_s, up_T),))[1]
+
+
+def trunk_rate_from_head(theta_rad, thetadot_rad_s, omega_H_rad_s):
+    """ω_T (trunk frame) from the head's gyro and the encoders: ω_H = Λᵀ ω_T + E θ̇."""
+    return gimbal.Lambda(theta_rad) @ (omega_H_rad_s - gimbal.body_jacobian(theta_rad) @ thetadot_rad_s)
+
+
+def joint_space_pd_tracking(theta, thetadot, R_I_T_est, omega_H_rad_s, kp, kd):
+    """P13 §3 read as a PD on the joint error, ``m = k_p (θ_d − θ) + k_d (θ̇_d − θ̇)``.
+
+    P13 writes ``m = PD(θ_d − θ)``; its derivative needs θ̇_d, which follows from the trunk's rate,
+    itself known from the head's gyro and the encoders (:func:`trunk_rate_from_head`); F §4.2.2:
+    "the head stabilization controller used the estimated head's angular orientation and velocity".
+    Unlike :func:`joint_space_pd`, which damps the joint rate and so lags a turning trunk by
+    about (k_d/k_p)·θ̇_d, this tracks θ_d without that lag.
+    """
+    theta_d = gimbal.joint_angles_for_up(so3.up_in_frame(R_I_T_est))
+    omega_T = trunk_rate_from_head(theta, thetadot, omega_H_rad_s)
+    thetadot_d = desired_joint_rates(R_I_T_est, omega_T)
+    return jnp.asarray(kp) * (theta_d - theta) + jnp.asarray(kd) * (thetadot_d - thetadot)
 
 
 def head_torque_from_motor_torques(theta_rad, m_Nm, damping=1e-9):

@@ -4,7 +4,7 @@ estimator → controller → motors (P13 §3 and §5; REPRODUCTION.md `ekf-impac
 Three clocks, each an integer multiple of the one below::
 
     plant       fixed-step RK4, dt_plant_s (1 ms)          state: gimbal (θ, θ̇) + pendulum(s)
-    control     every dt_control_s (1 ms)                  m = controller(R̂_IH, θ, θ̇), held (ZOH)
+    control     every dt_control_s (1 ms)                  m = controller(R̂_IH, ω_gyro, θ, θ̇), ZOH
     estimator   every dt_estimator_s (20 ms)               y measured, estimator.step(u, y, dt)
 
 One run is one jitted ``lax.scan`` over estimator ticks, with a scan over control ticks inside and a
@@ -44,10 +44,15 @@ called once per estimator tick t_k (k ≥ 1) with
 ``estimator=None`` feeds the controller the true R_IH at every control tick (and the record's
 estimate is the truth).
 
-*Controller*: ``controller(R_I_H_est, theta_rad, thetadot_rad_s) -> motor torques (2,)``; the
-estimate is the latest one (held between estimator ticks), the joint angles and rates are measured
-(the encoders, exact) at each control tick. :func:`p13_controller` is P13 §3's joint-space PD
-(k_p = 32 N·m/rad, k_d = 5 N·m·s/rad, θ_d = Λ⁻¹ of the upright head for R̂_IT = R̂_IH Λ(θ)ᵀ).
+*Controller*: ``controller(R_I_H_est, omega_H_rad_s, theta_rad, thetadot_rad_s) -> motor torques
+(2,)``. ``omega_H_rad_s`` is the head's gyro read at the control tick (rate, bias and white noise
+of ``noise.gyro``); ``R_I_H_est`` is the estimator's latest estimate, propagated between estimator
+ticks with that gyro (R̂ ← R̂ exp([ω_gyro]× dt_c), reset at every estimator tick); the joint angles
+and rates are measured (the encoders, exact). Without an estimator the controller gets the true
+R_IH and ω_H. :func:`p13_controller` is P13 §3's joint-space PD (k_p = 32 N·m/rad,
+k_d = 5 N·m·s/rad, θ_d = Λ⁻¹ of the upright head for R̂_IT = R̂_IH Λ(θ)ᵀ), by default on the joint
+error and its rate (F §4.2.2: the controller "used the estimated head's angular orientation and
+velocity").
 
 Records (:class:`Record`, leading axis = estimator ticks t_1 … t_K, plus the optional per-control-tick
 :class:`ControlRecord`) hold the truth, the estimate, measurements and inputs, and the tilt error of
@@ -175,13 +180,22 @@ class SimResult(NamedTuple):
 # ----------------------------------------------------------------------------------------------
 
 
-def p13_controller(kp: float = P13_KP_NM_RAD, kd: float = P13_KD_NMS_RAD) -> Callable:
-    """P13 §3 joint-space PD (via :mod:`verticality.control`): θ_d = Λ⁻¹ of the upright head for
-    the trunk estimate R̂_IT = R̂_IH Λ(θ)ᵀ, m = k_p (θ_d − θ) − k_d θ̇."""
+def p13_controller(kp: float = P13_KP_NM_RAD, kd: float = P13_KD_NMS_RAD,
+                   tracking: bool = True) -> Callable:
+    """P13 §3 joint-space PD (via :mod:`verticality.control`), θ_d = Λ⁻¹ of the upright head for the
+    trunk estimate R̂_IT = R̂_IH Λ(θ)ᵀ.
+
+    ``tracking=True`` (default): m = k_p (θ_d − θ) + k_d (θ̇_d − θ̇), P13's ``PD(θ_d − θ)`` with θ̇_d
+    from the head's gyro and the encoders (:func:`control.joint_space_pd_tracking`).
+    ``tracking=False``: m = k_p (θ_d − θ) − k_d θ̇, which lags a turning trunk (kept for comparison).
+    """
     from verticality import control
 
-    def controller(R_I_H_est, theta_rad, thetadot_rad_s):
+    def controller(R_I_H_est, omega_H_rad_s, theta_rad, thetadot_rad_s):
         R_I_T_est = control.trunk_orientation_estimate(R_I_H_est, theta_rad)
+        if tracking:
+            return control.joint_space_pd_tracking(theta_rad, thetadot_rad_s, R_I_T_est,
+                                                   omega_H_rad_s, kp, kd)
         return control.joint_space_pd(theta_rad, thetadot_rad_s, R_I_T_est, kp, kd)
 
     return controller
@@ -298,18 +312,28 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
     h = config.dt_plant_s
     f = _plant_derivative(stabilized)
 
-    def estimate(est_state, R_true):
-        return R_true if estimator is None else estimator.R_I_H(est_state)
-
     def head_R(R_I_T, x: PlantState):
         return R_I_T @ gimbal.Lambda(x.gimbal.theta_rad) if stabilized else R_I_T
 
-    def control_tick(x, trunk_steps, params, t0, est_state):
+    def omega_head(trunk, x: PlantState):
+        """The head's angular velocity (θ̈ does not enter ω)."""
+        if not stabilized:
+            return trunk.omega_B_rad_s
+        return (gimbal.Lambda(x.gimbal.theta_rad).T @ trunk.omega_B_rad_s
+                + gimbal.body_jacobian(x.gimbal.theta_rad) @ x.gimbal.thetadot_rad_s)
+
+    def control_tick(carry, trunk_steps, params, t0, gyro_noise, bias):
         # trunk_steps: the trunk's motion at (start, middle, end) of each of the n_c plant steps
-        R_I_H = head_R(trunk_steps.R_I_B[0, 0], x)
-        R_est = estimate(est_state, R_I_H)
-        m = controller(R_est, x.gimbal.theta_rad, x.gimbal.thetadot_rad_s) if stabilized \
-            else jnp.zeros(2)
+        x, R_hat = carry
+        trunk0 = jax.tree_util.tree_map(lambda a: a[0, 0], trunk_steps)
+        R_I_H = head_R(trunk0.R_I_B, x)
+        omega_true = omega_head(trunk0, x)
+        if estimator is None:  # the controller sees the truth
+            R_hat, omega_meas = R_I_H, omega_true
+        else:  # the head's gyro at the control rate
+            omega_meas = omega_true + bias + gyro_noise
+        m = controller(R_hat, omega_meas, x.gimbal.theta_rad, x.gimbal.thetadot_rad_s) \
+            if stabilized else jnp.zeros(2)
         locked = x.gimbal
         if not stabilized:  # the locked gimbal stays out of the integration
             x = x._replace(gimbal=None)
@@ -324,16 +348,21 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
             x, x_new = x._replace(gimbal=locked), x_new._replace(gimbal=locked)
         rec = None
         if config.record_control:
-            rec = ControlRecord(t0, R_I_H, R_est, so3.tilt_error_deg(R_I_H, R_est),
+            rec = ControlRecord(t0, R_I_H, R_hat, so3.tilt_error_deg(R_I_H, R_hat),
                                 x.gimbal.theta_rad, _otolith(x, R_I_H), m)
-        return x_new, (jnp.mean(u_steps, 0), m, rec)
+        # between estimator ticks the controller's estimate is propagated with the gyro
+        R_next = so3.orthonormalize(R_hat @ so3.exp(omega_meas * (n_c * h)))
+        return (x_new, R_next), (jnp.mean(u_steps, 0), m, rec)
 
     def estimator_tick(carry, inp, params, noise, key):
-        x, est_state, bias = carry
+        x, est_state, bias, R_hat = carry
         k, trunk_ticks = inp  # trunk_ticks: (n_e, n_c, 3, ...) stage motions of this interval
         t_ctrl = (k * n_e + jnp.arange(n_e)) * (n_c * h)
-        x, (u_ticks, m_ticks, crec) = jax.lax.scan(
-            lambda c, a: control_tick(c, a[0], params, a[1], est_state), x, (trunk_ticks, t_ctrl))
+        k_ctrl, key_k = jax.random.split(jax.random.fold_in(key, k))
+        gyro_noise = noise.gyro.noise_std_rad_s * jax.random.normal(k_ctrl, (n_e, 3))
+        (x, _), (u_ticks, m_ticks, crec) = jax.lax.scan(
+            lambda c, a: control_tick(c, a[0], params, a[1], a[2], bias), (x, R_hat),
+            (trunk_ticks, t_ctrl, gyro_noise))
         if not stabilized:  # Simpson (= RK4) mean over each plant step of the trunk's u, vectorised
             u_stage = jax.vmap(jax.vmap(jax.vmap(lambda w: estimator_input(w, params.head))))(
                 trunk_ticks)  # (n_e, n_c, 3, 6)
@@ -343,12 +372,9 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
         t = (k + 1) * n_e * n_c * h
         trunk = jax.tree_util.tree_map(lambda a: a[-1, -1, 2], trunk_ticks)  # at t_{k+1}
         R_I_H = head_R(trunk.R_I_B, x)
-        # the head's angular velocity (θ̈ does not enter ω)
-        omega_H = (gimbal.Lambda(x.gimbal.theta_rad).T @ trunk.omega_B_rad_s
-                   + gimbal.body_jacobian(x.gimbal.theta_rad) @ x.gimbal.thetadot_rad_s) \
-            if stabilized else trunk.omega_B_rad_s
+        omega_H = omega_head(trunk, x)
         phi = _otolith(x, R_I_H)
-        k_phi, k_gyro, k_bias = jax.random.split(jax.random.fold_in(key, k), 3)
+        k_phi, k_gyro, k_bias = jax.random.split(key_k, 3)
         y_phi = phi + noise.otolith_std_rad * jax.random.normal(k_phi, phi.shape)
         y_gyro = omega_H + bias + noise.gyro.noise_std_rad_s * jax.random.normal(k_gyro, (3,))
         bias = bias + jnp.sqrt(noise.gyro.bias_rw_q_rad2_s3 * config.dt_estimator_s) \
@@ -365,7 +391,7 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
             tilt_error_deg=so3.tilt_error_deg(R_I_H, R_est), theta_rad=x.gimbal.theta_rad,
             thetadot_rad_s=x.gimbal.thetadot_rad_s, otolith_rad=phi, y=y, u=u,
             motor_torque_Nm=m_ticks[-1], estimator_out=out)
-        return (x, est_state, bias), (rec, crec)
+        return (x, est_state, bias, R_est), (rec, crec)
 
     n_steps = n_k * n_e * n_c
 
@@ -382,9 +408,12 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
         params = PlantParams(params.head.resolved(), tuple(p.resolved() for p in params.pendulums))
         x0 = initial_plant_state(traj, params, config.condition, theta0_rad)
         bias0 = jnp.zeros(3) if gyro_bias0_rad_s is None else jnp.asarray(gyro_bias0_rad_s, float)
-        (x, est, _), (rec, crec) = jax.lax.scan(
+        R_hat0 = head_R(traj.motion(0.0).R_I_B, x0)
+        if estimator is not None:
+            R_hat0 = estimator.R_I_H(estimator_state0)
+        (x, est, _, _), (rec, crec) = jax.lax.scan(
             lambda c, inp: estimator_tick(c, inp, params, noise, key),
-            (x0, estimator_state0, bias0), (jnp.arange(n_k), trunk_stages()))
+            (x0, estimator_state0, bias0, R_hat0), (jnp.arange(n_k), trunk_stages()))
         if crec is not None:
             crec = jax.tree_util.tree_map(lambda a: a.reshape((-1,) + a.shape[2:]), crec)
         return SimResult(rec, crec, x, est)
