@@ -48,6 +48,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from verticality.estimators import tilt_kernels
+
 jax.config.update("jax_enable_x64", True)
 
 G_M_S2 = 9.81
@@ -190,6 +192,26 @@ def quat_from_acc(acc_m_s2):
     flip = w < 1e-9  # upside down: rotate by pi about x
     q = jnp.where(flip, jnp.array([0.0, 1.0, 0.0, 0.0]), jnp.concatenate([w[None], v]))
     return q / jnp.linalg.norm(q)
+
+
+def _quat_from_acc_np(a):
+    """NumPy twin of :func:`quat_from_acc` (host side of :func:`run`)."""
+    a = np.asarray(a, dtype=np.float64)
+    n = np.sqrt(a @ a)
+    u = a / n if n > 0 else np.array([0.0, 0.0, 1.0])
+    w = 1.0 + u[2]
+    q = np.array([0.0, 1.0, 0.0, 0.0]) if w < 1e-9 else np.array([w, u[1], -u[0], 0.0])
+    return q / np.sqrt(q @ q)
+
+
+_DEFAULT_INIT = []
+
+
+def _default_init() -> TiltState:
+    """``init()`` as NumPy arrays, built once (the states are immutable)."""
+    if not _DEFAULT_INIT:
+        _DEFAULT_INIT.append(jax.tree_util.tree_map(np.asarray, init()))
+    return _DEFAULT_INIT[0]
 
 
 def _zero_block():
@@ -392,43 +414,44 @@ step_jit = jax.jit(step, static_argnames=("block",))
 
 class Stepper(NamedTuple):
     """Real-time form of :func:`step` (see :func:`make_step`): the state travels as one flat
-    float64 vector and the output as ``[roll, pitch, up(3), quat(4), bias(3), flags]``, so that a
-    call costs little more than JAX's dispatch."""
+    float64 vector (:func:`verticality.estimators.tilt_kernels.stream_step`) and the output as
+    ``[roll, pitch, up(3), quat(4), bias(3), flags]``, so that a call costs little more than
+    JAX's dispatch."""
 
     init: object  # () -> packed state
-    step: object  # (x, gyr(3,), acc(3,), dt) -> (x, out(13,))
-    unpack: object  # x -> TiltState
+    step: object  # (z, gyr(3,), acc(3,), dt) -> (z, out(13,))
+    step_packed: object  # (z, sample(7,) = [gyr, acc, dt]) -> (z, out(13,)), one argument less
+    unpack: object  # z -> TiltState
 
 
 def make_step(params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK, x0=None, P0=None
               ) -> Stepper:
-    """A jitted per-sample step for Python loops (parameters baked in as constants)."""
+    """A jitted per-sample step for Python loops (parameters baked in as constants); the same
+    numbers as :func:`step` (tested)."""
     template = init(x0, P0)
-    leaves, treedef = jax.tree_util.tree_flatten(template)
-    shapes = [np.shape(v) for v in leaves]
-    dtypes = [jnp.asarray(v).dtype for v in leaves]
-    sizes = [int(np.prod(sh)) for sh in shapes]
-
-    def pack(state):
-        return jnp.concatenate([jnp.ravel(jnp.asarray(v, dtype=jnp.float64))
-                                for v in jax.tree_util.tree_leaves(state)])
-
-    def unpack(x):
-        out, i = [], 0
-        for sh, dt, sz in zip(shapes, dtypes, sizes, strict=True):
-            out.append(jnp.reshape(x[i:i + sz], sh).astype(dt))
-            i += sz
-        return jax.tree_util.tree_unflatten(treedef, out)
+    z0 = np.asarray(tilt_kernels.stream_init(pack_state(template), bool(template.initialized)))
 
     @jax.jit
-    def fast_step(x, u, y, dt):
-        state, o = step(unpack(x), u, y, dt, params, block)
-        vec = jnp.concatenate([o.roll_rad[None], o.pitch_rad[None], o.up_S, o.quat_E_S,
-                               o.bias_S_rad_s, o.flags.astype(jnp.float64)[None]])
-        return pack(state), vec
+    def step_packed(z, sample):
+        return tilt_kernels.stream_step(z, sample, params, block)
 
-    x_init = np.asarray(pack(template))
-    return Stepper(lambda: jnp.asarray(x_init), fast_step, unpack)
+    def step_(z, gyr, acc, dt):
+        return step_packed(z, np.concatenate([np.asarray(gyr, dtype=np.float64),
+                                              np.asarray(acc, dtype=np.float64),
+                                              [float(dt)]]))
+
+    def unpack(z):
+        z = np.asarray(z)
+        nx, ns = tilt_kernels.NX, tilt_kernels.NS
+        st = unpack_state(z[:nx], template)
+        sm = z[nx:nx + ns]
+        return st._replace(
+            initialized=np.bool_(z[nx + ns + 1] > 0.5), blk_dquat=sm[0:4], blk_tau=sm[4],
+            blk_f=sm[5:8], blk_t_acc=sm[8], blk_dev2=sm[9], blk_w2=sm[10], blk_t=sm[11],
+            blk_qmiss=sm[12], blk_gsum=sm[13:16], blk_asum=sm[16:19], blk_a2=sm[19],
+            blk_count=np.int32(round(z[nx + ns])))
+
+    return Stepper(lambda: jnp.asarray(z0), step_, step_packed, unpack)
 
 
 @partial(jax.jit, static_argnames=("block",))
@@ -441,57 +464,21 @@ def scan(state: TiltState, us, ys, dts, params: TiltParams = DEFAULT_PARAMS, blo
     return jax.lax.scan(body, state, (us, ys, dts))
 
 
-@partial(jax.jit, static_argnames=("block",))
-def _run_blocks(state: TiltState, gyr, acc, dt, params: TiltParams, block: int):
-    """Blocked run from a block boundary of an initialized state: per-sample work vectorized over
-    all blocks (pre-integration by an associative scan of quaternion products), then one
-    lax.scan over the blocks for the Kalman steps. Shapes (B, block, 3) and (B, block)."""
-    p = params
-    dt_ok, gyr_ok, acc_ok, acc_n2 = _sample_masks(gyr, acc, dt)
-    dts = jnp.where(dt_ok, dt, 0.0)
-    gyr0 = jnp.where(gyr_ok[..., None], gyr, 0.0)
-    acc0 = jnp.where(acc_ok[..., None], acc, 0.0)
-    e = _qexp(gyr0 * dts[..., None])
-    dq = jax.lax.associative_scan(_qmul, e, axis=1)
-    tau = jnp.cumsum(jnp.where(gyr_ok, dts, 0.0), axis=1)
-    wa = jnp.where(acc_ok, dts, 0.0)
-    f_sum = jnp.sum(_qrotate(dq, acc0) * wa[..., None], axis=1)
-    dev2 = (jnp.sqrt(acc_n2) - p.g_m_s2) ** 2
-    sums = dict(
-        blk_dquat=dq[:, -1], blk_tau=tau[:, -1], blk_f=f_sum, blk_t_acc=jnp.sum(wa, axis=1),
-        blk_dev2=jnp.sum(dev2 * wa, axis=1), blk_w2=jnp.sum(jnp.sum(gyr0 * gyr0, -1) * dts, axis=1),
-        blk_t=jnp.sum(dts, axis=1),
-        blk_qmiss=jnp.sum(jnp.where(gyr_ok, 0.0, (p.omega_missing_rad_s * dts) ** 2), axis=1),
-        blk_gsum=jnp.sum(gyr0 * dts[..., None], axis=1),
-        blk_asum=jnp.sum(acc0 * wa[..., None], axis=1),
-        blk_a2=jnp.sum(jnp.where(acc_ok, acc_n2, 0.0) * wa, axis=1),
-        blk_count=jnp.full(dt.shape[:1], block, dtype=jnp.int32))
-
-    def body(s, blk):
-        start = (s.quat_E_S, s.bias_S_rad_s, s.P)
-        s, disturbed = _block_update(s._replace(**blk), p)
-        return s, (start, s.quat_E_S, s.P, disturbed)
-
-    state, ((q0, b0, P0), q_end, P_end, disturbed) = jax.lax.scan(body, state, sums)
-    quat = _qnormalize(_qmul(_qmul(q0[:, None, :], dq), _qexp(-b0[:, None, :] * tau[..., None])))
-    quat = quat.at[:, -1].set(q_end)
-    dist = jnp.zeros(dt.shape, dtype=bool).at[:, -1].set(disturbed)
-    flags = _flags(dt_ok, gyr_ok, acc_ok, False, dist)
-    # per-block bias and variances: at the block start, and after the update (last sample)
-    b_end = jnp.concatenate([b0[1:], state.bias_S_rad_s[None]], axis=0)
-    return state, (quat, flags, b0, b_end, jnp.diagonal(P0, axis1=1, axis2=2),
-                   jnp.diagonal(P_end, axis1=1, axis2=2))
+def pack_state(state: TiltState):
+    """The filter part of a block-boundary ``state`` as the flat vector of
+    :mod:`verticality.estimators.tilt_kernels` (q, b, v, P, acc_dev_var, rest_s)."""
+    return np.concatenate([np.asarray(state.quat_E_S), np.asarray(state.bias_S_rad_s),
+                           np.asarray(state.vel_E_m_s), np.reshape(np.asarray(state.P), -1),
+                           [float(state.acc_dev_var), float(state.rest_s)]])
 
 
-def _expand_blocks(out, start, end, block):
-    """Per-sample copy of per-block values into ``out``: ``start`` on the block, ``end`` on its
-    last sample."""
-    m = out.shape[0]
-    nb = -(-m // block)
-    view = np.empty((nb * block,) + out.shape[1:])
-    view.reshape((nb, block) + out.shape[1:])[:] = start[:nb, None]
-    view[block - 1::block] = end[:nb]
-    out[:] = view[:m]
+def unpack_state(x, template: TiltState) -> TiltState:
+    """Inverse of :func:`pack_state` (block fields empty, ``initialized`` from ``template``)."""
+    x = np.asarray(x)
+    return template._replace(quat_E_S=x[0:4], bias_S_rad_s=x[4:7], vel_E_m_s=x[7:9],
+                             P=x[9:58].reshape(7, 7), acc_dev_var=x[58], rest_s=x[59],
+                             **{f: getattr(_default_init(), f) for f in TiltState._fields
+                                if f.startswith("blk_")})
 
 
 CHUNK_BLOCKS = 256
@@ -519,7 +506,7 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     n = gyr.shape[0]
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,)).copy()
     if state is None:
-        state = init()
+        state = _default_init()
     res = TiltOutput(np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 4)),
                      np.zeros((n, 3)), np.zeros((n, 7)), np.zeros(n, dtype=np.int32))
 
@@ -531,20 +518,26 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     if not bool(state.initialized):
         # samples before the first usable accelerometer sample: no estimate yet (flagged); that
         # sample initializes the tilt (as step does, without a scan of variable length)
-        dt_ok = np.isfinite(dts) & (dts > 0)
-        acc_fin = np.all(np.isfinite(acc), axis=1)
-        ok = dt_ok & acc_fin & (np.sum(np.where(acc_fin[:, None], acc, 0.0) ** 2, 1) > 1e-6)
-        k = int(np.argmax(ok)) + 1 if ok.any() else n
-        gyr_fin = np.all(np.isfinite(gyr), axis=1)
+        found, lo, span = False, 0, 256
+        while not found and lo < n:  # look in growing windows (usually the first sample)
+            hi = min(n, lo + span)
+            dt_ok = np.isfinite(dts[:hi]) & (dts[:hi] > 0)
+            acc_fin = np.all(np.isfinite(acc[:hi]), axis=1)
+            ok = dt_ok & acc_fin & (np.sum(np.where(acc_fin[:, None], acc[:hi], 0.0) ** 2, 1)
+                                    > 1e-6)
+            found = bool(ok.any())
+            lo, span = hi, 4 * span
+        k = int(np.argmax(ok)) + 1 if found else n
+        gyr_fin = np.all(np.isfinite(gyr[:k]), axis=1)
         flags = (np.where(ok[:k] | ~dt_ok[:k], 0, ACC_MISSING)
-                 | np.where((gyr_fin & dt_ok)[:k] | ~dt_ok[:k], 0, GYR_MISSING)
+                 | np.where((gyr_fin & dt_ok[:k]) | ~dt_ok[:k], 0, GYR_MISSING)
                  | np.where(dt_ok[:k], 0, BAD_DT)).astype(np.int32)
         quat = np.tile(np.asarray(state.quat_E_S), (k, 1))
-        if ok.any():
-            q0 = quat_from_acc(acc[k - 1])
+        if found:
+            q0 = _quat_from_acc_np(acc[k - 1])
             quat[-1] = np.asarray(q0)
             flags[-1] |= INIT
-            state = state._replace(quat_E_S=q0, initialized=jnp.array(True))
+            state = state._replace(quat_E_S=q0, initialized=np.bool_(True))
         put(0, _outputs_np(quat, np.tile(np.asarray(state.bias_S_rad_s), (k, 1)),
                            np.tile(np.diagonal(np.asarray(state.P)), (k, 1)), flags))
     if int(state.blk_count) != 0:  # finish the current block sample by sample
@@ -553,26 +546,30 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
             put(j, jax.tree_util.tree_map(lambda x: np.asarray(x)[None], o))
             k = j + 1
     chunk = CHUNK_BLOCKS * block
-    while k < n:
-        m = min(chunk, n - k)
-        if m == chunk:
-            g, a, d = gyr[k:k + m], acc[k:k + m], dts[k:k + m]
-        else:  # pad the last chunk with skipped samples (BAD_DT): one compiled shape
-            g = np.zeros((chunk, 3))
-            a = np.zeros((chunk, 3))
-            d = np.full(chunk, np.nan)
-            g[:m], a[:m], d[:m] = gyr[k:k + m], acc[k:k + m], dts[k:k + m]
-        state, (quat, flags, b0, b1, v0, v1) = _run_blocks(
-            state, g.reshape(-1, block, 3), a.reshape(-1, block, 3), d.reshape(-1, block), params,
-            block)
-        quat = np.asarray(quat).reshape(-1, 4)[:m]
-        sl = slice(k, k + m)
-        res.quat_E_S[sl] = quat
-        res.flags[sl] = np.asarray(flags).reshape(-1)[:m]
-        _expand_blocks(res.bias_S_rad_s[sl], np.asarray(b0), np.asarray(b1), block)
-        _expand_blocks(res.var[sl], np.asarray(v0), np.asarray(v1), block)
-        k += m
-    _angles_np(res)
+    if k < n:
+        # dispatch every chunk first (asynchronous, the state stays on the device), then copy
+        # the outputs: the host copies overlap the device work of the later chunks
+        x = pack_state(state)
+        pending = []
+        while k < n:
+            m = min(chunk, n - k)
+            if m == chunk:
+                g, a, d = gyr[k:k + m], acc[k:k + m], dts[k:k + m]
+            else:  # pad the last chunk with skipped samples (BAD_DT): one compiled shape
+                g = np.zeros((chunk, 3))
+                a = np.zeros((chunk, 3))
+                d = np.full(chunk, np.nan)
+                g[:m], a[:m], d[:m] = gyr[k:k + m], acc[k:k + m], dts[k:k + m]
+            x, outs = tilt_kernels.run_chunk(x, g, a, d, params, block)
+            pending.append((k, m, outs))
+            k += m
+        order = (res.quat_E_S, res.up_S, res.roll_rad, res.pitch_rad, res.bias_S_rad_s, res.var,
+                 res.flags)
+        for k0, m, outs in pending:
+            for dst, src in zip(order, outs, strict=True):
+                dst[k0:k0 + m] = np.asarray(src)[:m]
+        if return_state:
+            state = unpack_state(x, state)
     return (res, state) if return_state else res
 
 

@@ -1,0 +1,352 @@
+"""Fast kernels of the tilt filter (:mod:`verticality.estimators.tilt`): the same equations as
+``tilt.step`` / ``tilt._block_update``, rearranged so that XLA on a CPU runs them quickly.
+
+* :func:`block_update_packed` — the Kalman prediction and otolith/rest updates of one block (T eq.
+  2, 7–13 in 3-D) on a packed flat state, written with element-wise and broadcast operations only
+  (no ``dot``; the Joseph form with a selector ``H`` is expanded by hand), so that the body of the
+  ``lax.scan`` over blocks compiles to a few fused kernels instead of ~90 small ones.
+* :func:`run_chunk` — a fixed-size chunk of samples: the per-sample pre-integration is a short
+  sequential ``lax.scan`` over the ``block`` samples of a block, vectorized across all blocks at
+  once (structure-of-arrays layout), the quaternion exponential is a Taylor polynomial with an
+  exact fallback (``lax.cond`` on the whole chunk, so the fallback costs nothing when unused), then
+  one ``lax.scan`` over the blocks, then all per-sample outputs (quaternion, roll, pitch, up, bias,
+  variances, flags) on the device.
+
+Packed state (float64, length :data:`NX`): ``q_E_S`` (4, wxyz), ``b_S`` (3), ``v_E`` (2),
+``P`` (49, row-major 7×7), ``acc_dev_var``, ``rest_s``. Packed block sums (length :data:`NS`):
+``dquat`` (4), ``tau``, ``f`` (3), ``t_acc``, ``dev2``, ``w2``, ``t``, ``qmiss``, ``gsum`` (3),
+``asum`` (3), ``a2`` — the ``blk_*`` fields of ``tilt.TiltState``.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+
+NX = 60
+NS = 20
+SMALL_TH2 = 0.04  # |rotation|² (rad²) below which the Taylor exponential is used (error < 1e-27)
+
+# flag bits (same values as in tilt)
+ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED = 1, 2, 4, 8
+
+
+def qmul_c(p, q):
+    """Quaternion product on component tuples (w, x, y, z) of arrays."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw)
+
+
+def qexp_taylor_c(vx, vy, vz):
+    """Quaternion of the rotation vector (vx, vy, vz) for |v|² < :data:`SMALL_TH2`: the series of
+    cos(θ/2) and sin(θ/2)/θ to θ⁸ (truncation error < 1e-27; no sqrt, sin or cos)."""
+    x2 = 0.25 * (vx * vx + vy * vy + vz * vz)  # (θ/2)²
+    c = 1.0 + x2 * (-1.0 / 2 + x2 * (1.0 / 24 + x2 * (-1.0 / 720 + x2 * (1.0 / 40320))))
+    s = 0.5 * (1.0 + x2 * (-1.0 / 6 + x2 * (1.0 / 120 + x2 * (-1.0 / 5040 + x2 * (1.0 / 362880)))))
+    return c, s * vx, s * vy, s * vz
+
+
+def qexp_exact_c(vx, vy, vz):
+    """Quaternion of the rotation vector, exact (the formula of ``tilt._qexp``)."""
+    th2 = vx * vx + vy * vy + vz * vz
+    small = th2 < 1e-12
+    th = jnp.sqrt(jnp.where(small, 1.0, th2))
+    k = jnp.where(small, 0.5 - th2 / 48.0, jnp.sin(0.5 * th) / th)
+    c = jnp.where(small, 1.0 - th2 / 8.0, jnp.cos(0.5 * th))
+    return c, k * vx, k * vy, k * vz
+
+
+def qexp_c(vx, vy, vz):
+    """Batched quaternion exponential: Taylor when every rotation of the batch is small (the IMU
+    case: |ω|Δt ≪ 0.2 rad), the exact formula otherwise (decided once for the whole batch)."""
+    th2 = vx * vx + vy * vy + vz * vz
+    return jax.lax.cond(jnp.all(th2 < SMALL_TH2), qexp_taylor_c, qexp_exact_c, vx, vy, vz)
+
+
+def _qnorm_c(q):
+    n = jnp.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return tuple(c / n for c in q)
+
+
+def _qexp_vec(v):
+    """``tilt._qexp`` on a (3,) vector (used once per block, exact)."""
+    return jnp.stack(qexp_exact_c(v[0], v[1], v[2]))
+
+
+def _qmul_vec(p, q):
+    return jnp.stack(qmul_c(tuple(p), tuple(q)))
+
+
+def _rotmat(q):
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return jnp.stack([
+        jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
+        jnp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)]),
+        jnp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]),
+    ])
+
+
+def _qrotate_vec(q, v):
+    w, u = q[0], q[1:]
+    t = 2.0 * jnp.cross(u, v)
+    return v + w * t + jnp.cross(u, t)
+
+
+def _joseph_selector(P, i0, m, z, r):
+    """Kalman update for ``z = x[i0:i0+m] + n``, ``n ~ N(0, r I)``, m = 2 or 3, Joseph form,
+    symmetrized; element-wise (identical algebra to ``tilt._kf_update`` with a selector H)."""
+    PHt = P[:, i0:i0 + m]  # (7, m)
+    S = P[i0:i0 + m, i0:i0 + m] + r * jnp.eye(m)
+    if m == 2:
+        det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+        Si = jnp.stack([jnp.stack([S[1, 1], -S[0, 1]]), jnp.stack([-S[1, 0], S[0, 0]])]) / det
+    else:
+        a, b, c = S[0, 0], S[0, 1], S[0, 2]
+        d, e, f = S[1, 1], S[1, 2], S[2, 2]
+        cof = jnp.stack([jnp.stack([d * f - e * e, c * e - b * f, b * e - c * d]),
+                         jnp.stack([c * e - b * f, a * f - c * c, b * c - a * e]),
+                         jnp.stack([b * e - c * d, b * c - a * e, a * d - b * b])])
+        Si = cof / (a * (d * f - e * e) + b * (c * e - b * f) + c * (b * e - c * d))
+    K = sum(PHt[:, j:j + 1] * Si[j][None, :] for j in range(m))  # (7, m)
+    dx = sum(K[:, j] * z[j] for j in range(m))
+    M = P - sum(K[:, j:j + 1] * P[i0 + j][None, :] for j in range(m))  # (I − K H) P
+    Pn = (M - sum(M[:, i0 + j:i0 + j + 1] * K[:, j][None, :] for j in range(m))
+          + r * sum(K[:, j:j + 1] * K[:, j][None, :] for j in range(m)))
+    return dx, 0.5 * (Pn + Pn.T)
+
+
+def block_update_packed(x, s, p):
+    """``tilt._block_update`` on packed vectors: ``x`` (NX,) state at the block start, ``s`` (NS,)
+    block sums, ``p`` TiltParams. Returns ``(x_new, disturbed)``."""
+    g = p.g_m_s2
+    q0, b, vel0 = x[0:4], x[4:7], x[7:9]
+    P0 = x[9:58].reshape(7, 7)
+    acc_dev_var0, rest0 = x[58], x[59]
+    dquat, tau, f = s[0:4], s[4], s[5:8]
+    t_acc, dev2s, w2, T, qmiss = s[8], s[9], s[10], s[11], s[12]
+    gsum, asum, a2 = s[13:16], s[16:19], s[19]
+
+    q_end = _qmul_vec(_qmul_vec(q0, dquat), _qexp_vec(-b * tau))
+    q_end = q_end / jnp.sqrt(jnp.sum(q_end * q_end))
+    R = _rotmat(q_end)
+    has_acc = t_acc > 0
+    t_acc_s = jnp.where(has_acc, t_acc, 1.0)
+    vel = vel0 + _qrotate_vec(q0, f)[:2]
+
+    # F = I + E; E: δ ← −T R[:2] b̃ ; ṽ ← T gJ δ + 0.5 T gJ A b̃
+    A = -T * R[:2, :]  # (2, 3)
+    gJA = jnp.stack([A[1], -A[0]]) * g  # g J A, J = [[0, 1], [-1, 0]]
+    z2 = jnp.zeros((2, 2))
+    F = jnp.concatenate([
+        jnp.concatenate([jnp.eye(2), z2, A], axis=1),
+        jnp.concatenate([T * g * jnp.array([[0.0, 1.0], [-1.0, 0.0]]), jnp.eye(2), 0.5 * T * gJA],
+                        axis=1),
+        jnp.concatenate([jnp.zeros((3, 4)), jnp.eye(3)], axis=1)], axis=0)
+    q_gyr = p.gyr_noise**2 * tau + p.gyr_scale_noise**2 * w2 + qmiss
+    q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2
+    qb = p.bias_walk**2 * T
+    Qd = jnp.stack([q_gyr, q_gyr, q_vel, q_vel, qb, qb, qb])
+    FP = jnp.sum(F[:, :, None] * P0[None, :, :], axis=1)
+    P = jnp.sum(FP[:, None, :] * F[None, :, :], axis=2) + jnp.diag(Qd)
+
+    dev2 = dev2s / t_acc_s
+    alpha = 1.0 - jnp.exp(-t_acc / p.acc_tau_s)
+    acc_dev_var = jnp.where(has_acc, acc_dev_var0 + alpha * (dev2 - acc_dev_var0), acc_dev_var0)
+    disturbed = has_acc & (acc_dev_var > p.acc_disturbed_m_s2**2)
+
+    has_gyr = tau > 0
+    tau_s = jnp.where(has_gyr, tau, 1.0)
+    g_mean = gsum / tau_s
+    g_var = jnp.maximum(w2 / jnp.where(T > 0, T, 1.0) - jnp.sum(g_mean * g_mean), 0.0)
+    a_mean = asum / t_acc_s
+    a_var = jnp.maximum(a2 / t_acc_s - jnp.sum(a_mean * a_mean), 0.0)
+    gd = g_mean - b
+    quiet = (has_gyr & has_acc & (g_var < p.rest_gyr_rad_s**2)
+             & (jnp.sum(gd * gd) < p.rest_gyr_rad_s**2) & (a_var < p.rest_acc_m_s2**2))
+    rest_s = jnp.where(quiet, rest0 + T, 0.0)
+    at_rest = rest_s >= p.rest_min_s
+
+    s_vel = jnp.where(at_rest, p.vel_rest_m_s**2, p.vel_m_s**2) * p.vel_corr_s
+    dx1, P1 = _joseph_selector(P, 2, 2, -vel, s_vel / t_acc_s)
+    dx = jnp.where(has_acc, dx1, 0.0)
+    P = jnp.where(has_acc, P1, P)
+    r_b = p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2
+    dx3, P3 = _joseph_selector(P, 4, 3, g_mean - (b + dx[4:]), r_b)
+    dx = dx + jnp.where(at_rest, dx3, 0.0)
+    P = jnp.where(at_rest, P3, P)
+
+    q_new = _qmul_vec(_qexp_vec(jnp.stack([dx[0], dx[1], 0.0])), q_end)
+    q_new = q_new / jnp.sqrt(jnp.sum(q_new * q_new))
+    x_new = jnp.concatenate([q_new, b + dx[4:], vel + dx[2:4], P.reshape(-1),
+                             jnp.stack([acc_dev_var, rest_s])])
+    return x_new, disturbed
+
+
+def masks(gyr, acc, dt):
+    """(dt_ok, gyr_ok, acc_ok, |acc|²) as in ``tilt._sample_masks``."""
+    dt_ok = jnp.isfinite(dt) & (dt > 0)
+    gyr_ok = jnp.all(jnp.isfinite(gyr), axis=-1) & dt_ok
+    acc_n2 = jnp.where(jnp.all(jnp.isfinite(acc), axis=-1), jnp.sum(acc * acc, axis=-1), 0.0)
+    acc_ok = dt_ok & (acc_n2 > 1e-6)
+    return dt_ok, gyr_ok, acc_ok, acc_n2
+
+
+def flags(dt_ok, gyr_ok, acc_ok, disturbed):
+    f = (jnp.where(acc_ok | ~dt_ok, 0, ACC_MISSING) | jnp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
+         | jnp.where(dt_ok, 0, BAD_DT) | jnp.where(disturbed, ACC_DISTURBED, 0))
+    return f.astype(jnp.int32)
+
+
+@partial(jax.jit, static_argnames=("block",))
+def run_chunk(x, gyr, acc, dt, params, block: int):
+    """Filter a chunk of ``n = nb * block`` samples from a block boundary of an initialized packed
+    state ``x``: ``gyr``, ``acc`` (n, 3), ``dt`` (n,). Returns ``(x, outs)`` with ``outs`` =
+    (quat (n, 4), up (n, 3), roll (n,), pitch (n,), bias (n, 3), var (n, 7), flags (n,))."""
+    p = params
+    n = dt.shape[0]
+    nb = n // block
+    dt_ok, gyr_ok, acc_ok, acc_n2 = masks(gyr, acc, dt)
+    dts = jnp.where(dt_ok, dt, 0.0)
+    wg = jnp.where(gyr_ok, dts, 0.0)  # Δt of a valid gyro sample
+    wa = jnp.where(acc_ok, dts, 0.0)  # Δt of a valid accelerometer sample
+    gyr0 = jnp.where(gyr_ok[:, None], gyr, 0.0)
+    acc0 = jnp.where(acc_ok[:, None], acc, 0.0)
+
+    def soa(a):  # (n,) -> (block, nb): sample k of every block in one contiguous row
+        return a.reshape(nb, block).T
+
+    gx, gy, gz = (soa(gyr0[:, i]) for i in range(3))
+    ax, ay, az = (soa(acc0[:, i]) for i in range(3))
+    dts_b, wg_b, wa_b = soa(dts), soa(wg), soa(wa)
+    e = qexp_c(gx * dts_b, gy * dts_b, gz * dts_b)
+
+    # pre-integration: B sequential steps, each over all nb blocks at once
+    def pre(c, k):
+        dq, fx, fy, fz = c
+        dq = qmul_c(dq, tuple(ei[k] for ei in e))
+        w, u = dq[0], dq[1:]
+        v = (ax[k], ay[k], az[k])
+        t = (2.0 * (u[1] * v[2] - u[2] * v[1]), 2.0 * (u[2] * v[0] - u[0] * v[2]),
+             2.0 * (u[0] * v[1] - u[1] * v[0]))
+        r = tuple(v[i] + w * t[i] + (u[(i + 1) % 3] * t[(i + 2) % 3] - u[(i + 2) % 3] * t[(i + 1) % 3])
+                  for i in range(3))
+        wk = wa_b[k]
+        return (dq, fx + r[0] * wk, fy + r[1] * wk, fz + r[2] * wk), jnp.stack(dq)
+
+    one, zero = jnp.ones(nb), jnp.zeros(nb)
+    (dq_end, fx, fy, fz), dq_all = jax.lax.scan(pre, ((one, zero, zero, zero), zero, zero, zero),
+                                                jnp.arange(block))  # dq_all (block, 4, nb)
+    tau_b = jnp.cumsum(wg_b, axis=0)
+    dev2 = (jnp.sqrt(acc_n2) - p.g_m_s2) ** 2
+    gg = gx * gx + gy * gy + gz * gz
+    sums = jnp.stack([dq_end[0], dq_end[1], dq_end[2], dq_end[3], tau_b[-1], fx, fy, fz,
+                      jnp.sum(wa_b, 0), jnp.sum(soa(dev2) * wa_b, 0), jnp.sum(gg * dts_b, 0),
+                      jnp.sum(dts_b, 0),
+                      jnp.sum(jnp.where(soa(gyr_ok), 0.0, (p.omega_missing_rad_s * dts_b) ** 2), 0),
+                      jnp.sum(gx * dts_b, 0), jnp.sum(gy * dts_b, 0), jnp.sum(gz * dts_b, 0),
+                      jnp.sum(ax * wa_b, 0), jnp.sum(ay * wa_b, 0), jnp.sum(az * wa_b, 0),
+                      jnp.sum(soa(acc_n2) * wa_b, 0)], axis=1)  # (nb, NS)
+
+    def body(xc, s):
+        xn, disturbed = block_update_packed(xc, s, p)
+        diag = lambda v: v[9:58:8]  # noqa: E731  diagonal of the packed P
+        row = jnp.concatenate([xc[0:7], diag(xc), xn[0:7], diag(xn), disturbed[None]])
+        return xn, row
+
+    x, rows = jax.lax.scan(body, x, sums)  # rows (nb, 29)
+    q0 = tuple(rows[:, i] for i in range(4))
+    b0 = rows[:, 4:7]
+    # per-sample quaternion: q0 ⊗ dq_k ⊗ exp(−b0 τ_k), normalized; the block's last sample
+    # carries the updated estimate
+    qb = qexp_c(-b0[:, 0] * tau_b, -b0[:, 1] * tau_b, -b0[:, 2] * tau_b)
+    dq = tuple(dq_all[:, i] for i in range(4))
+    q = _qnorm_c(qmul_c(qmul_c(q0, dq), qb))  # each (block, nb)
+    last = jnp.arange(block)[:, None] == block - 1
+    q = tuple(jnp.where(last, rows[:, 14 + i], q[i]) for i in range(4))
+    w, qx, qy, qz = q
+    upx = 2 * (qx * qz - w * qy)
+    upy = 2 * (qy * qz + w * qx)
+    upz = 1 - 2 * (qx * qx + qy * qy)
+    roll = jnp.arctan2(upy, upz)
+    pitch = jnp.arctan2(-upx, jnp.sqrt(upy * upy + upz * upz))
+
+    def aos(cs):  # tuple of (block, nb) -> (n, len)
+        return jnp.stack([c.T.reshape(n) for c in cs], axis=1)
+
+    def per_block(start, end):  # (nb, m) start/end values -> (n, m)
+        v = jnp.broadcast_to(start[:, None, :], (nb, block, start.shape[1]))
+        return v.at[:, -1].set(end).reshape(n, start.shape[1])
+
+    bias = per_block(b0, rows[:, 18:21])
+    var = per_block(rows[:, 7:14], rows[:, 21:28])
+    dist = jnp.zeros((nb, block), dtype=bool).at[:, -1].set(rows[:, 28] > 0.5).reshape(n)
+    fl = flags(dt_ok, gyr_ok, acc_ok, dist)
+    return x, (aos(q), aos((upx, upy, upz)), roll.T.reshape(n), pitch.T.reshape(n), bias, var, fl)
+
+
+NZ = NX + NS + 2  # streaming state: filter (NX), block sums (NS), block count, initialized
+
+
+def stream_init(x, initialized):
+    """Packed streaming state from a packed block-boundary filter state ``x`` (NX,)."""
+    s0 = jnp.zeros(NS).at[0].set(1.0)
+    return jnp.concatenate([jnp.asarray(x, dtype=jnp.float64), s0,
+                            jnp.array([0.0, 1.0 if initialized else 0.0])])
+
+
+def stream_step(z, sample, params, block: int):
+    """``tilt.step`` on the packed streaming state ``z`` (NZ,) with ``sample`` = (gyr(3), acc(3),
+    dt): returns ``(z, out)`` with ``out`` = [roll, pitch, up(3), quat(4), bias(3), flags]."""
+    p = params
+    gyr, acc, dt = sample[0:3], sample[3:6], sample[6]
+    dt_ok, gyr_ok, acc_ok, acc_n2 = masks(gyr, acc, dt)
+    dts = jnp.where(dt_ok, dt, 0.0)
+    gyr0 = jnp.where(gyr_ok, gyr, 0.0)
+    acc0 = jnp.where(acc_ok, acc, 0.0)
+    x, s = z[:NX], z[NX:NX + NS]
+    count, initialized = z[NX + NS], z[NX + NS + 1] > 0.5
+    dq = _qmul_vec(s[0:4], _qexp_vec(gyr0 * dts))
+    wa = jnp.where(acc_ok, dts, 0.0)
+    wg = jnp.where(gyr_ok, dts, 0.0)
+    dev2 = (jnp.sqrt(acc_n2) - p.g_m_s2) ** 2
+    s_acc = jnp.concatenate([
+        dq, s[4:5] + wg, s[5:8] + _qrotate_vec(dq, acc0) * wa, s[8:9] + wa,
+        s[9:10] + dev2 * wa, s[10:11] + jnp.sum(gyr0 * gyr0) * dts, s[11:12] + dts,
+        s[12:13] + jnp.where(gyr_ok, 0.0, (p.omega_missing_rad_s * dts) ** 2),
+        s[13:16] + gyr0 * dts, s[16:19] + acc0 * wa, s[19:20] + acc_n2 * wa])
+    # before initialization: the first usable accelerometer sample sets the tilt
+    init_now = ~initialized & acc_ok
+    a = acc0 / jnp.sqrt(jnp.where(acc_n2 > 0, acc_n2, 1.0))
+    w = 1.0 + a[2]
+    q_init = jnp.where(w < 1e-9, jnp.array([0.0, 1.0, 0.0, 0.0]),
+                       jnp.stack([w, a[1], -a[0], 0.0]))
+    q_init = q_init / jnp.sqrt(jnp.sum(q_init * q_init))
+    x = jnp.where(init_now, x.at[0:4].set(q_init), x)
+    s = jnp.where(initialized, s_acc, s)
+    count = jnp.where(initialized, count + 1, count)
+    initialized = initialized | init_now
+
+    def close(args):
+        x, s = args
+        xn, disturbed = block_update_packed(x, s, p)
+        return xn, jnp.zeros(NS).at[0].set(1.0), disturbed
+
+    x, s, disturbed = jax.lax.cond(initialized & (count >= block), close,
+                                   lambda a: (a[0], a[1], jnp.array(False)), (x, s))
+    count = jnp.where(count >= block, 0.0, count)
+    q = _qmul_vec(_qmul_vec(x[0:4], s[0:4]), _qexp_vec(-x[4:7] * s[4]))
+    q = jnp.where(count == 0, x[0:4], q / jnp.sqrt(jnp.sum(q * q)))
+    w, qx, qy, qz = q[0], q[1], q[2], q[3]
+    up = jnp.stack([2 * (qx * qz - w * qy), 2 * (qy * qz + w * qx), 1 - 2 * (qx * qx + qy * qy)])
+    roll = jnp.arctan2(up[1], up[2])
+    pitch = jnp.arctan2(-up[0], jnp.sqrt(up[1] ** 2 + up[2] ** 2))
+    fl = flags(dt_ok, gyr_ok, acc_ok, disturbed) | jnp.where(init_now, 16, 0)
+    z = jnp.concatenate([x, s, jnp.stack([count, initialized.astype(jnp.float64)])])
+    out = jnp.concatenate([jnp.stack([roll, pitch]), up, q, x[4:7], fl.astype(jnp.float64)[None]])
+    return z, out
