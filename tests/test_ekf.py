@@ -149,3 +149,48 @@ def test_stacked_model_is_the_same_model(medial):
         np.testing.assert_allclose(la, lb, atol=5.0 * drift)
     assert float(so3.orthonormality_error(a.R_I_S)) < 1e-13
     np.testing.assert_allclose(ms.h(ekf_stacked.to_flat(x), u), filt.model.h(x, u), atol=1e-15)
+
+
+# ------------------------------------------------------------------ experiment readings (ekf-*)
+def test_head_frame_acceleration_input_is_the_same_model(medial):
+    """F §4.2.1's u = (ᴴa, ᴴτ): the model rotating ᴴa with its own R̂_IH equals the ᴵa model."""
+    from verticality import simulation as sim
+    from verticality.experiments import ekf as exp
+    from verticality.models.kinematics import RigidMotion
+
+    filt, x = medial
+    x = x._replace(omega_H_rad_s=jnp.zeros(3))  # a head at rest: R_IH constant over the step,
+    tau = jnp.zeros(3)  # so ᴵa = R_IH ᴴa holds throughout and the two models agree to round-off
+    a_I = jnp.array([1.0, 0.5, -0.3])
+    u_I = jnp.tile(jnp.concatenate([a_I, tau]), (2, 1))
+    u_H = jnp.tile(jnp.concatenate([x.R_I_H.T @ a_I, tau]), (2, 1))
+    m_H = exp._head_accel_model(P13_EKF_PENDULUM, P13_EKF_HEAD)
+    for la, lb in zip(jax.tree_util.tree_leaves(m_H.f(x, u_H, 0.02)),
+                      jax.tree_util.tree_leaves(filt.model.f(x, u_I, 0.02)), strict=True):
+        np.testing.assert_allclose(la, lb, atol=1e-12)
+    # the simulator's head-frame input is R_IHᵀ ᴵa, the torque rows unchanged
+    head = RigidMotion(x.R_I_H, x.omega_H_rad_s, jnp.array([0.3, -0.2, 0.1]), a_I)
+    uI = sim.estimator_input(head, P13_EKF_HEAD)
+    uH = sim.estimator_input(head, P13_EKF_HEAD, "head")
+    np.testing.assert_allclose(uH[:3], x.R_I_H.T @ a_I, atol=1e-15)
+    np.testing.assert_allclose(uH[3:], uI[3:], atol=0.0)
+    with pytest.raises(ValueError):
+        sim.estimator_input(head, P13_EKF_HEAD, "trunk")
+
+
+def test_common_initial_covariance_is_one_rotation_of_both(medial):
+    """P0 "common": δθ_S = R_SH δθ_H up to the small relative term; symmetric, PSD."""
+    from verticality.experiments import ekf as exp
+
+    _, x = medial
+    P = np.asarray(exp.initial_covariance(x, "common"))
+    np.testing.assert_allclose(P, P.T, atol=1e-15)
+    assert np.linalg.eigvalsh(P).min() > -1e-14
+    R_SH = np.asarray(x.R_I_S.T @ x.R_I_H)
+    # the conditional covariance of δθ_S given δθ_H is the relative term only
+    Pss, Psh, Phh = P[0:3, 0:3], P[0:3, 6:9], P[6:9, 6:9]
+    np.testing.assert_allclose(Psh, exp.INITIAL_ERROR_RAD**2 * R_SH, atol=1e-15)
+    cond = Pss - Psh @ np.linalg.solve(Phh, Psh.T)
+    np.testing.assert_allclose(cond, exp.SIGMA_RELATIVE_PENDULUM_RAD**2 * np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(np.asarray(exp.initial_covariance(x, "diagonal")),
+                               exp.INITIAL_ERROR_RAD**2 * np.eye(12), atol=0.0)

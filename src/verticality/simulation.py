@@ -29,6 +29,8 @@ called once per estimator tick t_k (k ≥ 1) with
                        (:func:`gimbal.head_torque_total`: motors plus gimbal constraint, the torque
                        that drives the free-head model of F 2.3), each row the exact (RK4-quadrature)
                        mean over one of ``u_blocks`` equal sub-intervals of (t_{k−1}, t_k];
+                       with ``SimConfig(accel_frame="head")`` the acceleration rows are ᴴa
+                       (F §4.2.1's u = (ᴴτ, ᴴa)) instead of ᴵa;
     y  (2·P + 3,)      the P otolith pendulums' angles (φ_x, φ_y) of F 2.8–2.9, each with white noise
                        σ = ``noise.otolith_std_rad``, then the gyro (ω_H + bias + noise), at t_k;
     dt                 dt_estimator_s.
@@ -96,6 +98,7 @@ class SimConfig(NamedTuple):
     dt_estimator_s: float = 0.02
     u_blocks: int = 1  # sub-interval means of u handed to the estimator per tick
     record_control: bool = False  # also record the truth at every control tick
+    accel_frame: str = "inertial"  # u's acceleration rows: "inertial" (ᴵa, P13 §4) or "head" (ᴴa, F §4.2.1)
 
 
 class PlantParams(NamedTuple):
@@ -213,7 +216,7 @@ def _head(trunk, x: GimbalState, m, head_p: HeadParams, stabilized: bool):
     return gimbal.fixed(trunk), jnp.zeros(2)
 
 
-def _plant_derivative(stabilized: bool):
+def _plant_derivative(stabilized: bool, accel_frame: str = "inertial"):
     def f(trunk, x: PlantState, m, params: PlantParams):
         head, thdd = _head(trunk, x.gimbal, m, params.head, stabilized)
         g_dot = GimbalState(x.gimbal.thetadot_rad_s, thdd) if stabilized else None
@@ -221,14 +224,23 @@ def _plant_derivative(stabilized: bool):
                       for xp, pp in zip(x.pendulums, params.pendulums, strict=True))
         if not stabilized:  # the head is the trunk: u is open-loop, computed outside the loop
             return PlantState(g_dot, p_dot), jnp.zeros(0)
-        return PlantState(g_dot, p_dot), estimator_input(head, params.head)
+        return PlantState(g_dot, p_dot), estimator_input(head, params.head, accel_frame)
 
     return f
 
 
-def estimator_input(head, head_p: HeadParams):
-    """u = (a_I (3), τ_H (3)) of the head motion ``head`` (see the module docstring)."""
-    return jnp.concatenate([head.a_I_m_s2, gimbal.head_torque_total(head, head_p)], axis=-1)
+def estimator_input(head, head_p: HeadParams, accel_frame: str = "inertial"):
+    """u = (a_I (3), τ_H (3)) of the head motion ``head`` (see the module docstring).
+
+    ``accel_frame="head"``: the acceleration rows are ᴴa = R_IHᵀ ᴵa instead (F §4.2.1's
+    u = (ᴴτ, ᴴa), still gravity excluded); the estimator must rotate them with its own R̂_IH.
+    """
+    a = head.a_I_m_s2
+    if accel_frame == "head":
+        a = jnp.einsum("...ji,...j->...i", head.R_I_B, a)
+    elif accel_frame != "inertial":
+        raise ValueError(f"accel_frame must be 'inertial' or 'head', not {accel_frame!r}")
+    return jnp.concatenate([a, gimbal.head_torque_total(head, head_p)], axis=-1)
 
 
 def _project(x: PlantState) -> PlantState:
@@ -310,7 +322,9 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
     if n_e % nb:
         raise ValueError(f"u_blocks={nb} must divide the {n_e} control ticks of an estimator tick")
     h = config.dt_plant_s
-    f = _plant_derivative(stabilized)
+    if config.accel_frame not in ("inertial", "head"):
+        raise ValueError(f"accel_frame must be 'inertial' or 'head', not {config.accel_frame!r}")
+    f = _plant_derivative(stabilized, config.accel_frame)
 
     def head_R(R_I_T, x: PlantState):
         return R_I_T @ gimbal.Lambda(x.gimbal.theta_rad) if stabilized else R_I_T
@@ -364,7 +378,7 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
             lambda c, a: control_tick(c, a[0], params, a[1], a[2], bias), (x, R_hat),
             (trunk_ticks, t_ctrl, gyro_noise))
         if not stabilized:  # Simpson (= RK4) mean over each plant step of the trunk's u, vectorised
-            u_stage = jax.vmap(jax.vmap(jax.vmap(lambda w: estimator_input(w, params.head))))(
+            u_stage = jax.vmap(jax.vmap(jax.vmap(lambda w: estimator_input(w, params.head, config.accel_frame))))(
                 trunk_ticks)  # (n_e, n_c, 3, 6)
             u_ticks = jnp.mean((u_stage[:, :, 0] + 4.0 * u_stage[:, :, 1] + u_stage[:, :, 2]) / 6.0,
                                axis=1)
