@@ -11,21 +11,10 @@ from verticality import so3
 from verticality.experiments import model_checks as mc
 from verticality.models import pendulum, planar
 from verticality.models import vestibular as V
-from verticality.models.kinematics import RigidMotion, still
+from verticality.models.kinematics import RigidMotion, from_functions, still
 from verticality.params import LATERAL_R_M, P13_HEAD, P13_PENDULUM
 
-
-def motion_of(pos, R, t):
-    """RigidMotion of a body with position ``pos(t)`` and orientation ``R(t)``, by autodiff."""
-
-    def omega(s):
-        Rs, Rdot = jax.jvp(R, (s,), (1.0,))
-        return so3.vee(Rs.T @ Rdot)
-
-    w, wdot = jax.jvp(omega, (t,), (1.0,))
-    vel = lambda s: jax.jvp(pos, (s,), (1.0,))[1]  # noqa: E731
-    a = jax.jvp(vel, (t,), (1.0,))[1]
-    return RigidMotion(R(t), w, wdot, a)
+motion_of = from_functions
 
 
 DT = 1e-3

@@ -238,12 +238,7 @@ def init(x0=None, P0=None) -> TiltState:
                      **_zero_block())
 
 
-def _sample_masks(gyr, acc, dt):
-    dt_ok = jnp.isfinite(dt) & (dt > 0)
-    gyr_ok = jnp.all(jnp.isfinite(gyr), axis=-1) & dt_ok
-    acc_n2 = jnp.where(jnp.all(jnp.isfinite(acc), axis=-1), jnp.sum(acc * acc, axis=-1), 0.0)
-    acc_ok = dt_ok & (acc_n2 > 1e-6)
-    return dt_ok, gyr_ok, acc_ok, acc_n2
+_sample_masks = tilt_kernels.masks
 
 
 def _kf_update(P, H, z, r):

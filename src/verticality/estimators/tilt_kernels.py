@@ -189,7 +189,8 @@ def block_update_packed(x, s, p):
 
 
 def masks(gyr, acc, dt):
-    """(dt_ok, gyr_ok, acc_ok, |acc|²) as in ``tilt._sample_masks``."""
+    """(dt_ok, gyr_ok, acc_ok, |acc|²) of each sample: finite positive dt, finite gyro, finite
+    non-zero accelerometer."""
     dt_ok = jnp.isfinite(dt) & (dt > 0)
     gyr_ok = jnp.all(jnp.isfinite(gyr), axis=-1) & dt_ok
     acc_n2 = jnp.where(jnp.all(jnp.isfinite(acc), axis=-1), jnp.sum(acc * acc, axis=-1), 0.0)
