@@ -52,9 +52,12 @@ def format_value(v: Any) -> str:
             return f"{v:.4g}"
         return f"{v:.3e}"
     if isinstance(v, list):
+        if any(isinstance(x, dict) for x in v):
+            return f"{len(v)} rows (see results.json)"
         if len(v) > 6:
             return "[" + ", ".join(format_value(x) for x in v[:6]) + f", … ({len(v)} values)]"
         return "[" + ", ".join(format_value(x) for x in v) + "]"
     if v is None:
         return "null"
-    return str(v)
+    text = str(v)
+    return text if len(text) <= 120 else text[:117] + "…"
