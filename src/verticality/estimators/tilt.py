@@ -172,13 +172,7 @@ def _qrotate(q, v):
     return v + w * t + jnp.cross(u, t)
 
 
-def _rotmat(q):
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return jnp.stack([
-        jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
-        jnp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)]),
-        jnp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]),
-    ])
+_rotmat = tilt_kernels.rotmat
 
 
 def quat_from_acc(acc_m_s2):

@@ -83,7 +83,8 @@ def _qmul_vec(p, q):
     return jnp.stack(qmul_c(tuple(p), tuple(q)))
 
 
-def _rotmat(q):
+def rotmat(q):
+    """Rotation matrix of a unit quaternion (w, x, y, z), no normalization (the filter keeps q unit)."""
     w, x, y, z = q[0], q[1], q[2], q[3]
     return jnp.stack([
         jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
@@ -134,7 +135,7 @@ def block_update_packed(x, s, p):
 
     q_end = _qmul_vec(_qmul_vec(q0, dquat), _qexp_vec(-b * tau))
     q_end = q_end / jnp.sqrt(jnp.sum(q_end * q_end))
-    R = _rotmat(q_end)
+    R = rotmat(q_end)
     has_acc = t_acc > 0
     t_acc_s = jnp.where(has_acc, t_acc, 1.0)
     vel = vel0 + _qrotate_vec(q0, f)[:2]
