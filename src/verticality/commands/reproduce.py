@@ -84,7 +84,7 @@ def _print_tables(report: dict, out_dir: Path | None) -> None:
     for name, entry in report["experiments"].items():
         table = Table(title=f"{name}  ({entry['runtime']['wall_s']:.1f} s wall, "
                             f"{entry['runtime']['simulated_s']:.1f} s simulated)")
-        table.add_column("metric")
+        table.add_column("metric", overflow="fold")
         table.add_column("ours", justify="right")
         table.add_column("published", justify="right")
         paper = flatten(entry["paper"])
