@@ -71,6 +71,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import so3
+from verticality.integrate import rk4_step_staged
 from verticality.models import gimbal, pendulum
 from verticality.models.gimbal import GimbalState
 from verticality.models.kinematics import RigidMotion
@@ -247,26 +248,9 @@ def _project(x: PlantState) -> PlantState:
     return PlantState(x.gimbal, tuple(pendulum.project(p) for p in x.pendulums))
 
 
-def _axpy(a, dx, x):
-    return jax.tree_util.tree_map(lambda xi, di: xi + a * di, x, dx)
-
-
 def rk4_step_with_mean(f, inputs3, x, h, *args):
-    """Classical RK4 of ``x' = f(w(t), x)[0]`` for an exogenous input ``w`` given at the start,
-    middle and end of the step (``inputs3``: pytree with a leading axis of 3), that also returns
-    the RK4 quadrature of the auxiliary output ``f(w, x)[1]`` over the step (its mean to 4th
-    order); the result is projected back onto SO(3)."""
-
-    def w(i):
-        return jax.tree_util.tree_map(lambda a: a[i], inputs3)
-
-    k1, a1 = f(w(0), x, *args)
-    k2, a2 = f(w(1), _axpy(0.5 * h, k1, x), *args)
-    k3, a3 = f(w(1), _axpy(0.5 * h, k2, x), *args)
-    k4, a4 = f(w(2), _axpy(h, k3, x), *args)
-    x_next = jax.tree_util.tree_map(
-        lambda xi, a, b, c, d: xi + (h / 6.0) * (a + 2.0 * b + 2.0 * c + d), x, k1, k2, k3, k4)
-    return _project(x_next), (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0
+    """:func:`integrate.rk4_step_staged` with the plant's projection onto SO(3)."""
+    return rk4_step_staged(f, inputs3, x, h, *args, project=_project)
 
 
 def initial_plant_state(traj, params: PlantParams, condition: str, theta0_rad=None) -> PlantState:
@@ -501,16 +485,8 @@ def _replay_chunk(pendulums: tuple, x0: tuple, rows, xs):
 
 
 def _rk4_generic(f, inputs3, x, h):
-    def w(i):
-        return jax.tree_util.tree_map(lambda a: a[i], inputs3)
-
-    k1, _ = f(w(0), x, None, None)
-    k2, _ = f(w(1), _axpy(0.5 * h, k1, x), None, None)
-    k3, _ = f(w(1), _axpy(0.5 * h, k2, x), None, None)
-    k4, _ = f(w(2), _axpy(h, k3, x), None, None)
-    x_next = jax.tree_util.tree_map(
-        lambda xi, a, b, c, d: xi + (h / 6.0) * (a + 2.0 * b + 2.0 * c + d), x, k1, k2, k3, k4)
-    return tuple(pendulum.project(p) for p in x_next), None
+    return rk4_step_staged(lambda w, xs: (f(w, xs, None, None)[0], None), inputs3, x, h,
+                           project=lambda xs: tuple(pendulum.project(p) for p in xs))
 
 
 _replay_chunk_jit = jax.jit(_replay_chunk)
