@@ -539,27 +539,58 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         # dispatch every chunk first (asynchronous, the state stays on the device), then copy
         # the outputs: the host copies overlap the device work of the later chunks
         x = pack_state(state)
+        p_vec = jax.device_put(np.asarray(params, dtype=np.float64))  # once per recording
         pending = []
         while k < n:
+            # the chunk's samples as [gyr, acc, dt] rows (packed chunk by chunk, while the
+            # device works on the previous one); the last chunk padded with skipped samples
+            # (dt = NaN: BAD_DT) so that every chunk has the one compiled shape
             m = min(chunk, n - k)
-            if m == chunk:
-                g, a, d = gyr[k:k + m], acc[k:k + m], dts[k:k + m]
-            else:  # pad the last chunk with skipped samples (BAD_DT): one compiled shape
-                g = np.zeros((chunk, 3))
-                a = np.zeros((chunk, 3))
-                d = np.full(chunk, np.nan)
-                g[:m], a[:m], d[:m] = gyr[k:k + m], acc[k:k + m], dts[k:k + m]
-            x, outs = tilt_kernels.run_chunk(x, g, a, d, params, block)
+            data = np.empty((chunk, 7))
+            data[:m, 0:3] = gyr[k:k + m]
+            data[:m, 3:6] = acc[k:k + m]
+            data[:m, 6] = dts[k:k + m]
+            if m < chunk:
+                data[m:, 0:6] = 0.0
+                data[m:, 6] = np.nan
+            x, outs = tilt_kernels.run_chunk(x, data, p_vec, block, params._fields)
             pending.append((k, m, outs))
             k += m
-        order = (res.quat_E_S, res.up_S, res.roll_rad, res.pitch_rad, res.bias_S_rad_s, res.var,
-                 res.flags)
         for k0, m, outs in pending:
-            for dst, src in zip(order, outs, strict=True):
-                dst[k0:k0 + m] = np.asarray(src)[:m]
+            if m == chunk:
+                _put_chunk(res, k0, outs, block)
+            else:  # the padded last chunk: through a temporary
+                tmp = TiltOutput(np.empty(chunk), np.empty(chunk), np.empty((chunk, 3)),
+                                 np.empty((chunk, 4)), np.empty((chunk, 3)), np.empty((chunk, 7)),
+                                 np.empty(chunk, dtype=np.int32))
+                _put_chunk(tmp, 0, outs, block)
+                for dst, src in zip(res, tmp, strict=True):
+                    dst[k0:k0 + m] = src[:m]
         if return_state:
             state = unpack_state(x, state)
     return (res, state) if return_state else res
+
+
+def _put_chunk(res: TiltOutput, k0: int, outs, block: int):
+    """Write the outputs of one ``tilt_kernels.run_chunk`` (all its samples) into ``res`` from
+    sample ``k0`` on: one transposing copy per field, bias and variances broadcast per block."""
+    soa, rows, fl = (np.asarray(o) for o in outs)
+    nb = soa.shape[2]
+    n = nb * block
+
+    def dst(a):  # (n, ...) rows of a from k0 as a (nb, block, ...) view
+        return a[k0:k0 + n].reshape((nb, block) + a.shape[1:], copy=False)
+
+    dst(res.quat_E_S)[...] = soa[0:4].T
+    dst(res.up_S)[...] = soa[4:7].T
+    dst(res.roll_rad)[...] = soa[7].T
+    dst(res.pitch_rad)[...] = soa[8].T
+    for a, start, end in ((res.bias_S_rad_s, rows[:, 4:7], rows[:, 18:21]),
+                          (res.var, rows[:, 7:14], rows[:, 21:28])):
+        v = dst(a)
+        v[:, :-1] = start[:, None, :]
+        v[:, -1] = end
+    res.flags[k0:k0 + n] = fl
 
 
 def _angles_np(res: TiltOutput):
