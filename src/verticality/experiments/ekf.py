@@ -29,16 +29,17 @@ Readings where the papers are silent (choices):
   F §4.2.1 writes ᴴa instead; that reading (the simulator's ``accel_frame="head"``, the filter
   rotating ᴴa with its own R̂_IH) is run too: keys ``*_head_frame_accel``.
 - **Process noise** (one setting, both conditions, both experiments), per 20 ms step, on the error
-  state (δθ_S, δω_S, δθ_H, δω_H) = (0.001, 0.3, 0.0003, 0.001). The head's rate keeps P13 §5's
-  σ_w = 0.001 literally: the free-head model driven by the known torque (P13 eq. 1b) is then trusted,
-  which is right for the servoed head and wrong for the fixed head, whose trunk-driven motion the
-  model does not know (zero gimbal torque) — exactly the asymmetry P13 attributes the benefit to.
-  The pendulum's rate gets 0.3 rad/s (the one-step velocity error of the deliberately wrong
-  l̃, β̃), inflated by √(1 + (‖Δa‖ / 1 m/s²)²), Δa the change of the input acceleration over the
-  step (last minus first block): the static response to g − a does not depend on l, the dynamic part
-  does, so the model is least trustworthy when a changes fast (impacts, take-off, landing).
-  The head's rotation error gets 3e-4 rad (below P13's 0.001: it only absorbs integration error).
-  The previous setting (0.001, 0.3, 0.001, 0.03), no Δa term, is in docs/ekf.md's table.
+  state (δθ_S, δω_S, δθ_H, δω_H) = (0.001, 0.03, 0.0003, 0.001), plus the parameter-uncertainty
+  ("consider") noise of :mod:`verticality.estimators.parameter_noise`: the model's own m̃, l̃, β̃,
+  J̃_H each uncertain by 50 % (1 σ, relative), linearized by autodiff at the prior into the rates'
+  noise. It vanishes for a pendulum hanging at rest (its equilibrium does not depend on m, l, β)
+  and grows when the pendulum swings or the head is driven by a large torque, which a constant Q
+  cannot do. The head's rate keeps P13 §5's σ_w = 0.001: the free-head model driven by the known
+  torque is trusted, right for the servoed head and wrong for the fixed head, whose trunk-driven
+  motion the model does not know (zero gimbal torque) — the asymmetry P13 attributes the benefit
+  to. The head's rotation error gets 3e-4 rad (it only absorbs integration error); the pendulum's
+  rate 0.03 rad/s (the input's 5 ms block means). The previous constant Q (0.001, 0.3, 0.0003,
+  0.001), no parameter noise, is run too: keys ``*_constant_q``.
 - **Initial covariance** (``p0="common"``): the initial estimate's pendulum hangs at rest relative
   to its head, so the 0.1 rad error is one common rotation of both frames: cov(δθ_S, δθ_H) =
   σ0² R_SH, plus 0.02 rad independent on δθ_S (``initial_covariance``). The diagonal σ0² I₁₂ treats
@@ -64,21 +65,20 @@ import numpy as np
 
 from verticality import integrate, plots, so3, trajectories
 from verticality import simulation as sim
-from verticality.estimators import ekf, ekf_stacked
+from verticality.estimators import ekf, ekf_stacked, parameter_noise
 from verticality.experiments import Result, check, register
 from verticality.models import gimbal
 from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM, P13_HEAD, P13_PENDULUM
 
 T_SETTLE_S = 2.0
 INITIAL_ERROR_RAD = 0.1
-SIGMA_PROCESS = (1e-3, 0.3, 3e-4, 1e-3)  # per step: δθ_S, δω_S, δθ_H, δω_H
-SIGMA_PROCESS_OLD = (1e-3, 0.3, 1e-3, 0.03)  # the previous setting (extra keys *_old_noise)
+SIGMA_PROCESS = (1e-3, 0.03, 3e-4, 1e-3)  # per step: δθ_S, δω_S, δθ_H, δω_H (+ parameter noise)
+SIGMA_PROCESS_CONSTANT = (1e-3, 0.3, 3e-4, 1e-3)  # a constant Q without parameter noise (*_constant_q)
 SEEDS = (0, 1, 2)
 IMPACT_RAMP_IN_S = 1.5
 JUMP_T_PUSH_S, JUMP_DURATION_S = 3.0, 8.0
 SIGMA_PROCESS_STACKED = (0.3, 1e-3, 0.03, 1e-3)  # blocks in P13's order: ω_S, R_IS, ω_H, R_IH
 SIGMA_RELATIVE_PENDULUM_RAD = 0.02
-A_REF_M_S2 = 1.0
 U_BLOCKS = 4
 SEED = 0
 PLANT = sim.PlantParams(P13_HEAD, (P13_PENDULUM,))
@@ -148,7 +148,7 @@ def initial_covariance(x0: ekf.MedialState, kind: str = "common") -> jnp.ndarray
 
 
 def _estimator(variant: str, condition: str, torque_input: str, sigma_process=None,
-               accel_frame: str = "inertial"):
+               accel_frame: str = "inertial", consider_noise: bool = True):
     if variant == "multiplicative":
         filt = _filter(SIGMA_PROCESS if sigma_process is None else sigma_process, accel_frame)
         R_of = lambda s: ekf.head_orientation(s.x)  # noqa: E731
@@ -156,16 +156,20 @@ def _estimator(variant: str, condition: str, torque_input: str, sigma_process=No
         filt = ekf_stacked.stacked_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, SIGMA_PROCESS_STACKED)
         R_of = lambda s: ekf_stacked.head_orientation(s.x)  # noqa: E731
     zero_torque = condition == "fixed" and torque_input == "gimbal"
-    scaled = variant == "multiplicative" and A_REF_M_S2 is not None
+    consider = variant == "multiplicative" and consider_noise
+    head_accel = accel_frame == "head"
 
     def step(state, u, y, dt):
         if zero_torque:
             u = u.at[:, 3:].set(0.0)
         f = filt
-        if scaled:  # pendulum-rate noise grows with the change of the input acceleration
-            da = jnp.linalg.norm(u[-1, :3] - u[0, :3])
-            gain = jnp.sqrt(1.0 + (da / A_REF_M_S2) ** 2)
-            f = filt._replace(Q=filt.Q.at[3:6, 3:6].multiply(gain**2))
+        if consider:  # the model's parameter uncertainty, linearized into Q at the prior
+            u_I = u
+            if head_accel:  # the model rotates ᴴa with its own R̂_IH
+                u_I = u.at[:, :3].set(u[:, :3] @ state.x.R_I_H.T)
+            Qp = parameter_noise.medial_parameter_noise(state.x, u_I, dt, P13_EKF_PENDULUM,
+                                                        P13_EKF_HEAD)
+            f = filt._replace(Q=filt.Q + Qp)
         return f.step(state, u, y, dt)
 
     return filt, sim.Estimator(step=step, R_I_H=R_of)
@@ -173,12 +177,13 @@ def _estimator(variant: str, condition: str, torque_input: str, sigma_process=No
 
 def run_condition(traj, condition: str, variant: str = "multiplicative",
                   torque_input: str = "gimbal", sigma_process=None, seeds=(SEED,),
-                  accel_frame: str = "inertial", p0: str = "common"):
+                  accel_frame: str = "inertial", p0: str = "common", consider_noise: bool = True):
     """Closed-loop runs (one per seed, vmapped); returns the metrics and the first seed's series.
 
     Metrics: ``max``/``rms`` tilt error over the seeds (max of maxima, rms over all samples), plus
     ``*_per_seed`` lists."""
-    filt, est = _estimator(variant, condition, torque_input, sigma_process, accel_frame)
+    filt, est = _estimator(variant, condition, torque_input, sigma_process, accel_frame,
+                           consider_noise)
     cfg = sim.SimConfig(duration_s=traj.duration_s, condition=condition, u_blocks=U_BLOCKS,
                         accel_frame=accel_frame)
     controller = sim.p13_controller() if condition == "stabilized" else None
@@ -216,18 +221,20 @@ def _experiment(traj, quick: bool) -> Result:
     metrics: dict = {"max_tilt_error_deg": {}, "rms_tilt_error_deg": {}}
     series: dict = {}
     seeds = SEEDS[:1] if quick else SEEDS
-    # (suffix, variant, torque reading, process noise, acceleration frame, P0)
-    runs = [("", "multiplicative", "gimbal", SIGMA_PROCESS, "inertial", "common")]
+    # (suffix, variant, torque reading, process noise, acceleration frame, P0, parameter noise)
+    runs = [("", "multiplicative", "gimbal", SIGMA_PROCESS, "inertial", "common", True)]
     if not quick:
-        runs += [("_head_frame_accel", "multiplicative", "gimbal", SIGMA_PROCESS, "head", "common"),
-                 ("_total_torque", "multiplicative", "total", SIGMA_PROCESS, "inertial", "common"),
-                 ("_stacked", "stacked", "gimbal", None, "inertial", "common")]
-    for suffix, variant, torque, sig, frame, p0 in runs:
+        runs += [("_head_frame_accel", "multiplicative", "gimbal", SIGMA_PROCESS, "head", "common", True),
+                 ("_total_torque", "multiplicative", "total", SIGMA_PROCESS, "inertial", "common", True),
+                 ("_constant_q", "multiplicative", "gimbal", SIGMA_PROCESS_CONSTANT, "inertial",
+                  "common", False),
+                 ("_stacked", "stacked", "gimbal", None, "inertial", "common", False)]
+    for suffix, variant, torque, sig, frame, p0, consider in runs:
         mx, rms = f"max_tilt_error_deg{suffix}", f"rms_tilt_error_deg{suffix}"
         metrics.setdefault(mx, {})
         metrics.setdefault(rms, {})
         for cond in sim.CONDITIONS:
-            m, s = run_condition(traj, cond, variant, torque, sig, seeds, frame, p0)
+            m, s = run_condition(traj, cond, variant, torque, sig, seeds, frame, p0, consider)
             metrics[mx][cond] = m["max_tilt_error_deg"]
             metrics[rms][cond] = m["rms_tilt_error_deg"]
             metrics.setdefault(f"max_tilt_error_deg_per_seed{suffix}", {})[cond] = m["max_tilt_error_deg_per_seed"]
