@@ -27,14 +27,12 @@ from verticality.params import HeadParams, PendulumParams
 
 # relative (1 σ) uncertainty of the EKF's m, l, β, J_H: "known to within about a half"
 SIGMA_RELATIVE = (0.5, 0.5, 0.5, 0.5)
-RATE_BLOCKS = (slice(3, 6), slice(9, 12))  # δω_S, δω_H in the medial error state
 
 
 def _rates(log_scale, x: ekf.MedialState, u, p_pend: PendulumParams, p_head: HeadParams):
     m, l, b, J = jnp.exp(log_scale)
-    pp = PendulumParams(m_kg=p_pend.m_kg * m, l_m=p_pend.l_m * l, beta_Nms=p_pend.beta_Nms * b,
-                        pivot_H_m=p_pend.pivot_H_m, gyroscopic=p_pend.gyroscopic,
-                        euler=p_pend.euler, centripetal=p_pend.centripetal).resolved()
+    pp = p_pend._replace(m_kg=p_pend.m_kg * m, l_m=p_pend.l_m * l, beta_Nms=p_pend.beta_Nms * b,
+                         J_pivot_S=None).resolved()  # J = m l² (1, 1, 1/20) of the scaled m, l
     ph = p_head._replace(J_H=p_head.J_H * J)
     d = ekf.medial_dynamics(x, u, pp, ph)
     return jnp.concatenate([d.omega_S_rad_s, d.omega_H_rad_s])

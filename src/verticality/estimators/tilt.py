@@ -590,7 +590,7 @@ def _put_chunk(res: TiltOutput, k0: int, outs, block: int):
         v = dst(a)
         v[:, :-1] = start[:, None, :]
         v[:, -1] = end
-    res.flags[k0:k0 + n] = fl
+    dst(res.flags)[...] = fl.T
 
 
 def _angles_np(res: TiltOutput):

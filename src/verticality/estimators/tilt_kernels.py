@@ -251,14 +251,20 @@ def atan2(y, x):
     return jnp.where(jnp.signbit(y), -r, r)
 
 
-def masks(gyr, acc, dt):
-    """(dt_ok, gyr_ok, acc_ok, |acc|²) of each sample: finite positive dt, finite gyro, finite
-    non-zero accelerometer."""
+def masks_c(g, a, dt):
+    """(dt_ok, gyr_ok, acc_ok, |acc|²) of each sample from component arrays ``g``, ``a`` (3-tuples,
+    any layout): finite positive dt, finite gyro, finite non-zero accelerometer."""
     dt_ok = jnp.isfinite(dt) & (dt > 0)
-    gyr_ok = jnp.all(jnp.isfinite(gyr), axis=-1) & dt_ok
-    acc_n2 = jnp.where(jnp.all(jnp.isfinite(acc), axis=-1), jnp.sum(acc * acc, axis=-1), 0.0)
+    gyr_ok = jnp.isfinite(g[0]) & jnp.isfinite(g[1]) & jnp.isfinite(g[2]) & dt_ok
+    acc_fin = jnp.isfinite(a[0]) & jnp.isfinite(a[1]) & jnp.isfinite(a[2])
+    acc_n2 = jnp.where(acc_fin, a[0] * a[0] + a[1] * a[1] + a[2] * a[2], 0.0)
     acc_ok = dt_ok & (acc_n2 > 1e-6)
     return dt_ok, gyr_ok, acc_ok, acc_n2
+
+
+def masks(gyr, acc, dt):
+    """:func:`masks_c` of ``gyr``, ``acc`` (..., 3)."""
+    return masks_c(tuple(gyr[..., i] for i in range(3)), tuple(acc[..., i] for i in range(3)), dt)
 
 
 def flags(dt_ok, gyr_ok, acc_ok, disturbed):
@@ -273,23 +279,16 @@ def _run_chunk(x, data, params, block: int, names: tuple = ()):
     transfer per chunk). Returns ``(x, (soa, rows, flags))``:
     ``soa`` (9, block, nb) quaternion (4), up (3), roll, pitch of sample ``k`` of block ``j`` at
     ``[:, k, j]``; ``rows`` (nb, 29) per block: state at the start (q 4, b 3, diag P 7), after
-    the update (the same 14) and the disturbed flag; ``flags`` (n,) int32. The bias and variances
+    the update (the same 14) and the disturbed flag; ``flags`` (block, nb) int32. The bias and variances
     of a sample are the block's start values, except at its last sample (the updated ones)."""
     # ``params``: a TiltParams, or its values as one vector with ``names`` its fields (one
     # argument: passing it costs less than passing 16 scalars)
     p = SimpleNamespace(**dict(zip(names, params, strict=True))) if names else params
-    gyr, acc, dt = data[:, 0:3], data[:, 3:6], data[:, 6]
-    n = dt.shape[0]
+    n = data.shape[0]
     nb = n // block
-    dt_ok, gyr_ok, acc_ok, _ = masks(gyr, acc, dt)  # sample order, for the flags
-    # structure of arrays (one transpose): sample k of every block in one contiguous row; the
-    # masks of :func:`masks` again, element-wise in this layout
+    # structure of arrays (one transpose): sample k of every block in one contiguous row
     ds = data.reshape(nb, block, 7).transpose(2, 1, 0)  # (7, block, nb)
-    dt_ok_b = jnp.isfinite(ds[6]) & (ds[6] > 0)
-    gyr_ok_b = jnp.isfinite(ds[0]) & jnp.isfinite(ds[1]) & jnp.isfinite(ds[2]) & dt_ok_b
-    acc_fin = jnp.isfinite(ds[3]) & jnp.isfinite(ds[4]) & jnp.isfinite(ds[5])
-    acc_n2 = jnp.where(acc_fin, ds[3] * ds[3] + ds[4] * ds[4] + ds[5] * ds[5], 0.0)
-    acc_ok_b = dt_ok_b & (acc_n2 > 1e-6)
+    dt_ok_b, gyr_ok_b, acc_ok_b, acc_n2 = masks_c(ds[0:3], ds[3:6], ds[6])
     dts_b = jnp.where(dt_ok_b, ds[6], 0.0)
     wg_b = jnp.where(gyr_ok_b, dts_b, 0.0)  # Δt of a valid gyro sample
     wa_b = jnp.where(acc_ok_b, dts_b, 0.0)  # Δt of a valid accelerometer sample
@@ -347,8 +346,8 @@ def _run_chunk(x, data, params, block: int, names: tuple = ()):
     roll = atan2(upy, upz)
     pitch = atan2(-upx, jnp.sqrt(upy * upy + upz * upz))
 
-    dist = jnp.zeros((nb, block), dtype=bool).at[:, -1].set(rows[:, 28] > 0.5).reshape(n)
-    fl = flags(dt_ok, gyr_ok, acc_ok, dist)
+    dist = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, 28] > 0.5)
+    fl = flags(dt_ok_b, gyr_ok_b, acc_ok_b, dist)  # (block, nb), like soa
     # the host writes these straight into the sample-major result arrays (a transposing copy
     # there is cheaper than XLA's transpose here, and bias/var need no per-sample array at all)
     return x, (jnp.stack([w, qx, qy, qz, upx, upy, upz, roll, pitch]), rows, fl)
