@@ -73,6 +73,7 @@ from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM, P13_HEAD, P13_PEN
 T_SETTLE_S = 2.0
 INITIAL_ERROR_RAD = 0.1
 SIGMA_PROCESS = (1e-3, 0.03, 3e-4, 1e-3)  # per step: δθ_S, δω_S, δθ_H, δω_H (+ parameter noise)
+SIGMA_MEASUREMENT = 0.02  # P13 §5: inclinometer angles (rad) and gyro rates (rad/s), sim and filter
 SIGMA_PROCESS_CONSTANT = (1e-3, 0.3, 3e-4, 1e-3)  # a constant Q without parameter noise (*_constant_q)
 SEEDS = (0, 1, 2)
 IMPACT_RAMP_IN_S = 1.5
@@ -119,8 +120,9 @@ def _head_accel_model(p_pend, p_head) -> ekf.Model:
     return base._replace(f=f)
 
 
-def _filter(sigma_process, accel_frame: str) -> ekf.ExtendedKalmanFilter:
-    filt = ekf.medial_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, sigma_process)
+def _filter(sigma_process, accel_frame: str,
+            sigma_measurement: float = SIGMA_MEASUREMENT) -> ekf.ExtendedKalmanFilter:
+    filt = ekf.medial_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, sigma_process, sigma_measurement)
     if accel_frame == "head":
         filt = filt._replace(model=_head_accel_model(P13_EKF_PENDULUM, P13_EKF_HEAD))
     return filt
@@ -148,12 +150,15 @@ def initial_covariance(x0: ekf.MedialState, kind: str = "common") -> jnp.ndarray
 
 
 def _estimator(variant: str, condition: str, torque_input: str, sigma_process=None,
-               accel_frame: str = "inertial", consider_noise: bool = True):
+               accel_frame: str = "inertial", consider_noise: bool = True,
+               sigma_measurement: float = SIGMA_MEASUREMENT):
     if variant == "multiplicative":
-        filt = _filter(SIGMA_PROCESS if sigma_process is None else sigma_process, accel_frame)
+        filt = _filter(SIGMA_PROCESS if sigma_process is None else sigma_process, accel_frame,
+                       sigma_measurement)
         R_of = lambda s: ekf.head_orientation(s.x)  # noqa: E731
     else:
-        filt = ekf_stacked.stacked_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, SIGMA_PROCESS_STACKED)
+        filt = ekf_stacked.stacked_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, SIGMA_PROCESS_STACKED,
+                                          sigma_measurement)
         R_of = lambda s: ekf_stacked.head_orientation(s.x)  # noqa: E731
     zero_torque = condition == "fixed" and torque_input == "gimbal"
     consider = variant == "multiplicative" and consider_noise
@@ -177,13 +182,17 @@ def _estimator(variant: str, condition: str, torque_input: str, sigma_process=No
 
 def run_condition(traj, condition: str, variant: str = "multiplicative",
                   torque_input: str = "gimbal", sigma_process=None, seeds=(SEED,),
-                  accel_frame: str = "inertial", p0: str = "common", consider_noise: bool = True):
+                  accel_frame: str = "inertial", p0: str = "common", consider_noise: bool = True,
+                  *, sensor_noise_std: float = SIGMA_MEASUREMENT):
     """Closed-loop runs (one per seed, vmapped); returns the metrics and the first seed's series.
+
+    ``sensor_noise_std``: σ of the white noise on the two inclinometer angles and the three gyro
+    rates, in the simulation and in the filter's R alike (P13 §5: 0.02).
 
     Metrics: ``max``/``rms`` tilt error over the seeds (max of maxima, rms over all samples), plus
     ``*_per_seed`` lists."""
     filt, est = _estimator(variant, condition, torque_input, sigma_process, accel_frame,
-                           consider_noise)
+                           consider_noise, sensor_noise_std)
     cfg = sim.SimConfig(duration_s=traj.duration_s, condition=condition, u_blocks=U_BLOCKS,
                         accel_frame=accel_frame)
     controller = sim.p13_controller() if condition == "stabilized" else None
@@ -194,7 +203,9 @@ def run_condition(traj, condition: str, variant: str = "multiplicative",
     else:
         s0 = filt.init(ekf_stacked.to_flat(x0), ekf_stacked.init_covariance(INITIAL_ERROR_RAD))
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    res = sim.simulate_batch(run, keys, PLANT, sim.DEFAULT_NOISE, s0)
+    noise = sim.NoiseParams(otolith_std_rad=sensor_noise_std,
+                            gyro=sim.DEFAULT_NOISE.gyro._replace(noise_std_rad_s=sensor_noise_std))
+    res = sim.simulate_batch(run, keys, PLANT, noise, s0)
     per = jax.vmap(lambda r: sim.tilt_metrics(r, T_SETTLE_S))(res.record)
     mx_seed = np.asarray(per["max_tilt_error_deg"])
     rms_seed = np.asarray(per["rms_tilt_error_deg"])
