@@ -37,7 +37,8 @@ Readings where the papers are silent (choices):
   cannot do. The head's rate keeps P13 §5's σ_w = 0.001: the free-head model driven by the known
   torque is trusted, right for the servoed head and wrong for the fixed head, whose trunk-driven
   motion the model does not know (zero gimbal torque) — the asymmetry P13 attributes the benefit
-  to. The head's rotation error gets 3e-4 rad (it only absorbs integration error); the pendulum's
+  to (how much the fixed head's ratio depends on that σ, on the jump's trunk pitch and on the sensor
+  noise: :mod:`verticality.experiments.ekf_sensitivity`). The head's rotation error gets 3e-4 rad (it only absorbs integration error); the pendulum's
   rate 0.03 rad/s (the input's 5 ms block means). The previous constant Q (0.001, 0.3, 0.0003,
   0.001), no parameter noise, is run too: keys ``*_constant_q``.
 - **Initial covariance** (``p0="common"``): the initial estimate's pendulum hangs at rest relative
