@@ -59,8 +59,7 @@ def run_sweeps(quick: bool = False, progress=None) -> tuple[dict, float]:
     Runs shared between sweeps (the ekf-* setting itself) are computed once. ``progress``: an
     optional callable given a short label before each closed-loop run."""
     seeds = ekf_exp.SEEDS[:1] if quick else ekf_exp.SEEDS
-    cache: dict = {}
-    simulated = [0.0]
+    cache: dict = {}  # (scenario, condition, σ_ωH, pitch, noise) -> (metrics, simulated seconds)
 
     def run(scenario, condition, sigma_head_rate=P13_SIGMA_W, pitch=DEFAULT_PITCH_RAD,
             noise=ekf_exp.SIGMA_MEASUREMENT):
@@ -72,9 +71,11 @@ def run_sweeps(quick: bool = False, progress=None) -> tuple[dict, float]:
             traj = _trajectory(scenario, quick, pitch)
             m, _ = ekf_exp.run_condition(traj, condition, sigma_process=sig, seeds=seeds,
                                          sensor_noise_std=noise)
-            simulated[0] += traj.duration_s * len(seeds)
-            cache[key] = m
-        return cache[key]
+            cache[key] = (m, traj.duration_s * len(seeds))
+        return cache[key][0]
+
+    def simulated_s():
+        return float(sum(d for _, d in cache.values()))
 
     sigmas = HEAD_RATE_SIGMAS_QUICK if quick else HEAD_RATE_SIGMAS
     out: dict = {"fixed_head_rate_sigma": {}}
@@ -83,7 +84,7 @@ def run_sweeps(quick: bool = False, progress=None) -> tuple[dict, float]:
         out["fixed_head_rate_sigma"][scenario] = {
             f"sigma_{s:g}": _row(run(scenario, "fixed", sigma_head_rate=s), stab) for s in sigmas}
     if quick:
-        return out, simulated[0]
+        return out, simulated_s()
     pitches, noises = JUMP_PITCHES_RAD, SENSOR_NOISE_STDS
     out["jump_pitch"] = {"jump": {
         f"pitch_{p:g}_rad": _row(run("jump", "fixed", pitch=p), run("jump", "stabilized", pitch=p))
@@ -91,7 +92,7 @@ def run_sweeps(quick: bool = False, progress=None) -> tuple[dict, float]:
     out["sensor_noise"] = {"jump": {
         f"noise_{n:g}": _row(run("jump", "fixed", noise=n), run("jump", "stabilized", noise=n))
         for n in noises}}
-    return out, simulated[0]
+    return out, simulated_s()
 
 
 @register("ekf-sensitivity", "What the EKF's fixed-vs-stabilized ratio depends on (head-rate noise, "
