@@ -124,36 +124,31 @@ def _plot_ratio(ax, table: dict, prefix: str, suffix: str, color: str, label: st
 
 
 def _figures(result: Result, out_dir: Path) -> list[Path]:
-    """Three panels: the RMS ratio (stabilized / fixed) against each swept value, with the 1/3 line
-    (the quick result has the first panel only)."""
+    """One panel per sweep present (quick: the head-rate sweep only): the RMS ratio (stabilized /
+    fixed) against the swept value, with issue 4's 1/3 line and the ekf-* setting marked."""
     m = result.metrics
-    fig, axes = plots.new_figure(1, 3, width=13.0, height_per_row=3.6, sharex=False)
-    ax = axes[0, 0]
-    for scenario, c in (("impact", "C0"), ("jump", "C3")):
-        if scenario not in m["fixed_head_rate_sigma"]:
-            continue
-        _plot_ratio(ax, m["fixed_head_rate_sigma"][scenario], "sigma_", "", c, scenario)
-    ax.axvline(P13_SIGMA_W, color="0.6", lw=0.8, ls=":", label="P13 σ_w (ekf-*)")
-    ax.set_xscale("log")
-    ax.set_xlabel("fixed head's head-rate noise σ_ωH (rad/s per step)")
-    ax.set_ylabel("RMS tilt error, stabilized / fixed")
-    panels = ((axes[0, 1], "jump_pitch", "pitch_", "_rad", "jump: trunk pitch (rad)", DEFAULT_PITCH_RAD),
-              (axes[0, 2], "sensor_noise", "noise_", "", "jump: sensor noise σ", ekf_exp.SIGMA_MEASUREMENT))
-    for ax2, key, prefix, suffix, label, default in panels:
-        if key not in m:  # quick runs sweep the head-rate noise only
-            ax2.set_axis_off()
-            continue
-        _plot_ratio(ax2, m[key]["jump"], prefix, suffix, "C3", "jump")
-        ax2.axvline(default, color="0.6", lw=0.8, ls=":", label="ekf-jump setting")
-        ax2.set_xlabel(label)
-    axes[0, 2].set_xscale("log")
-    for a in axes[0]:
-        if not a.axison:
-            continue
-        plots.published_line(a, 1.0 / 3.0, label="issue 4: ≤ 1/3")
-        a.set_ylim(0.0, 1.2)
-        a.legend(fontsize=7, loc="upper left")
-    axes[0, 0].set_title("ekf-sensitivity: stabilization's RMS benefit, one value changed at a "
-                         "time (labels: the fixed head's RMS)",
-                         fontsize=9, loc="left")
+    panels = [("fixed_head_rate_sigma", "sigma_", "", "fixed head's head-rate noise σ_ωH (rad/s per step)",
+               P13_SIGMA_W, "P13 σ_w (ekf-*)", True),
+              ("jump_pitch", "pitch_", "_rad", "jump: trunk pitch (rad)", DEFAULT_PITCH_RAD,
+               "ekf-jump setting", False),
+              ("sensor_noise", "noise_", "", "jump: sensor noise σ (simulation and R)",
+               ekf_exp.SIGMA_MEASUREMENT, "ekf-jump setting", True)]
+    panels = [p for p in panels if p[0] in m]
+    fig, axes = plots.new_figure(1, len(panels), width=4.4 * len(panels), height_per_row=3.6,
+                                 sharex=False)
+    for ax, (key, prefix, suffix, xlabel, default, default_label, log_x) in zip(axes[0], panels,
+                                                                                  strict=True):
+        for scenario, c in (("impact", "C0"), ("jump", "C3")):
+            if scenario in m[key]:
+                _plot_ratio(ax, m[key][scenario], prefix, suffix, c, scenario)
+        ax.axvline(default, color="0.6", lw=0.8, ls=":", label=default_label)
+        plots.published_line(ax, 1.0 / 3.0, label="issue 4: ≤ 1/3")
+        if log_x:
+            ax.set_xscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_ylim(0.0, 1.2)
+        ax.legend(fontsize=7, loc="upper left")
+    axes[0, 0].set_ylabel("RMS tilt error, stabilized / fixed")
+    axes[0, 0].set_title("ekf-sensitivity (point labels: the fixed head's RMS)", fontsize=9,
+                         loc="left")
     return [plots.save(fig, Path(out_dir) / "ekf-sensitivity.png")]
