@@ -37,9 +37,9 @@ Readings where the papers are silent (choices):
   cannot do. The head's rate keeps P13 §5's σ_w = 0.001: the free-head model driven by the known
   torque is trusted, right for the servoed head and wrong for the fixed head, whose trunk-driven
   motion the model does not know (zero gimbal torque) — the asymmetry P13 attributes the benefit
-  to (how much the fixed head's ratio depends on that σ, on the jump's trunk pitch and on the sensor
-  noise: :mod:`verticality.experiments.ekf_sensitivity`). The head's rotation error gets 3e-4 rad (it only absorbs integration error); the pendulum's
-  rate 0.03 rad/s (the input's 5 ms block means). The previous constant Q (0.001, 0.3, 0.0003,
+  to (how much the ratio depends on that σ, on the jump's trunk pitch and on the sensor noise:
+  :mod:`verticality.experiments.ekf_sensitivity`). The head's rotation error gets 3e-4 rad (it
+  only absorbs integration error); the pendulum's rate 0.03 rad/s (the input's 5 ms block means). The previous constant Q (0.001, 0.3, 0.0003,
   0.001), no parameter noise, is run too: keys ``*_constant_q``.
 - **Initial covariance** (``p0="common"``): the initial estimate's pendulum hangs at rest relative
   to its head, so the 0.1 rad error is one common rotation of both frames: cov(δθ_S, δθ_H) =
@@ -192,6 +192,8 @@ def run_condition(traj, condition: str, variant: str = "multiplicative",
 
     Metrics: ``max``/``rms`` tilt error over the seeds (max of maxima, rms over all samples), plus
     ``*_per_seed`` lists."""
+    if not sensor_noise_std > 0.0:
+        raise ValueError(f"sensor_noise_std must be > 0 (it is also the filter's R), not {sensor_noise_std!r}")
     filt, est = _estimator(variant, condition, torque_input, sigma_process, accel_frame,
                            consider_noise, sensor_noise_std)
     cfg = sim.SimConfig(duration_s=traj.duration_s, condition=condition, u_blocks=U_BLOCKS,
