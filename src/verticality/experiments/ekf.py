@@ -39,8 +39,9 @@ Readings where the papers are silent (choices):
   motion the model does not know (zero gimbal torque) — the asymmetry P13 attributes the benefit
   to (how much the ratio depends on that σ, on the jump's trunk pitch and on the sensor noise:
   :mod:`verticality.experiments.ekf_sensitivity`). The head's rotation error gets 3e-4 rad (it
-  only absorbs integration error); the pendulum's rate 0.03 rad/s (the input's 5 ms block means). The previous constant Q (0.001, 0.3, 0.0003,
-  0.001), no parameter noise, is run too: keys ``*_constant_q``.
+  only absorbs integration error); the pendulum's rate 0.03 rad/s (the input's 5 ms block means).
+  The previous constant Q (0.001, 0.3, 0.0003, 0.001), no parameter noise, is run too: keys
+  ``*_constant_q``.
 - **Initial covariance** (``p0="common"``): the initial estimate's pendulum hangs at rest relative
   to its head, so the 0.1 rad error is one common rotation of both frames: cov(δθ_S, δθ_H) =
   σ0² R_SH, plus 0.02 rad independent on δθ_S (``initial_covariance``). The diagonal σ0² I₁₂ treats
