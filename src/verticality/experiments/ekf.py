@@ -319,19 +319,29 @@ def _figures_jump(result, out_dir):
     return _figures(result, out_dir, "ekf-jump")
 
 
+def scenario_trajectory(scenario: str, quick: bool = False, **overrides):
+    """The trunk trajectory of ``ekf-impact`` (``scenario="impact"``) or ``ekf-jump`` (``"jump"``),
+    with the settings above; ``quick``: their quick durations (impact 6.5 s, the impact at 5 s
+    included; jump 6 s). ``overrides`` go to the trajectory function (e.g. ``pitch_rad``)."""
+    if scenario == "impact":
+        kw = {"ramp_in_s": IMPACT_RAMP_IN_S, **({"duration_s": 6.5} if quick else {})}
+        return trajectories.impact(**{**kw, **overrides})
+    if scenario == "jump":
+        kw = {"duration_s": JUMP_DURATION_S - 2.0 if quick else JUMP_DURATION_S,
+              "t_push_s": JUMP_T_PUSH_S}
+        return trajectories.jump(**{**kw, **overrides})
+    raise ValueError(f"scenario must be 'impact' or 'jump', not {scenario!r}")
+
+
 @register("ekf-impact", "EKF on SO(3), scenario A: 3-D oscillation and 30 m/s² impact, fixed vs stabilized",
           source="P13 §5 Fig. 2a–c, F §4.2.2 Fig. 4.2", figures=_figures_impact)
 def run_impact(quick: bool = False) -> Result:
     """P13 scenario A. ``quick``: 6.5 s (the impact at 5 s included), one seed, multiplicative EKF only."""
-    kw = {"ramp_in_s": IMPACT_RAMP_IN_S}
-    traj = trajectories.impact(duration_s=6.5, **kw) if quick else trajectories.impact(**kw)
-    return _experiment(traj, quick)
+    return _experiment(scenario_trajectory("impact", quick), quick)
 
 
 @register("ekf-jump", "EKF on SO(3), scenario B: forward jump, fixed vs stabilized",
           source="P13 §5 Fig. 2d–f, F §4.2.2 Fig. 4.3", figures=_figures_jump)
 def run_jump(quick: bool = False) -> Result:
     """P13 scenario B, the push at 3 s. ``quick``: 6 s, one seed, multiplicative EKF only."""
-    traj = trajectories.jump(duration_s=JUMP_DURATION_S - 2.0 if quick else JUMP_DURATION_S,
-                             t_push_s=JUMP_T_PUSH_S)
-    return _experiment(traj, quick)
+    return _experiment(scenario_trajectory("jump", quick), quick)

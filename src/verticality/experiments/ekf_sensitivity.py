@@ -22,6 +22,7 @@ analysis behind the ekf-* numbers (docs/ekf.md), not a published figure.
 
 from __future__ import annotations
 
+import inspect
 import time
 from pathlib import Path
 
@@ -34,16 +35,7 @@ HEAD_RATE_SIGMAS_QUICK = (1e-3, 3e-2)
 JUMP_PITCHES_RAD = (0.1, 0.2, 0.3, 0.4)
 SENSOR_NOISE_STDS = (0.005, 0.01, 0.02)
 P13_SIGMA_W = ekf_exp.SIGMA_PROCESS[3]
-DEFAULT_PITCH_RAD = 0.2
-
-
-def _trajectory(scenario: str, quick: bool, pitch_rad: float = DEFAULT_PITCH_RAD):
-    """The ekf-* trajectories (their quick durations when ``quick``)."""
-    if scenario == "impact":
-        kw = {"duration_s": 6.5} if quick else {}
-        return trajectories.impact(ramp_in_s=ekf_exp.IMPACT_RAMP_IN_S, **kw)
-    duration = ekf_exp.JUMP_DURATION_S - 2.0 if quick else ekf_exp.JUMP_DURATION_S
-    return trajectories.jump(duration_s=duration, t_push_s=ekf_exp.JUMP_T_PUSH_S, pitch_rad=pitch_rad)
+DEFAULT_PITCH_RAD = inspect.signature(trajectories.jump).parameters["pitch_rad"].default  # ekf-jump's
 
 
 def _row(fixed: dict, stabilized: dict) -> dict:
@@ -68,7 +60,8 @@ def run_sweeps(quick: bool = False, progress=None) -> tuple[dict, float]:
             if progress is not None:
                 progress(f"{scenario} {condition} σ_ωH={sigma_head_rate:g} pitch={pitch:g} noise={noise:g}")
             sig = ekf_exp.SIGMA_PROCESS[:3] + (sigma_head_rate,)
-            traj = _trajectory(scenario, quick, pitch)
+            traj = ekf_exp.scenario_trajectory(
+                scenario, quick, **({"pitch_rad": pitch} if scenario == "jump" else {}))
             m, _ = ekf_exp.run_condition(traj, condition, sigma_process=sig, seeds=seeds,
                                          sensor_noise_std=noise)
             cache[key] = (m, traj.duration_s * len(seeds))
