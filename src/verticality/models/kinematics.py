@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
+
+from verticality import so3
 
 
 class RigidMotion(NamedTuple):
@@ -25,3 +28,17 @@ def still(R_I_B=None) -> RigidMotion:
     R = jnp.eye(3) if R_I_B is None else jnp.asarray(R_I_B, dtype=float)
     z = jnp.zeros(3)
     return RigidMotion(R, z, z, z)
+
+
+def from_functions(position_I_m, R_I_B, t) -> RigidMotion:
+    """The motion at time ``t`` of a body whose position ``position_I_m(t)`` and orientation
+    ``R_I_B(t)`` are smooth functions of time: ω = vee(RᵀṘ), ω̇ and a by forward-mode autodiff."""
+
+    def omega(s):
+        Rs, Rdot = jax.jvp(R_I_B, (s,), (1.0,))
+        return so3.vee(Rs.T @ Rdot)
+
+    w, wdot = jax.jvp(omega, (t,), (1.0,))
+    velocity = lambda s: jax.jvp(position_I_m, (s,), (1.0,))[1]  # noqa: E731
+    a = jax.jvp(velocity, (t,), (1.0,))[1]
+    return RigidMotion(R_I_B(t), w, wdot, a)
