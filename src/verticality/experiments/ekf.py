@@ -85,6 +85,7 @@ SIGMA_RELATIVE_PENDULUM_RAD = 0.02
 U_BLOCKS = 4
 SEED = 0
 PLANT = sim.PlantParams(P13_HEAD, (P13_PENDULUM,))
+EKF_MODEL = (P13_EKF_PENDULUM, P13_EKF_HEAD)  # the filter's (pendulum, head) parameters, P13 §5
 PAPER_NOTE = "P13 Fig. 2: errors much smaller when stabilized (no numbers published)"
 
 
@@ -122,11 +123,11 @@ def _head_accel_model(p_pend, p_head) -> ekf.Model:
     return base._replace(f=f)
 
 
-def _filter(sigma_process, accel_frame: str,
-            sigma_measurement: float = SIGMA_MEASUREMENT) -> ekf.ExtendedKalmanFilter:
-    filt = ekf.medial_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, sigma_process, sigma_measurement)
+def _filter(sigma_process, accel_frame: str, sigma_measurement: float = SIGMA_MEASUREMENT,
+            model_params=EKF_MODEL) -> ekf.ExtendedKalmanFilter:
+    filt = ekf.medial_filter(*model_params, sigma_process, sigma_measurement)
     if accel_frame == "head":
-        filt = filt._replace(model=_head_accel_model(P13_EKF_PENDULUM, P13_EKF_HEAD))
+        filt = filt._replace(model=_head_accel_model(*model_params))
     return filt
 
 
@@ -153,14 +154,13 @@ def initial_covariance(x0: ekf.MedialState, kind: str = "common") -> jnp.ndarray
 
 def _estimator(variant: str, condition: str, torque_input: str, sigma_process=None,
                accel_frame: str = "inertial", consider_noise: bool = True,
-               sigma_measurement: float = SIGMA_MEASUREMENT):
+               sigma_measurement: float = SIGMA_MEASUREMENT, model_params=EKF_MODEL):
     if variant == "multiplicative":
         filt = _filter(SIGMA_PROCESS if sigma_process is None else sigma_process, accel_frame,
-                       sigma_measurement)
+                       sigma_measurement, model_params)
         R_of = lambda s: ekf.head_orientation(s.x)  # noqa: E731
     else:
-        filt = ekf_stacked.stacked_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, SIGMA_PROCESS_STACKED,
-                                          sigma_measurement)
+        filt = ekf_stacked.stacked_filter(*model_params, SIGMA_PROCESS_STACKED, sigma_measurement)
         R_of = lambda s: ekf_stacked.head_orientation(s.x)  # noqa: E731
     zero_torque = condition == "fixed" and torque_input == "gimbal"
     consider = variant == "multiplicative" and consider_noise
@@ -174,8 +174,7 @@ def _estimator(variant: str, condition: str, torque_input: str, sigma_process=No
             u_I = u
             if head_accel:  # the model rotates ᴴa with its own R̂_IH
                 u_I = u.at[:, :3].set(u[:, :3] @ state.x.R_I_H.T)
-            Qp = parameter_noise.medial_parameter_noise(state.x, u_I, dt, P13_EKF_PENDULUM,
-                                                        P13_EKF_HEAD)
+            Qp = parameter_noise.medial_parameter_noise(state.x, u_I, dt, *model_params)
             f = filt._replace(Q=filt.Q + Qp)
         return f.step(state, u, y, dt)
 
@@ -185,18 +184,21 @@ def _estimator(variant: str, condition: str, torque_input: str, sigma_process=No
 def run_condition(traj, condition: str, variant: str = "multiplicative",
                   torque_input: str = "gimbal", sigma_process=None, seeds=(SEED,),
                   accel_frame: str = "inertial", p0: str = "common", consider_noise: bool = True,
-                  *, sensor_noise_std: float = SIGMA_MEASUREMENT):
+                  *, sensor_noise_std: float = SIGMA_MEASUREMENT, model_params=EKF_MODEL,
+                  t_settle_s: float = T_SETTLE_S):
     """Closed-loop runs (one per seed, vmapped); returns the metrics and the first seed's series.
 
     ``sensor_noise_std``: σ of the white noise on the two inclinometer angles and the three gyro
-    rates, in the simulation and in the filter's R alike (P13 §5: 0.02).
+    rates, in the simulation and in the filter's R alike (P13 §5: 0.02). ``model_params``: the
+    (pendulum, head) parameters of the filter's model (default P13's wrong ones; ``(P13_PENDULUM,
+    P13_HEAD)`` is the exact model). The metrics cover t ≥ ``t_settle_s``.
 
     Metrics: ``max``/``rms`` tilt error over the seeds (max of maxima, rms over all samples), plus
     ``*_per_seed`` lists."""
     if not sensor_noise_std > 0.0:
         raise ValueError(f"sensor_noise_std must be > 0 (it is also the filter's R), not {sensor_noise_std!r}")
     filt, est = _estimator(variant, condition, torque_input, sigma_process, accel_frame,
-                           consider_noise, sensor_noise_std)
+                           consider_noise, sensor_noise_std, model_params)
     cfg = sim.SimConfig(duration_s=traj.duration_s, condition=condition, u_blocks=U_BLOCKS,
                         accel_frame=accel_frame)
     controller = sim.p13_controller() if condition == "stabilized" else None
@@ -210,7 +212,7 @@ def run_condition(traj, condition: str, variant: str = "multiplicative",
     noise = sim.NoiseParams(otolith_std_rad=sensor_noise_std,
                             gyro=sim.DEFAULT_NOISE.gyro._replace(noise_std_rad_s=sensor_noise_std))
     res = sim.simulate_batch(run, keys, PLANT, noise, s0)
-    per = jax.vmap(lambda r: sim.tilt_metrics(r, T_SETTLE_S))(res.record)
+    per = jax.vmap(lambda r: sim.tilt_metrics(r, t_settle_s))(res.record)
     mx_seed = np.asarray(per["max_tilt_error_deg"])
     rms_seed = np.asarray(per["rms_tilt_error_deg"])
     metrics = {"max_tilt_error_deg": float(mx_seed.max()),
@@ -273,17 +275,19 @@ def _experiment(traj, quick: bool) -> Result:
                   notes=f"wall {time.perf_counter() - t0:.1f} s")
 
 
-def _figures(result: Result, out_dir: Path, name: str) -> list[Path]:
-    """P13 Fig. 2: true and estimated tilt (θx, θy), fixed vs stabilized, and the tilt error."""
-    out_dir = Path(out_dir)
+def plot_fixed_vs_stabilized(series: dict, title: str, path, *, t_settle_s: float = T_SETTLE_S,
+                             required_max_deg: float | None = 1.0) -> Path:
+    """P13 Fig. 2's layout: the trunk's acceleration; true and estimated tilt (θx, θy) of the fixed
+    and the stabilized head; both heads' tilt errors (log scale; the stacked EKF's too when
+    ``series`` has them), the settling time and, unless None, the required stabilized maximum."""
     fig, axes = plots.new_figure(4, 1, width=9.0, height_per_row=2.2)
-    s0 = result.series["fixed"]
+    s0 = series["fixed"]
     ax = axes[0, 0]
     ax.plot(s0["t_s"], s0["a_I_m_s2"], lw=0.8)
     ax.set_ylabel("trunk accel. (m/s²)")
     ax.legend(["x", "y", "z"], fontsize=7, ncol=3, loc="upper right")
     for row, cond in ((1, "fixed"), (2, "stabilized")):
-        s = result.series[cond]
+        s = series[cond]
         ax = axes[row, 0]
         for i, (c, lab) in enumerate((("C0", "θx"), ("C3", "θy"))):
             ax.plot(s["t_s"], s["tilt_true_deg"][:, i], color=c, lw=1.0, label=f"{lab} true")
@@ -293,22 +297,28 @@ def _figures(result: Result, out_dir: Path, name: str) -> list[Path]:
     ax = axes[3, 0]
     for key, c in (("fixed", "C1"), ("stabilized", "C2"), ("fixed_stacked", "0.6"),
                    ("stabilized_stacked", "0.3")):
-        if key in result.series:
-            s = result.series[key]
+        if key in series:
+            s = series[key]
             ax.plot(s["t_s"], s["tilt_error_deg"], color=c, lw=0.9, label=key.replace("_", " "))
-    plots.published_line(ax, 1.0, label="required max, stabilized (t ≥ 2 s)")
-    ax.axvline(T_SETTLE_S, color="0.7", lw=0.8)
+    if required_max_deg is not None:
+        plots.published_line(ax, required_max_deg,
+                             label=f"required max, stabilized (t ≥ {t_settle_s:g} s)")
+    ax.axvline(t_settle_s, color="0.7", lw=0.8)
     ax.set_yscale("log")
     ax.set_ylim(1e-2, None)
     ax.set_ylabel("tilt error (deg)")
     ax.set_xlabel("time (s)")
     ax.legend(fontsize=7, ncol=3, loc="upper right")
+    axes[0, 0].set_title(title, fontsize=9)
+    return plots.save(fig, path)
+
+
+def _figures(result: Result, out_dir: Path, name: str) -> list[Path]:
+    """P13 Fig. 2: true and estimated tilt (θx, θy), fixed vs stabilized, and the tilt error."""
     mx, rms = result.metrics["max_tilt_error_deg"], result.metrics["rms_tilt_error_deg"]
-    axes[0, 0].set_title(
-        f"{name}: max/rms tilt error after 2 s — fixed {mx['fixed']:.2f}/{rms['fixed']:.2f}°, "
-        f"stabilized {mx['stabilized']:.2f}/{rms['stabilized']:.2f}° (P13 Fig. 2: 'much smaller')",
-        fontsize=9)
-    return [plots.save(fig, out_dir / f"{name}.png")]
+    title = (f"{name}: max/rms tilt error after 2 s — fixed {mx['fixed']:.2f}/{rms['fixed']:.2f}°, "
+             f"stabilized {mx['stabilized']:.2f}/{rms['stabilized']:.2f}° (P13 Fig. 2: 'much smaller')")
+    return [plot_fixed_vs_stabilized(result.series, title, Path(out_dir) / f"{name}.png")]
 
 
 def _figures_impact(result, out_dir):
