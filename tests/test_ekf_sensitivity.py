@@ -6,13 +6,6 @@ from verticality.experiments import ekf as ekf_exp
 from verticality.experiments import ekf_sensitivity as sens
 
 
-@pytest.fixture(scope="module")
-def quick_sweeps():
-    labels = []
-    out, simulated_s = sens.run_sweeps(quick=True, progress=labels.append)
-    return out, simulated_s, labels
-
-
 def test_quick_sweep_runs_each_setting_once(quick_sweeps):
     out, simulated_s, labels = quick_sweeps
     rows = out["fixed_head_rate_sigma"]["jump"]

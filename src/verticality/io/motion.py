@@ -1,4 +1,4 @@
-"""Head-motion files (MOTION.csv) in, otolith responses (OUT.csv) out.
+"""Head-motion files (MOTION.csv) in; otolith responses and head-tilt estimates out.
 
 MOTION.csv (issue 2 item 9): a header row, then one row per sample with the columns
 
@@ -13,6 +13,10 @@ Other columns are ignored; column order is free. A bad file raises
 OUT.csv: ``t,sx,sy,sz,phi_x,phi_y`` (s_H: unit vector from pivot to mass, head frame; the otolith
 angles of F 2.8–2.9, rad); for several pendulums the same columns with a suffix per pendulum
 (``_left``, ``_right`` for the lateral model).
+
+``verticality stabilize`` reads a MOTION.csv as the *trunk's* motion (the head's when it is rigid
+on the trunk) and writes ``t`` and ``{fixed,stabilized}_{tilt_x_true_deg, tilt_y_true_deg,
+tilt_x_est_deg, tilt_y_est_deg, tilt_error_deg}`` (:func:`write_tilt_comparison_csv`).
 """
 
 from __future__ import annotations
@@ -131,6 +135,25 @@ def write_otolith_csv(path, t_s, s_H, phi_rad, suffixes=("",)) -> Path:
     for k in range(len(suffixes)):
         blocks += [s_H[:, k, :], phi[:, k, :]]
     _write(path, otolith_columns(suffixes), np.concatenate(blocks, axis=1))
+    return path
+
+
+TILT_QUANTITIES = ("tilt_x_true_deg", "tilt_y_true_deg", "tilt_x_est_deg", "tilt_y_est_deg",
+                   "tilt_error_deg")
+
+
+def write_tilt_comparison_csv(path, t_s, series: dict) -> Path:
+    """Write ``t`` and, per condition of ``series`` ({condition: {"tilt_true_deg" (N, 2),
+    "tilt_est_deg" (N, 2), "tilt_error_deg" (N,)}}), the columns ``{condition}_{quantity}`` for the
+    quantities of :data:`TILT_QUANTITIES` (θx, θy of P13 Fig. 2; the error is the angle between the
+    true and estimated up directions)."""
+    path = Path(path)
+    header, blocks = ["t"], [np.asarray(t_s, float)[:, None]]
+    for cond, s in series.items():
+        header += [f"{cond}_{q}" for q in TILT_QUANTITIES]
+        blocks += [np.asarray(s["tilt_true_deg"], float), np.asarray(s["tilt_est_deg"], float),
+                   np.asarray(s["tilt_error_deg"], float)[:, None]]
+    _write(path, header, np.concatenate(blocks, axis=1))
     return path
 
 

@@ -1,0 +1,154 @@
+"""``verticality stabilize MOTION.csv [--out OUT.csv] [--plot OUT.png] [--json] [--seeds N]
+[--noise SIGMA] [--exact-model] [--settle S]``
+
+Would servoing the head upright help on *this* trunk motion? The trunk of MOTION.csv (t, q_I_T,
+ω_T, a_I; :mod:`verticality.io.motion`) carries P13's gimbal head with its otolith pendulum and
+gyros; the EKF on SO(3) of ``ekf-impact``/``ekf-jump`` estimates the head's tilt, once with the
+head rigid on the trunk (``fixed``) and once servoed upright by P13's PD fed by the estimate
+(``stabilized``). Everything but the trunk motion is the ekf-* setting (:mod:`
+verticality.experiments.ekf`): P13's plant, sensor noise σ = 0.02, EKF every 20 ms started 0.1 rad
+off, its model given P13's wrong parameters unless ``--exact-model``. Prints max and RMS tilt error
+after the settling time for both heads and their RMS ratio; writes the tilt series and P13 Fig. 2's
+figure on request.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from verticality.errors import InputError
+
+EKF_PERIOD_S = 0.02
+
+
+def register(sub):
+    p = sub.add_parser(
+        "stabilize",
+        help="EKF tilt error of a head rigid on a recorded trunk motion vs. one servoed upright",
+        description="Put P13's gimbal head (otolith pendulum, gyros, EKF on SO(3)) on the trunk "
+                    "motion of MOTION.csv (columns t,qw,qx,qy,qz,wx,wy,wz,ax,ay,az; see "
+                    "docs/simulation.md), once rigid and once stabilized, and compare the tilt "
+                    "errors.",
+    )
+    p.add_argument("motion", type=Path, metavar="MOTION.csv",
+                   help="the trunk's motion (e.g. from `verticality motion NAME --out ...`)")
+    p.add_argument("--out", type=Path, default=None, metavar="OUT.csv",
+                   help="write t (the file's clock) and each head's true/estimated tilt and error "
+                        "at the EKF's 50 Hz")
+    p.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
+                   help="draw the trunk acceleration, both heads' tilt and the errors")
+    p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    p.add_argument("--seeds", type=int, default=1,
+                   help="sensor-noise realizations, run as one batch (default 1)")
+    p.add_argument("--noise", type=float, default=None, metavar="SIGMA",
+                   help="σ of the inclinometer (rad) and gyro (rad/s) noise, also the filter's R "
+                        "(default P13's 0.02)")
+    p.add_argument("--exact-model", action="store_true",
+                   help="give the EKF the plant's true parameters (default: P13's wrong ones)")
+    p.add_argument("--settle", type=float, default=None, metavar="S",
+                   help="seconds from the recording's start excluded from the metrics while the EKF "
+                        "converges (default 2)")
+    p.set_defaults(func=run)
+
+
+def _options(args, duration_s: float) -> tuple[float, float]:
+    from verticality.experiments.ekf import SIGMA_MEASUREMENT, T_SETTLE_S
+
+    if args.seeds < 1:
+        raise InputError(f"--seeds must be at least 1, not {args.seeds}")
+    noise = SIGMA_MEASUREMENT if args.noise is None else args.noise
+    if not (math.isfinite(noise) and noise > 0.0):
+        raise InputError(f"--noise must be a positive number (it is also the filter's R), not {noise}")
+    settle = T_SETTLE_S if args.settle is None else args.settle
+    if not (math.isfinite(settle) and settle >= 0.0):
+        raise InputError(f"--settle must be a non-negative number, not {settle}")
+    if settle + 2 * EKF_PERIOD_S > duration_s:
+        raise InputError(f"the recording lasts {duration_s:g} s, which leaves no EKF sample after the "
+                         f"{settle:g} s settling time (shorten it with --settle)")
+    return noise, settle
+
+
+def run(args) -> int:
+    import numpy as np
+    from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    from verticality.experiments import ekf as ekf_exp
+    from verticality.io.motion import read_motion_csv, write_tilt_comparison_csv
+    from verticality.params import P13_HEAD, P13_PENDULUM
+    from verticality.recorded_trajectory import from_record
+    from verticality.simulation import CONDITIONS
+
+    rec = read_motion_csv(args.motion)
+    traj = from_record(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s, rec.a_I_m_s2,
+                       name=args.motion.stem)
+    noise, settle = _options(args, traj.duration_s)
+    err = Console(stderr=True)
+    gap = float(np.max(np.diff(rec.t_s)))
+    if gap > EKF_PERIOD_S:
+        err.print(f"[yellow]note:[/yellow] rows up to {gap:g} s apart, longer than the EKF's "
+                  f"{EKF_PERIOD_S:g} s period: between rows the trunk's acceleration is interpolated "
+                  "linearly and its rotation by cubic Hermite")
+    model = (P13_PENDULUM, P13_HEAD) if args.exact_model else ekf_exp.EKF_MODEL
+    seeds = tuple(range(args.seeds))
+    metrics: dict = {"max_tilt_error_deg": {}, "rms_tilt_error_deg": {}, "rejected_updates": {}}
+    series: dict = {}
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                  console=err, transient=True, disable=not err.is_terminal) as progress:
+        for cond in CONDITIONS:
+            task = progress.add_task(f"{cond} head: compiling and simulating {traj.duration_s:g} s "
+                                     f"× {len(seeds)} seed(s)", total=None)
+            m, s = ekf_exp.run_condition(traj, cond, seeds=seeds, sensor_noise_std=noise,
+                                         model_params=model, t_settle_s=settle)
+            progress.remove_task(task)
+            metrics["max_tilt_error_deg"][cond] = m["max_tilt_error_deg"]
+            metrics["rms_tilt_error_deg"][cond] = m["rms_tilt_error_deg"]
+            metrics["rejected_updates"][cond] = m["rejected_updates"]
+            series[cond] = s
+    rms = metrics["rms_tilt_error_deg"]
+    metrics["rms_ratio_stabilized_over_fixed"] = rms["stabilized"] / max(rms["fixed"], 1e-12)
+    report = {"input": str(args.motion), "duration_s": traj.duration_s, "rows": int(rec.t_s.size),
+              "seeds": len(seeds), "sensor_noise_std": noise, "settle_s": settle,
+              "filter_model": "exact" if args.exact_model else "p13-mismatched", **metrics}
+    if args.out is not None:
+        t_file = series["fixed"]["t_s"] + traj.events["t0_s"]  # back on the file's clock
+        write_tilt_comparison_csv(args.out, t_file, series)
+        err.print(f"wrote {args.out}")
+    if args.plot is not None:
+        title = (f"{traj.name}: tilt error after {settle:g} s (max / RMS) — fixed "
+                 f"{metrics['max_tilt_error_deg']['fixed']:.2f} / {rms['fixed']:.2f}°, stabilized "
+                 f"{metrics['max_tilt_error_deg']['stabilized']:.2f} / {rms['stabilized']:.2f}°")
+        ekf_exp.plot_fixed_vs_stabilized(series, title, args.plot, t_settle_s=settle,
+                                         required_max_deg=None)
+        err.print(f"wrote {args.plot}")
+    rejected = sum(metrics["rejected_updates"].values())
+    if rejected:
+        err.print(f"[yellow]warning:[/yellow] the EKF refused {rejected} update(s) that would have "
+                  "made its state non-finite (first seed); the estimates there are predictions")
+    if args.json:
+        json.dump(report, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        _print_table(report)
+    return 0
+
+
+def _print_table(report: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"{report['input']}: {report['duration_s']:g} s, {report['seeds']} seed(s), "
+                        f"EKF model {report['filter_model']}")
+    after = f"t ≥ {report['settle_s']:g} s"
+    table.add_column("head")
+    table.add_column(f"max tilt error, {after} (deg)", justify="right")
+    table.add_column(f"RMS tilt error, {after} (deg)", justify="right")
+    for cond in ("fixed", "stabilized"):
+        table.add_row(cond, f"{report['max_tilt_error_deg'][cond]:.3f}",
+                      f"{report['rms_tilt_error_deg'][cond]:.3f}")
+    console = Console()
+    console.print(table)
+    console.print(f"RMS ratio stabilized / fixed: {report['rms_ratio_stabilized_over_fixed']:.3f}")
