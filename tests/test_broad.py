@@ -105,3 +105,33 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
     assert set(res) == {"trials", "mean"}
     assert res["trials"]["slice"]["verticality"] == pytest.approx(rmse, rel=1e-9)
     assert res["mean"]["verticality"] == pytest.approx(rmse, rel=1e-9)
+
+
+def test_motion_from_a_broad_trial_window(tmp_path, capsys):
+    """`verticality motion TRIAL.hdf5`: q from the optical reference, ω the gyro, a_I the specific
+    force rotated into I with gravity removed (≈ 0 while the IMU lies still); a window holding an
+    optical dropout is refused, naming the longest clean stretch."""
+    path = _broad_dir() / "15_undisturbed_fast_translation_A.hdf5"
+    out = tmp_path / "m.csv"
+    assert cli.main(["motion", str(path), "--start", "38", "--duration", "4", "--out", str(out)]) == 0
+    from verticality.io.motion import read_motion_csv
+
+    rec = read_motion_csv(out)
+    trial = broad.load_trial(path)
+    i0 = int(np.searchsorted(trial.t_s, 38.0 - 1e-9))
+    assert rec.t_s[0] == pytest.approx(38.0, abs=1.0 / trial.sampling_rate_hz)
+    assert rec.t_s.size == pytest.approx(4.0 * trial.sampling_rate_hz, abs=1.5)
+    np.testing.assert_allclose(rec.omega_H_rad_s, trial.gyr_rad_s[i0:i0 + rec.t_s.size], atol=1e-15)
+    # still before the movement starts at 40.5 s: the accelerometer's bias is all that is left
+    still = rec.t_s < 40.0
+    assert np.all(np.linalg.norm(rec.a_I_m_s2[still], axis=1) < 0.5)
+    # the accelerometer reads the specific force: R a_I-with-gravity gives back imu_acc
+    R = np.asarray(so3.matrix_from_quat(rec.q_I_H_wxyz))
+    f_B = np.einsum("nji,nj->ni", R, rec.a_I_m_s2 + np.array([0.0, 0.0, 9.81]))
+    np.testing.assert_allclose(f_B, trial.acc_m_s2[i0:i0 + rec.t_s.size], atol=1e-2)
+    capsys.readouterr()
+    assert cli.main(["motion", str(path), "--start", "80", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "t = 84.200 s" in err and "longest stretch with one is 0.000–84.196 s" in err
+    assert cli.main(["motion", str(path), "--rate", "100", "--out", str(out)]) == 2
+    assert "keeps its own sampling rate" in capsys.readouterr().err
