@@ -85,8 +85,14 @@ def run(args) -> int:
     rec = read_motion_csv(args.motion)
     traj = from_record(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s, rec.a_I_m_s2,
                        name=args.motion.stem)
-    noise, settle = _options(args, traj.duration_s)
     err = Console(stderr=True)
+    n_periods = math.floor(traj.duration_s / EKF_PERIOD_S + 1e-9)
+    if n_periods * EKF_PERIOD_S < traj.duration_s - 1e-9:  # the simulator runs whole EKF periods
+        err.print(f"[yellow]note:[/yellow] simulating {n_periods * EKF_PERIOD_S:g} s of the "
+                  f"{traj.duration_s:g} s recorded: the last "
+                  f"{1e3 * (traj.duration_s - n_periods * EKF_PERIOD_S):.1f} ms do not fill an EKF period")
+        traj = traj._replace(duration_s=n_periods * EKF_PERIOD_S)
+    noise, settle = _options(args, traj.duration_s)
     gap = float(np.max(np.diff(rec.t_s)))
     if gap > EKF_PERIOD_S:
         err.print(f"[yellow]note:[/yellow] rows up to {gap:g} s apart, longer than the EKF's "
@@ -118,11 +124,11 @@ def run(args) -> int:
         write_tilt_comparison_csv(args.out, t_file, series)
         err.print(f"wrote {args.out}")
     if args.plot is not None:
-        title = (f"{traj.name}: tilt error after {settle:g} s (max / RMS) — fixed "
+        title = (f"{traj.name}: tilt error after its first {settle:g} s (max / RMS) — fixed "
                  f"{metrics['max_tilt_error_deg']['fixed']:.2f} / {rms['fixed']:.2f}°, stabilized "
                  f"{metrics['max_tilt_error_deg']['stabilized']:.2f} / {rms['stabilized']:.2f}°")
         ekf_exp.plot_fixed_vs_stabilized(series, title, args.plot, t_settle_s=settle,
-                                         required_max_deg=None)
+                                         required_max_deg=None, t0_s=traj.events["t0_s"])
         err.print(f"wrote {args.plot}")
     rejected = sum(metrics["rejected_updates"].values())
     if rejected:
