@@ -100,3 +100,19 @@ def test_stabilize_refuses_bad_options_in_one_line(tmp_path, capsys, extra, mess
     assert cli.main(["stabilize", str(motion), *extra]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err
+
+
+def test_stabilize_simulates_whole_ekf_periods_of_an_odd_length_recording(tmp_path, capsys):
+    """A recording whose length is not a whole number of 20 ms EKF periods (here 2.995 s at
+    200 Hz) is simulated to the last whole period, with a note; a still trunk leaves both heads'
+    errors at the noise level."""
+    rec = _record(trajectories.still(duration_s=2.995), 200.0)
+    motion = io.write_motion_csv(tmp_path / "still.csv", rec)
+    capsys.readouterr()
+    assert cli.main(["stabilize", str(motion), "--settle", "1", "--json"]) == 0
+    out = capsys.readouterr()
+    assert "simulating 2.98 s of the 2.995 s recorded" in " ".join(out.err.split())
+    report = json.loads(out.out)
+    assert report["duration_s"] == pytest.approx(2.98)
+    for cond in ("fixed", "stabilized"):
+        assert 0.0 < report["rms_tilt_error_deg"][cond] < 1.0
