@@ -10,7 +10,7 @@ from verticality import cli, so3, trajectories
 from verticality.errors import InputError
 from verticality.experiments import ekf as ekf_exp
 from verticality.io import motion as io
-from verticality.recorded_trajectory import from_record, rpy_rates
+from verticality.recorded_trajectory import from_record, rate_mismatch, rpy_rates
 
 
 def _record(traj, rate_hz):
@@ -102,17 +102,33 @@ def test_stabilize_refuses_bad_options_in_one_line(tmp_path, capsys, extra, mess
     assert message in err and "\n" not in err
 
 
-def test_stabilize_simulates_whole_ekf_periods_of_an_odd_length_recording(tmp_path, capsys):
-    """A recording whose length is not a whole number of 20 ms EKF periods (here 2.995 s at
-    200 Hz) is simulated to the last whole period, with a note; a still trunk leaves both heads'
-    errors at the noise level."""
-    rec = _record(trajectories.still(duration_s=2.995), 200.0)
-    motion = io.write_motion_csv(tmp_path / "still.csv", rec)
+def test_rate_mismatch_is_zero_for_a_consistent_file_and_large_for_a_wrong_omega():
+    rec = _record(ekf_exp.scenario_trajectory("jump", quick=True), 200.0)
+    assert rate_mismatch(*rec[:3])[0] < 1e-3
+    wrong = rec.omega_H_rad_s.copy()
+    wrong[:, [0, 1]] = wrong[:, [1, 0]]  # x and y swapped: another frame's ω
+    mismatch, t_at = rate_mismatch(rec.t_s, rec.q_I_H_wxyz, wrong)
+    assert mismatch > 0.1 and 2.5 < t_at < 4.5  # during the jump
+
+
+def test_stabilize_flags_a_diverging_plant_and_an_odd_length_recording(tmp_path, capsys):
+    """A file whose ω (60 rad/s oscillation) contradicts its q (still), 2.994 s at 1 kHz: simulated
+    to the last whole 20 ms EKF period with a note, the q–ω disagreement warned about, and the
+    stabilized plant, which diverges, reported with the time it did, no metric, exit status 1."""
+    t = np.arange(2995) / 1000.0
+    w = np.zeros((t.size, 3))
+    w[:, 0] = 60.0 * np.sin(2 * np.pi * 3.0 * t)
+    rec = io.MotionRecord(t, np.tile([1.0, 0.0, 0.0, 0.0], (t.size, 1)), w, np.zeros((t.size, 3)))
+    motion = io.write_motion_csv(tmp_path / "wild.csv", rec)
     capsys.readouterr()
-    assert cli.main(["stabilize", str(motion), "--settle", "1", "--json"]) == 0
+    assert cli.main(["stabilize", str(motion), "--settle", "1", "--json"]) == 1
     out = capsys.readouterr()
-    assert "simulating 2.98 s of the 2.995 s recorded" in " ".join(out.err.split())
-    report = json.loads(out.out)
+    err = " ".join(out.err.split())
+    assert "simulating 2.98 s of the 2.994 s recorded" in err
+    assert "the file's ω and q disagree" in err
+    assert "stabilized head: the simulated plant became non-finite at t =" in err
+    report = json.loads(out.out)  # valid JSON: no NaN
     assert report["duration_s"] == pytest.approx(2.98)
-    for cond in ("fixed", "stabilized"):
-        assert 0.0 < report["rms_tilt_error_deg"][cond] < 1.0
+    assert report["rms_tilt_error_deg"]["stabilized"] is None
+    assert report["rms_ratio_stabilized_over_fixed"] is None
+    assert report["diverged"]["stabilized"][1] == "plant"

@@ -44,6 +44,29 @@ def rpy_rates(rpy_rad: np.ndarray, omega_B_rad_s: np.ndarray) -> np.ndarray:
     return np.stack([wx + tt * (sf * wy + cf * wz), cf * wy - sf * wz, dpsi], axis=1)
 
 
+RATE_MISMATCH_WINDOW_S = 0.2
+RATE_MISMATCH_WARN_RAD = 0.1
+"""Over any 0.2 s, the rotation of q and the integral of ω may disagree by this much before a
+warning (gyro bias of 0.01 rad/s adds 0.002 rad, optical noise of 0.2° about 0.007 rad)."""
+
+
+def rate_mismatch(t_s, q_wxyz, omega_rad_s, window_s: float = RATE_MISMATCH_WINDOW_S):
+    """How far the file's ω disagrees with its own q: per interval, e_k = log(q_k⁻¹ q_k+1) −
+    (ω_k + ω_k+1)/2·Δt_k (body frame, both to second order in Δt), summed over windows of
+    ``window_s``. Returns (largest |Σ e| in rad, the time its window starts)."""
+    t = np.asarray(t_s, float)
+    q = jnp.asarray(q_wxyz, jnp.float64)
+    dq = so3.quat_multiply(so3.quat_conjugate(q[:-1]), q[1:])
+    w = np.asarray(omega_rad_s, float)
+    e = np.asarray(so3.quat_log(dq)) - 0.5 * (w[:-1] + w[1:]) * np.diff(t)[:, None]
+    m = max(1, int(round(window_s / max(float(np.median(np.diff(t))), 1e-12))))
+    c = np.concatenate([np.zeros((1, 3)), np.cumsum(e, axis=0)])
+    m = min(m, e.shape[0])
+    mag = np.linalg.norm(c[m:] - c[:-m], axis=1)
+    k = int(np.argmax(mag))
+    return float(mag[k]), float(t[k])
+
+
 def _interval(t_knots, t):
     """Index k of the interval [t_k, t_k+1] holding t (clamped to the first and last) and t − t_k."""
     k = jnp.clip(jnp.searchsorted(t_knots, t, side="right") - 1, 0, t_knots.shape[0] - 2)

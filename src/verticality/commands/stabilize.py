@@ -76,14 +76,14 @@ def run(args) -> int:
     from rich.console import Console
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+    from verticality import recorded_trajectory as rt
     from verticality.experiments import ekf as ekf_exp
     from verticality.io.motion import read_motion_csv, write_tilt_comparison_csv
     from verticality.params import P13_HEAD, P13_PENDULUM
-    from verticality.recorded_trajectory import from_record
     from verticality.simulation import CONDITIONS
 
     rec = read_motion_csv(args.motion)
-    traj = from_record(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s, rec.a_I_m_s2,
+    traj = rt.from_record(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s, rec.a_I_m_s2,
                        name=args.motion.stem)
     err = Console(stderr=True)
     n_periods = math.floor(traj.duration_s / EKF_PERIOD_S + 1e-9)
@@ -93,6 +93,12 @@ def run(args) -> int:
                   f"{1e3 * (traj.duration_s - n_periods * EKF_PERIOD_S):.1f} ms do not fill an EKF period")
         traj = traj._replace(duration_s=n_periods * EKF_PERIOD_S)
     noise, settle = _options(args, traj.duration_s)
+    mismatch, t_mismatch = rt.rate_mismatch(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s)
+    if mismatch > rt.RATE_MISMATCH_WARN_RAD:
+        err.print(f"[yellow]warning:[/yellow] the file's ω and q disagree: over the "
+                  f"{rt.RATE_MISMATCH_WINDOW_S:g} s from t = {t_mismatch:g} s, ω integrates to a "
+                  f"rotation {mismatch:.3g} rad away from q's; the trunk then follows neither "
+                  "exactly between rows (check ω's frame and units)")
     gap = float(np.max(np.diff(rec.t_s)))
     if gap > EKF_PERIOD_S:
         err.print(f"[yellow]note:[/yellow] rows up to {gap:g} s apart, longer than the EKF's "
@@ -102,6 +108,7 @@ def run(args) -> int:
     seeds = tuple(range(args.seeds))
     metrics: dict = {"max_tilt_error_deg": {}, "rms_tilt_error_deg": {}, "rejected_updates": {}}
     series: dict = {}
+    diverged: dict = {}
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
                   console=err, transient=True, disable=not err.is_terminal) as progress:
         for cond in CONDITIONS:
@@ -110,20 +117,31 @@ def run(args) -> int:
             m, s = ekf_exp.run_condition(traj, cond, seeds=seeds, sensor_noise_std=noise,
                                          model_params=model, t_settle_s=settle)
             progress.remove_task(task)
-            metrics["max_tilt_error_deg"][cond] = m["max_tilt_error_deg"]
-            metrics["rms_tilt_error_deg"][cond] = m["rms_tilt_error_deg"]
+            where = _first_non_finite(s, traj.events["t0_s"])
+            if where is not None:
+                diverged[cond] = where
+            ok = where is None and math.isfinite(m["rms_tilt_error_deg"])
+            metrics["max_tilt_error_deg"][cond] = m["max_tilt_error_deg"] if ok else None
+            metrics["rms_tilt_error_deg"][cond] = m["rms_tilt_error_deg"] if ok else None
             metrics["rejected_updates"][cond] = m["rejected_updates"]
             series[cond] = s
     rms = metrics["rms_tilt_error_deg"]
-    metrics["rms_ratio_stabilized_over_fixed"] = rms["stabilized"] / max(rms["fixed"], 1e-12)
+    metrics["rms_ratio_stabilized_over_fixed"] = (
+        None if diverged else rms["stabilized"] / max(rms["fixed"], 1e-12))
     report = {"input": str(args.motion), "duration_s": traj.duration_s, "rows": int(rec.t_s.size),
               "seeds": len(seeds), "sensor_noise_std": noise, "settle_s": settle,
-              "filter_model": "exact" if args.exact_model else "p13-mismatched", **metrics}
+              "filter_model": "exact" if args.exact_model else "p13-mismatched", **metrics,
+              "diverged": diverged}
     if args.out is not None:
         t_file = series["fixed"]["t_s"] + traj.events["t0_s"]  # back on the file's clock
         write_tilt_comparison_csv(args.out, t_file, series)
         err.print(f"wrote {args.out}")
-    if args.plot is not None:
+    for cond, (t_bad, what) in diverged.items():
+        err.print(f"[red]error:[/red] {cond} head: the simulated {what} became non-finite at "
+                  f"t = {t_bad:g} s (first seed); its metrics are left out. The trunk's motion may "
+                  "be too violent for the simulated plant (2-DOF gimbal, 1 ms RK4 step), or its "
+                  "q and ω may disagree")
+    if args.plot is not None and not diverged:
         title = (f"{traj.name}: tilt error after its first {settle:g} s (max / RMS) — fixed "
                  f"{metrics['max_tilt_error_deg']['fixed']:.2f} / {rms['fixed']:.2f}°, stabilized "
                  f"{metrics['max_tilt_error_deg']['stabilized']:.2f} / {rms['stabilized']:.2f}°")
@@ -139,7 +157,18 @@ def run(args) -> int:
         sys.stdout.write("\n")
     else:
         _print_table(report)
-    return 0
+    return 1 if diverged else 0
+
+
+def _first_non_finite(series: dict, t0_s: float):
+    """(time on the file's clock, "plant" or "estimate") of the first non-finite sample, or None."""
+    import numpy as np
+
+    for key, what in (("tilt_true_deg", "plant"), ("tilt_est_deg", "estimate")):
+        bad = ~np.all(np.isfinite(np.asarray(series[key]).reshape(len(series["t_s"]), -1)), axis=1)
+        if bad.any():
+            return float(series["t_s"][np.argmax(bad)] + t0_s), what
+    return None
 
 
 def _print_table(report: dict) -> None:
@@ -153,8 +182,13 @@ def _print_table(report: dict) -> None:
     table.add_column(f"max tilt error, {after} (deg)", justify="right")
     table.add_column(f"RMS tilt error, {after} (deg)", justify="right")
     for cond in ("fixed", "stabilized"):
-        table.add_row(cond, f"{report['max_tilt_error_deg'][cond]:.3f}",
-                      f"{report['rms_tilt_error_deg'][cond]:.3f}")
+        if cond in report["diverged"]:
+            t_bad, what = report["diverged"][cond]
+            table.add_row(cond, f"{what} diverged at {t_bad:g} s", "—")
+        else:
+            table.add_row(cond, f"{report['max_tilt_error_deg'][cond]:.3f}",
+                          f"{report['rms_tilt_error_deg'][cond]:.3f}")
     console = Console()
     console.print(table)
-    console.print(f"RMS ratio stabilized / fixed: {report['rms_ratio_stabilized_over_fixed']:.3f}")
+    if report["rms_ratio_stabilized_over_fixed"] is not None:
+        console.print(f"RMS ratio stabilized / fixed: {report['rms_ratio_stabilized_over_fixed']:.3f}")
