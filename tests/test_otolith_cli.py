@@ -63,3 +63,20 @@ def test_still_tilted_head_and_constant_acceleration(tmp_path):
     s_I = -up_I / np.linalg.norm(up_I)
     s_H = np.asarray(so3.rot_x(theta)).T @ s_I
     np.testing.assert_allclose(np.column_stack([o["sx"], o["sy"], o["sz"]])[-1], s_H, atol=1e-9)
+
+
+def test_motion_window_of_a_built_in_and_its_refusals(tmp_path, capsys):
+    out = tmp_path / "m.csv"
+    assert cli.main(["motion", "impact", "--start", "4.5", "--duration", "1", "--rate", "100",
+                     "--out", str(out)]) == 0
+    rec = io.read_motion_csv(out)
+    np.testing.assert_allclose(rec.t_s, 4.5 + np.arange(101) / 100.0, atol=1e-12)
+    assert np.max(np.abs(rec.a_I_m_s2)) > 20.0  # the 30 m/s² impact at 5 s is inside
+    capsys.readouterr()
+    for argv, message in ((["nothing"], "neither a built-in trajectory"),
+                          (["impact", "--start", "20"], "--start 20 is at or after the end"),
+                          (["impact", "--start", "-1"], "--start must be a non-negative number"),
+                          (["impact", "--rate", "0"], "--rate must be a positive number")):
+        assert cli.main(["motion", *argv, "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and "\n" not in err
