@@ -6,18 +6,15 @@ import jax
 import numpy as np
 import pytest
 
-from verticality import cli, so3, trajectories
+from verticality import cli, trajectories
 from verticality.errors import InputError
 from verticality.experiments import ekf as ekf_exp
 from verticality.io import motion as io
-from verticality.recorded_trajectory import from_record, rate_mismatch, rpy_rates
+from verticality.recorded_trajectory import from_record, rate_mismatch, record_of, rpy_rates
 
 
 def _record(traj, rate_hz):
-    t = np.arange(int(round(traj.duration_s * rate_hz)) + 1) / rate_hz
-    m = trajectories.sample(traj, t)
-    q = np.asarray(jax.vmap(so3.quat_from_matrix)(m.R_I_B))
-    return io.MotionRecord(t, q, np.asarray(m.omega_B_rad_s), np.asarray(m.a_I_m_s2))
+    return record_of(traj, np.arange(int(round(traj.duration_s * rate_hz)) + 1) / rate_hz)
 
 
 def test_rpy_rates_invert_the_body_rate_map():

@@ -108,6 +108,18 @@ def _position_of_linear_acceleration(t_knots, a):
     return position
 
 
+def record_of(traj: Trajectory, t_s):
+    """The rows of a MOTION.csv (:class:`verticality.io.motion.MotionRecord`) of ``traj`` at the
+    times ``t_s``: the inverse of :func:`from_record` at the samples."""
+    from verticality.io.motion import MotionRecord
+    from verticality.trajectories import sample
+
+    t = np.asarray(t_s, float)
+    m = sample(traj, t)
+    q = np.asarray(so3.quat_from_matrix(m.R_I_B))
+    return MotionRecord(t, q, np.asarray(m.omega_B_rad_s), np.asarray(m.a_I_m_s2))
+
+
 def from_record(t_s, q_I_T_wxyz, omega_T_rad_s, a_I_m_s2, name: str = "recorded") -> Trajectory:
     """The trunk trajectory through the samples (see the module docstring)."""
     t = np.asarray(t_s, float)

@@ -64,9 +64,8 @@ def run(args) -> int:
 def _built_in(args):
     import numpy as np
 
-    from verticality import so3
-    from verticality.io.motion import MotionRecord
-    from verticality.trajectories import BY_NAME, sample
+    from verticality.recorded_trajectory import record_of
+    from verticality.trajectories import BY_NAME
 
     traj = BY_NAME[args.name]()
     rate = DEFAULT_RATE_HZ if args.rate is None else args.rate
@@ -75,10 +74,7 @@ def _built_in(args):
         raise InputError(f"--start {args.start:g} is at or after the end of `{args.name}` "
                          f"({traj.duration_s:g} s)")
     n = int(round(duration * rate)) + 1
-    t = args.start + np.arange(n) / rate
-    m = sample(traj, t)
-    q = np.asarray(so3.quat_from_matrix(m.R_I_B))
-    rec = MotionRecord(t, q, np.asarray(m.omega_B_rad_s), np.asarray(m.a_I_m_s2))
+    rec = record_of(traj, args.start + np.arange(n) / rate)
     return rec, f"`{args.name}` ({duration:g} s from {args.start:g} s at {rate:g} Hz)"
 
 

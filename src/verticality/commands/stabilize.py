@@ -21,8 +21,6 @@ from pathlib import Path
 
 from verticality.errors import InputError
 
-EKF_PERIOD_S = 0.02
-
 
 def register(sub):
     p = sub.add_parser(
@@ -54,7 +52,7 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-def _options(args, duration_s: float) -> tuple[float, float]:
+def _options(args, duration_s: float, ekf_period_s: float) -> tuple[float, float]:
     from verticality.experiments.ekf import SIGMA_MEASUREMENT, T_SETTLE_S
 
     if args.seeds < 1:
@@ -65,7 +63,7 @@ def _options(args, duration_s: float) -> tuple[float, float]:
     settle = T_SETTLE_S if args.settle is None else args.settle
     if not (math.isfinite(settle) and settle >= 0.0):
         raise InputError(f"--settle must be a non-negative number, not {settle}")
-    if settle + 2 * EKF_PERIOD_S > duration_s:
+    if settle + 2 * ekf_period_s > duration_s:
         raise InputError(f"the recording lasts {duration_s:g} s, which leaves no EKF sample after the "
                          f"{settle:g} s settling time (shorten it with --settle)")
     return noise, settle
@@ -80,19 +78,20 @@ def run(args) -> int:
     from verticality.experiments import ekf as ekf_exp
     from verticality.io.motion import read_motion_csv, write_tilt_comparison_csv
     from verticality.params import P13_HEAD, P13_PENDULUM
-    from verticality.simulation import CONDITIONS
+    from verticality.simulation import CONDITIONS, SimConfig
 
     rec = read_motion_csv(args.motion)
     traj = rt.from_record(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s, rec.a_I_m_s2,
                        name=args.motion.stem)
     err = Console(stderr=True)
-    n_periods = math.floor(traj.duration_s / EKF_PERIOD_S + 1e-9)
-    if n_periods * EKF_PERIOD_S < traj.duration_s - 1e-9:  # the simulator runs whole EKF periods
-        err.print(f"[yellow]note:[/yellow] simulating {n_periods * EKF_PERIOD_S:g} s of the "
+    ekf_period_s = SimConfig._field_defaults["dt_estimator_s"]  # the ekf-* runs' (20 ms)
+    n_periods = math.floor(traj.duration_s / ekf_period_s + 1e-9)
+    if n_periods * ekf_period_s < traj.duration_s - 1e-9:  # the simulator runs whole EKF periods
+        err.print(f"[yellow]note:[/yellow] simulating {n_periods * ekf_period_s:g} s of the "
                   f"{traj.duration_s:g} s recorded: the last "
-                  f"{1e3 * (traj.duration_s - n_periods * EKF_PERIOD_S):.1f} ms do not fill an EKF period")
-        traj = traj._replace(duration_s=n_periods * EKF_PERIOD_S)
-    noise, settle = _options(args, traj.duration_s)
+                  f"{1e3 * (traj.duration_s - n_periods * ekf_period_s):.1f} ms do not fill an EKF period")
+        traj = traj._replace(duration_s=n_periods * ekf_period_s)
+    noise, settle = _options(args, traj.duration_s, ekf_period_s)
     mismatch, t_mismatch = rt.rate_mismatch(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s)
     if mismatch > rt.RATE_MISMATCH_WARN_RAD:
         err.print(f"[yellow]warning:[/yellow] the file's ω and q disagree: over the "
@@ -100,9 +99,9 @@ def run(args) -> int:
                   f"rotation {mismatch:.3g} rad away from q's; the trunk then follows neither "
                   "exactly between rows (check ω's frame and units)")
     gap = float(np.max(np.diff(rec.t_s)))
-    if gap > EKF_PERIOD_S:
+    if gap > ekf_period_s:
         err.print(f"[yellow]note:[/yellow] rows up to {gap:g} s apart, longer than the EKF's "
-                  f"{EKF_PERIOD_S:g} s period: between rows the trunk's acceleration is interpolated "
+                  f"{ekf_period_s:g} s period: between rows the trunk's acceleration is interpolated "
                   "linearly and its rotation by cubic Hermite")
     model = (P13_PENDULUM, P13_HEAD) if args.exact_model else ekf_exp.EKF_MODEL
     seeds = tuple(range(args.seeds))
