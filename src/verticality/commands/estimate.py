@@ -1,12 +1,15 @@
-"""``verticality estimate INPUT --out OUT.csv [--filter NAME] [--plot OUT.png] [--units ...]``.
+"""``verticality estimate INPUT --out OUT.csv [--filter NAME] [--plot OUT.png] [--units ...]
+[--columns t=NAME,...] [--time-unit s|ms|us|ns]``.
 
-INPUT is an IMU CSV (``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z``, SI units) or a BROAD-layout HDF5
-file. Writes ``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags``.
+INPUT is an IMU CSV (``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z``, SI units; an EuRoC / TUM-VI IMU
+file; or any header mapped with ``--columns``) or a BROAD-layout HDF5 file. Writes
+``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags``.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -19,7 +22,8 @@ def register(sub):
     p = sub.add_parser("estimate", help="estimate roll, pitch and the gravity direction from an "
                                         "IMU recording (CSV or BROAD HDF5)")
     p.add_argument("input", type=Path, metavar="INPUT",
-                   help="CSV t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z (s, rad/s, m/s²) or BROAD .hdf5")
+                   help="CSV t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z (s, rad/s, m/s²), EuRoC/TUM-VI "
+                        "IMU CSV, CSV with --columns, or BROAD .hdf5")
     p.add_argument("--out", type=Path, required=True, metavar="OUT.csv",
                    help="output CSV t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags")
     p.add_argument("--filter", default=OURS, choices=FILTERS,
@@ -28,6 +32,13 @@ def register(sub):
                    help="also draw roll, pitch and bias over time")
     p.add_argument("--units", nargs="+", default=[], metavar="UNIT",
                    help="input units when not SI: deg/s and/or g (e.g. --units deg/s g)")
+    p.add_argument("--columns", default=None, metavar="t=NAME,gyr_x=NAME,...",
+                   help="CSV only: the file's column for each of t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,"
+                        "acc_z (all seven), e.g. --columns t=timestamp,gyr_x=wx,gyr_y=wy,gyr_z=wz,"
+                        "acc_x=ax,acc_y=ay,acc_z=az")
+    p.add_argument("--time-unit", default=None, metavar="s|ms|us|ns",
+                   help="CSV only: unit of the time column (default: the header's [unit], else s; "
+                        "ms, us and ns times are written relative to the first stamp)")
     p.set_defaults(func=run)
 
 
@@ -46,19 +57,38 @@ def _parse_units(units: list[str]) -> tuple[str | None, str | None]:
     return gyr_u, acc_u
 
 
-def load_input(path: Path, units: list[str]):
-    """(t_s, gyr_rad_s, acc_m_s2, dt_s) from a CSV or a BROAD HDF5 file, units checked."""
-    from verticality.io import broad, imu
+class LoadedInput(NamedTuple):
+    t_s: np.ndarray
+    gyr_rad_s: np.ndarray
+    acc_m_s2: np.ndarray
+    dt_s: np.ndarray
+    t_origin: str | None  # e.g. "1403636579758555392 ns" when t_s is relative to that stamp
+
+
+def load_input(path: Path, units: list[str], columns: str | None = None,
+               time_unit: str | None = None) -> LoadedInput:
+    """Time, gyro, accelerometer and steps from a CSV (any layout :func:`imu.read_imu_csv`
+    reads; ``columns`` is the ``--columns`` text) or a BROAD HDF5 file, units checked.
+    ``columns`` and ``time_unit`` describe CSV files only and are refused with an HDF5 file."""
+    from verticality.io import broad, imu, imu_layout
 
     gyr_u, acc_u = _parse_units(units)
     if broad.is_broad_file(path):
+        given = [o for o, v in (("--columns", columns), ("--time-unit", time_unit)) if v is not None]
+        if given:
+            verb = "apply" if len(given) > 1 else "applies"
+            raise InputError(f"{path}: {' and '.join(given)} {verb} to CSV input only, not to a "
+                             "BROAD HDF5 file")
         trial = broad.load_trial(path)
         gyr, acc = imu.check_units(trial.gyr_rad_s, trial.acc_m_s2, gyr_units=gyr_u,
                                    acc_units=acc_u, source=str(path), dt_s=trial.dt_s)
         t = trial.t_s
-        return t, gyr, acc, np.full(t.shape, trial.dt_s)
-    rec = imu.read_imu_csv(path, gyr_units=gyr_u, acc_units=acc_u)
-    return rec.t_s, rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s
+        return LoadedInput(t, gyr, acc, np.full(t.shape, trial.dt_s), None)
+    mapping = imu_layout.parse_columns_spec(columns) if columns is not None else None
+    rec = imu.read_imu_csv(path, gyr_units=gyr_u, acc_units=acc_u, columns=mapping,
+                           time_unit=time_unit)
+    origin = None if rec.t0_stamp is None else f"{rec.t0_stamp} {rec.time_unit}"
+    return LoadedInput(rec.t_s, rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, origin)
 
 
 def run(args) -> int:
@@ -67,7 +97,7 @@ def run(args) -> int:
 
     if not args.input.is_file():
         raise InputError(f"{args.input}: no such file")
-    t, gyr, acc, dt = load_input(args.input, args.units)
+    t, gyr, acc, dt, t_origin = load_input(args.input, args.units, args.columns, args.time_unit)
     if args.filter == OURS:
         from verticality.estimators import tilt
 
@@ -77,6 +107,8 @@ def run(args) -> int:
         out = _peer_output(np.asarray(quat), np.asarray(bias))
     imu.write_estimate_csv(args.out, t, out)
     print(f"wrote {args.out} ({t.size} samples, filter {args.filter})")
+    if t_origin is not None:
+        print(f"t is in seconds from the input's first time stamp, {t_origin}")
     if args.plot is not None:
         path = _plot(args.plot, t, out, args.filter)
         print(f"wrote {path}")

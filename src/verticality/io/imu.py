@@ -8,6 +8,12 @@ than 1 % of the samples, or when it turns the accelerometer direction ~57x faste
 direction actually turns (:func:`looks_like_deg_s`). Such data are refused with an
 :class:`InputError` unless the caller states the units (``gyr_units="deg/s"``, ``acc_units="g"``),
 which converts them. NaN cells are kept (the filter skips and flags them).
+
+Other layouts (:func:`read_imu_csv`, the pieces in :mod:`verticality.io.imu_layout`): EuRoC /
+TUM-VI (ASL) IMU files are recognized from their header; any other header is read when the caller
+maps our seven names to the file's (``columns={"t": "timestamp", ...}``, CLI ``--columns``). Time
+stamps in ms, µs or ns (``time_unit``, or a ``[ns]``-style unit on the time column's header) are
+converted to seconds relative to the first stamp, exactly for integer stamps.
 """
 
 from __future__ import annotations
@@ -18,8 +24,9 @@ from typing import NamedTuple
 import numpy as np
 
 from verticality.errors import InputError
+from verticality.io import imu_layout as layout
 
-IMU_COLUMNS = ("t", "gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z")
+IMU_COLUMNS = layout.IMU_COLUMNS
 ESTIMATE_COLUMNS = ("t", "roll_rad", "pitch_rad", "gx", "gy", "gz", "bias_x", "bias_y", "bias_z",
                     "flags")
 G_M_S2 = 9.81
@@ -32,6 +39,10 @@ class ImuRecording(NamedTuple):
     t_s: np.ndarray  # (N,)
     gyr_rad_s: np.ndarray  # (N, 3)
     acc_m_s2: np.ndarray  # (N, 3)
+    # When the file's time was in ms, µs or ns, t_s starts at 0 and t0_stamp is the file's first
+    # stamp as written (an int for integer stamps), in unit time_unit; else None and "s".
+    t0_stamp: int | float | None = None
+    time_unit: str = "s"
 
     @property
     def dt_s(self) -> np.ndarray:
@@ -125,41 +136,51 @@ def looks_like_deg_s(gyr, acc, dt_s, window_s: float = 0.3) -> bool:
 
 
 def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = None,
+                 columns: dict[str, str] | None = None, time_unit: str | None = None,
                  ) -> ImuRecording:
-    """Read an IMU CSV with header ``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z`` (column order free,
-    extra columns ignored; empty or ``nan`` cells become NaN)."""
+    """Read an IMU CSV: our header ``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z`` (column order free,
+    extra columns ignored; empty or ``nan`` cells become NaN), an EuRoC / TUM-VI IMU file
+    (recognized from its header), or any header with ``columns`` mapping our seven names to the
+    file's.
+
+    Header names are compared after stripping whitespace and a leading ``#``; a mapped name
+    without a unit also finds a header name with a trailing bracketed unit (``timestamp`` finds
+    ``timestamp [ns]``), unless another column has exactly that name. The time unit is
+    ``time_unit`` (``s``, ``ms``, ``us``, ``ns``) or a unit in brackets on the time column's
+    header (EuRoC: ``[ns]``); they must agree. Without either, times are seconds and a median step
+    ≥ 1 is refused. Times in ms, µs or ns give ``t_s`` relative to the first stamp, which is kept
+    in ``t0_stamp`` (:func:`verticality.io.imu_layout.time_to_seconds`); times in seconds are kept
+    as written. Gyro and accelerometer go through :func:`check_units` whatever the layout."""
     path = Path(path)
+    source = str(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
-    with open(path, encoding="utf-8") as fh:
-        header = fh.readline().strip()
-    names = [c.strip() for c in header.split(",")]
-    missing = [c for c in IMU_COLUMNS if c not in names]
-    if missing:
-        raise InputError(f"{path}: missing column(s) {', '.join(missing)}; expected header "
-                         f"{','.join(IMU_COLUMNS)}")
+    with open(path, encoding="utf-8-sig") as fh:
+        lines = fh.read().splitlines()
+    lay = layout.locate(lines[0] if lines else "", columns, time_unit, source)
+    rows, line_numbers = layout.data_lines(lines)
+    if not rows:
+        raise InputError(f"{path}: no data rows")
     try:
-        data = np.genfromtxt(path, delimiter=",", skip_header=1, dtype=np.float64,
-                             filling_values=np.nan, invalid_raise=True, ndmin=2)
+        data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, filling_values=np.nan,
+                             invalid_raise=True, ndmin=2)
     except ValueError as exc:
         raise InputError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
     if data.size == 0:
         raise InputError(f"{path}: no data rows")
-    if data.shape[1] != len(names):
-        raise InputError(f"{path}: {data.shape[1]} values per row but {len(names)} header columns")
-    col = {n: data[:, i] for i, n in enumerate(names)}
-    t = col["t"]
-    if not np.all(np.isfinite(t)):
-        raise InputError(f"{path}: column t has empty or non-numeric cells at rows "
-                         f"{(np.flatnonzero(~np.isfinite(t))[:5] + 2).tolist()}")
-    if np.any(np.diff(t) <= 0):
-        bad = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 3
-        raise InputError(f"{path}: time t must increase strictly (line {bad})")
-    gyr = np.stack([col["gyr_x"], col["gyr_y"], col["gyr_z"]], axis=1)
-    acc = np.stack([col["acc_x"], col["acc_y"], col["acc_z"]], axis=1)
-    gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=str(path),
-                           dt_s=dt_from_t(t))
-    return ImuRecording(t, gyr, acc)
+    if data.shape[1] != lay.n_columns:
+        raise InputError(f"{path}: {data.shape[1]} values per row but {lay.n_columns} header "
+                         "columns")
+    t_cells = [r.split("#", 1)[0].split(",")[lay.index["t"]].strip() for r in rows]
+    t_raw = layout.parse_time_cells(t_cells, line_numbers, source, lay.time_label)
+    layout.check_time_steps(t_raw, line_numbers, lay.time_unit, source, lay.time_label)
+    unit = lay.time_unit or "s"
+    t_s, t0 = layout.time_to_seconds(t_raw, unit)
+    gyr = data[:, [lay.index[k] for k in ("gyr_x", "gyr_y", "gyr_z")]]
+    acc = data[:, [lay.index[k] for k in ("acc_x", "acc_y", "acc_z")]]
+    gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=source,
+                           dt_s=dt_from_t(t_s))
+    return ImuRecording(t_s, gyr, acc, t0, unit)
 
 
 def write_imu_csv(path, rec: ImuRecording) -> Path:
