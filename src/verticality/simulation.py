@@ -430,10 +430,12 @@ def simulate(traj, config: SimConfig, key=None, params: PlantParams = DEFAULT_PA
 
 def simulate_batch(run: Callable, keys, params: PlantParams = DEFAULT_PARAMS,
                    noise: NoiseParams = DEFAULT_NOISE, estimator_states0=None,
-                   batched_params: bool = False, batched_estimator: bool = False) -> SimResult:
+                   batched_params: bool = False, batched_estimator: bool = False,
+                   batched_noise: bool = False) -> SimResult:
     """``jax.vmap`` of a :func:`make_simulator` ``run`` over ``keys`` (B, 2) and, optionally, over a
-    leading batch axis of ``params`` and of the initial estimator states."""
-    in_axes = (0, 0 if batched_params else None, None, 0 if batched_estimator else None)
+    leading batch axis of ``params``, of ``noise`` and of the initial estimator states."""
+    in_axes = (0, 0 if batched_params else None, 0 if batched_noise else None,
+               0 if batched_estimator else None)
     return jax.jit(jax.vmap(run, in_axes=in_axes))(keys, params, noise, estimator_states0)
 
 

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -152,33 +153,126 @@ def initial_covariance(x0: ekf.MedialState, kind: str = "common") -> jnp.ndarray
     return P
 
 
-def _estimator(variant: str, condition: str, torque_input: str, sigma_process=None,
-               accel_frame: str = "inertial", consider_noise: bool = True,
-               sigma_measurement: float = SIGMA_MEASUREMENT, model_params=EKF_MODEL):
+class Setting(NamedTuple):
+    """What may differ between runs that share one compiled simulator (:func:`run_settings` batches
+    them under ``vmap``): the filter's process noise and the sensor noise."""
+
+    sigma_process: tuple | None = None  # per step, the variant's blocks; None: the variant's default
+    sensor_noise_std: float = SIGMA_MEASUREMENT  # σ in the simulation and in the filter's R alike
+
+
+class _Tuned(NamedTuple):
+    """An EKF state carrying its filter's Q and R, so that they are traced values, not constants
+    compiled into the simulator."""
+
+    ekf_state: ekf.EKFState
+    Q: jnp.ndarray
+    R: jnp.ndarray
+
+
+def _filter_for(variant: str, setting: Setting, accel_frame: str = "inertial",
+                model_params=EKF_MODEL) -> ekf.ExtendedKalmanFilter:
     if variant == "multiplicative":
-        filt = _filter(SIGMA_PROCESS if sigma_process is None else sigma_process, accel_frame,
-                       sigma_measurement, model_params)
-        R_of = lambda s: ekf.head_orientation(s.x)  # noqa: E731
+        sig = SIGMA_PROCESS if setting.sigma_process is None else setting.sigma_process
+        return _filter(sig, accel_frame, setting.sensor_noise_std, model_params)
+    sig = SIGMA_PROCESS_STACKED if setting.sigma_process is None else setting.sigma_process
+    return ekf_stacked.stacked_filter(*model_params, sig, setting.sensor_noise_std)
+
+
+def _estimator(variant: str, condition: str, torque_input: str, accel_frame: str = "inertial",
+               consider_noise: bool = True, model_params=EKF_MODEL):
+    """The closed-loop adapter of a :class:`_Tuned` state: Q and R are read from the state."""
+    filt = _filter_for(variant, Setting(), accel_frame, model_params)  # its model; Q, R replaced
+    if variant == "multiplicative":
+        R_of = lambda s: ekf.head_orientation(s.ekf_state.x)  # noqa: E731
     else:
-        filt = ekf_stacked.stacked_filter(*model_params, SIGMA_PROCESS_STACKED, sigma_measurement)
-        R_of = lambda s: ekf_stacked.head_orientation(s.x)  # noqa: E731
+        R_of = lambda s: ekf_stacked.head_orientation(s.ekf_state.x)  # noqa: E731
     zero_torque = condition == "fixed" and torque_input == "gimbal"
     consider = variant == "multiplicative" and consider_noise
     head_accel = accel_frame == "head"
 
-    def step(state, u, y, dt):
+    def step(state: _Tuned, u, y, dt):
         if zero_torque:
             u = u.at[:, 3:].set(0.0)
-        f = filt
+        Q = state.Q
         if consider:  # the model's parameter uncertainty, linearized into Q at the prior
             u_I = u
             if head_accel:  # the model rotates ᴴa with its own R̂_IH
-                u_I = u.at[:, :3].set(u[:, :3] @ state.x.R_I_H.T)
-            Qp = parameter_noise.medial_parameter_noise(state.x, u_I, dt, *model_params)
-            f = filt._replace(Q=filt.Q + Qp)
-        return f.step(state, u, y, dt)
+                u_I = u.at[:, :3].set(u[:, :3] @ state.ekf_state.x.R_I_H.T)
+            Q = Q + parameter_noise.medial_parameter_noise(state.ekf_state.x, u_I, dt, *model_params)
+        inner, out = filt._replace(Q=Q, R=state.R).step(state.ekf_state, u, y, dt)
+        return state._replace(ekf_state=inner), out
 
     return filt, sim.Estimator(step=step, R_I_H=R_of)
+
+
+def _sensor_noise(std: float) -> sim.NoiseParams:
+    return sim.NoiseParams(otolith_std_rad=std,
+                           gyro=sim.DEFAULT_NOISE.gyro._replace(noise_std_rad_s=std))
+
+
+def run_settings(traj, condition: str, settings, variant: str = "multiplicative",
+                 torque_input: str = "gimbal", seeds=(SEED,), accel_frame: str = "inertial",
+                 p0: str = "common", consider_noise: bool = True, *, model_params=EKF_MODEL,
+                 t_settle_s: float = T_SETTLE_S) -> list[tuple[dict, dict]]:
+    """:func:`run_condition` for several :class:`Setting` s at once: one compiled simulator, all
+    settings × seeds in one ``vmap`` batch (each seed's noise is the same in every setting).
+    Returns ``(metrics, series)`` per setting, in order."""
+    settings = [Setting(*s) for s in settings]
+    if not settings:
+        raise ValueError("run_settings needs at least one setting")
+    for s in settings:
+        if not s.sensor_noise_std > 0.0:
+            raise ValueError("sensor_noise_std must be > 0 (it is also the filter's R), not "
+                             f"{s.sensor_noise_std!r}")
+    filt, est = _estimator(variant, condition, torque_input, accel_frame, consider_noise,
+                           model_params)
+    cfg = sim.SimConfig(duration_s=traj.duration_s, condition=condition, u_blocks=U_BLOCKS,
+                        accel_frame=accel_frame)
+    controller = sim.p13_controller() if condition == "stabilized" else None
+    run = sim.make_simulator(traj, cfg, est, controller)
+    x0 = _perturbed(_true_initial_state(traj, condition))
+    if variant == "multiplicative":
+        s0 = filt.init(x0, initial_covariance(x0, p0))
+    else:
+        s0 = filt.init(ekf_stacked.to_flat(x0), ekf_stacked.init_covariance(INITIAL_ERROR_RAD))
+    n_set, n_seed = len(settings), len(seeds)
+    filters = [_filter_for(variant, s, accel_frame, model_params) for s in settings]
+
+    def per_run(values):  # one value per setting -> a leading axis of n_set × n_seed
+        return jnp.repeat(jnp.stack([jnp.asarray(v, dtype=jnp.float64) for v in values]), n_seed,
+                          axis=0)
+
+    states0 = _Tuned(jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (n_set * n_seed,) + a.shape), s0),
+                     per_run([f.Q for f in filters]), per_run([f.R for f in filters]))
+    noise = jax.tree_util.tree_map(lambda *v: per_run(v),
+                                   *[_sensor_noise(s.sensor_noise_std) for s in settings])
+    keys = jnp.stack([jax.random.PRNGKey(seed) for _ in settings for seed in seeds])
+    res = sim.simulate_batch(run, keys, PLANT, noise, states0, batched_estimator=True,
+                             batched_noise=True)
+    per = jax.vmap(lambda r: sim.tilt_metrics(r, t_settle_s))(res.record)
+    mx_all = np.asarray(per["max_tilt_error_deg"]).reshape(n_set, n_seed)
+    rms_all = np.asarray(per["rms_tilt_error_deg"]).reshape(n_set, n_seed)
+    out = []
+    for i in range(n_set):
+        mx_seed, rms_seed = mx_all[i], rms_all[i]
+        metrics = {"max_tilt_error_deg": float(mx_seed.max()),
+                   "rms_tilt_error_deg": float(np.sqrt(np.mean(rms_seed**2))),
+                   "max_tilt_error_deg_per_seed": mx_seed.tolist(),
+                   "rms_tilt_error_deg_per_seed": rms_seed.tolist()}
+        rec = jax.tree_util.tree_map(lambda a, j=i * n_seed: a[j], res.record)  # first seed
+        metrics["rejected_updates"] = int(np.sum(np.asarray(rec.estimator_out.rejected)))
+        R_est = np.asarray(rec.R_I_H_est)
+        metrics["orthonormality_error_max"] = float(np.max(np.asarray(so3.orthonormality_error(R_est))))
+        series = {
+            "t_s": np.asarray(rec.t_s),
+            "tilt_true_deg": np.degrees(np.asarray(so3.tilt_angles(rec.R_I_H))),
+            "tilt_est_deg": np.degrees(np.asarray(so3.tilt_angles(rec.R_I_H_est))),
+            "tilt_error_deg": np.asarray(rec.tilt_error_deg),
+            "a_I_m_s2": np.asarray(rec.u[:, :, :3].mean(axis=1)),
+        }
+        out.append((metrics, series))
+    return out
 
 
 def run_condition(traj, condition: str, variant: str = "multiplicative",
@@ -195,42 +289,9 @@ def run_condition(traj, condition: str, variant: str = "multiplicative",
 
     Metrics: ``max``/``rms`` tilt error over the seeds (max of maxima, rms over all samples), plus
     ``*_per_seed`` lists."""
-    if not sensor_noise_std > 0.0:
-        raise ValueError(f"sensor_noise_std must be > 0 (it is also the filter's R), not {sensor_noise_std!r}")
-    filt, est = _estimator(variant, condition, torque_input, sigma_process, accel_frame,
-                           consider_noise, sensor_noise_std, model_params)
-    cfg = sim.SimConfig(duration_s=traj.duration_s, condition=condition, u_blocks=U_BLOCKS,
-                        accel_frame=accel_frame)
-    controller = sim.p13_controller() if condition == "stabilized" else None
-    run = sim.make_simulator(traj, cfg, est, controller)
-    x0 = _perturbed(_true_initial_state(traj, condition))
-    if variant == "multiplicative":
-        s0 = filt.init(x0, initial_covariance(x0, p0))
-    else:
-        s0 = filt.init(ekf_stacked.to_flat(x0), ekf_stacked.init_covariance(INITIAL_ERROR_RAD))
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    noise = sim.NoiseParams(otolith_std_rad=sensor_noise_std,
-                            gyro=sim.DEFAULT_NOISE.gyro._replace(noise_std_rad_s=sensor_noise_std))
-    res = sim.simulate_batch(run, keys, PLANT, noise, s0)
-    per = jax.vmap(lambda r: sim.tilt_metrics(r, t_settle_s))(res.record)
-    mx_seed = np.asarray(per["max_tilt_error_deg"])
-    rms_seed = np.asarray(per["rms_tilt_error_deg"])
-    metrics = {"max_tilt_error_deg": float(mx_seed.max()),
-               "rms_tilt_error_deg": float(np.sqrt(np.mean(rms_seed**2))),
-               "max_tilt_error_deg_per_seed": mx_seed.tolist(),
-               "rms_tilt_error_deg_per_seed": rms_seed.tolist()}
-    rec = jax.tree_util.tree_map(lambda a: a[0], res.record)
-    metrics["rejected_updates"] = int(np.sum(np.asarray(rec.estimator_out.rejected)))
-    R_est = np.asarray(rec.R_I_H_est)
-    metrics["orthonormality_error_max"] = float(np.max(np.asarray(so3.orthonormality_error(R_est))))
-    series = {
-        "t_s": np.asarray(rec.t_s),
-        "tilt_true_deg": np.degrees(np.asarray(so3.tilt_angles(rec.R_I_H))),
-        "tilt_est_deg": np.degrees(np.asarray(so3.tilt_angles(rec.R_I_H_est))),
-        "tilt_error_deg": np.asarray(rec.tilt_error_deg),
-        "a_I_m_s2": np.asarray(rec.u[:, :, :3].mean(axis=1)),
-    }
-    return metrics, series
+    return run_settings(traj, condition, [Setting(sigma_process, sensor_noise_std)], variant,
+                        torque_input, seeds, accel_frame, p0, consider_noise,
+                        model_params=model_params, t_settle_s=t_settle_s)[0]
 
 
 def _experiment(traj, quick: bool) -> Result:

@@ -45,55 +45,71 @@ def _row(fixed: dict, stabilized: dict) -> dict:
             "rms_ratio": stabilized["rms_tilt_error_deg"] / max(fixed["rms_tilt_error_deg"], 1e-12)}
 
 
+def _plan(quick: bool) -> dict:
+    """The sweeps' layout: ``{sweep: {scenario: {row label: (fixed run, stabilized run)}}}``, a
+    run being ``(scenario, condition, σ_ωH, pitch, noise)``."""
+
+    def runs(scenario, sigma_head_rate=P13_SIGMA_W, pitch=DEFAULT_PITCH_RAD, noise=ekf_exp.SIGMA_MEASUREMENT,
+             stabilized_sigma=P13_SIGMA_W):
+        return ((scenario, "fixed", sigma_head_rate, pitch, noise),
+                (scenario, "stabilized", stabilized_sigma, pitch, noise))
+
+    sigmas = HEAD_RATE_SIGMAS_QUICK if quick else HEAD_RATE_SIGMAS
+    plan: dict = {"fixed_head_rate_sigma": {
+        scenario: {f"sigma_{s:g}": runs(scenario, sigma_head_rate=s) for s in sigmas}
+        for scenario in (("jump",) if quick else ("impact", "jump"))}}
+    if not quick:
+        plan["jump_pitch"] = {"jump": {f"pitch_{p:g}_rad": runs("jump", pitch=p)
+                                       for p in JUMP_PITCHES_RAD}}
+        plan["sensor_noise"] = {"jump": {f"noise_{n:g}": runs("jump", noise=n)
+                                         for n in SENSOR_NOISE_STDS}}
+    return plan
+
+
 def run_sweeps(quick: bool = False, progress=None) -> tuple[dict, float]:
     """The three sweeps; returns ``({sweep: {scenario: {row key: row}}}, simulated seconds)``.
 
-    Runs shared between sweeps (the ekf-* setting itself) are computed once. ``progress``: an
-    optional callable given a short label before each closed-loop run."""
+    Each distinct run is computed once (the ekf-* setting is shared between sweeps), and the runs
+    that differ only in the filter's process noise or the sensor noise (same scenario, condition
+    and trunk pitch) share one compiled simulator, batched under ``vmap``
+    (:func:`verticality.experiments.ekf.run_settings`): compiling dominates a run. ``progress``: an
+    optional callable given a short label before each compiled batch."""
     seeds = ekf_exp.SEEDS[:1] if quick else ekf_exp.SEEDS
-    cache: dict = {}  # (scenario, condition, σ_ωH, pitch, noise) -> (metrics, simulated seconds)
-
-    def run(scenario, condition, sigma_head_rate=P13_SIGMA_W, pitch=DEFAULT_PITCH_RAD,
-            noise=ekf_exp.SIGMA_MEASUREMENT):
-        key = (scenario, condition, sigma_head_rate, pitch, noise)
-        if key not in cache:
-            if progress is not None:
-                progress(f"{scenario} {condition} σ_ωH={sigma_head_rate:g} pitch={pitch:g} noise={noise:g}")
-            sig = ekf_exp.SIGMA_PROCESS[:3] + (sigma_head_rate,)
-            traj = ekf_exp.scenario_trajectory(
-                scenario, quick, **({"pitch_rad": pitch} if scenario == "jump" else {}))
-            m, _ = ekf_exp.run_condition(traj, condition, sigma_process=sig, seeds=seeds,
-                                         sensor_noise_std=noise)
-            cache[key] = (m, traj.duration_s * len(seeds))
-        return cache[key][0]
-
-    def simulated_s():
-        return float(sum(d for _, d in cache.values()))
-
-    sigmas = HEAD_RATE_SIGMAS_QUICK if quick else HEAD_RATE_SIGMAS
-    out: dict = {"fixed_head_rate_sigma": {}}
-    for scenario in ("jump",) if quick else ("impact", "jump"):
-        stab = run(scenario, "stabilized")
-        out["fixed_head_rate_sigma"][scenario] = {
-            f"sigma_{s:g}": _row(run(scenario, "fixed", sigma_head_rate=s), stab) for s in sigmas}
-    if quick:
-        return out, simulated_s()
-    pitches, noises = JUMP_PITCHES_RAD, SENSOR_NOISE_STDS
-    out["jump_pitch"] = {"jump": {
-        f"pitch_{p:g}_rad": _row(run("jump", "fixed", pitch=p), run("jump", "stabilized", pitch=p))
-        for p in pitches}}
-    out["sensor_noise"] = {"jump": {
-        f"noise_{n:g}": _row(run("jump", "fixed", noise=n), run("jump", "stabilized", noise=n))
-        for n in noises}}
-    return out, simulated_s()
+    plan = _plan(quick)
+    groups: dict = {}  # (scenario, condition, pitch) -> distinct runs, in plan order
+    for table in plan.values():
+        for rows in table.values():
+            for pair in rows.values():
+                for run in pair:
+                    group = groups.setdefault((run[0], run[1], run[3]), [])
+                    if run not in group:
+                        group.append(run)
+    metrics: dict = {}
+    simulated_s = 0.0
+    for (scenario, condition, pitch), runs in groups.items():
+        if progress is not None:
+            progress(f"{scenario} {condition} pitch={pitch:g}: {len(runs)} setting(s)")
+        traj = ekf_exp.scenario_trajectory(
+            scenario, quick, **({"pitch_rad": pitch} if scenario == "jump" else {}))
+        settings = [ekf_exp.Setting(ekf_exp.SIGMA_PROCESS[:3] + (sigma,), noise)
+                    for _, _, sigma, _, noise in runs]
+        results = ekf_exp.run_settings(traj, condition, settings, seeds=seeds)
+        for run, (m, _) in zip(runs, results, strict=True):
+            metrics[run] = m
+        simulated_s += traj.duration_s * len(seeds) * len(runs)
+    out = {sweep: {scenario: {label: _row(metrics[fixed], metrics[stab])
+                              for label, (fixed, stab) in rows.items()}
+                   for scenario, rows in table.items()}
+           for sweep, table in plan.items()}
+    return out, simulated_s
 
 
 @register("ekf-sensitivity", "What the EKF's fixed-vs-stabilized ratio depends on (head-rate noise, "
           "jump pitch, sensor noise)", source="P13 §5 (analysis of ekf-impact / ekf-jump)",
           figures=lambda r, d: _figures(r, d))
 def run_sensitivity(quick: bool = False) -> Result:
-    """Full: 3 seeds, all three sweeps (22 closed-loop runs). Quick: 1 seed, the ekf-jump quick
-    duration, the head-rate sweep of the jump at two values (3 runs)."""
+    """Full: 3 seeds, all three sweeps (22 closed-loop runs in 10 compiled batches). Quick: 1 seed,
+    the ekf-jump quick duration, the head-rate sweep of the jump at two values (3 runs, 2 batches)."""
     t0 = time.perf_counter()
     sweeps, simulated_s = run_sweeps(quick)
     metrics = dict(sweeps)
