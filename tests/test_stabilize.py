@@ -112,13 +112,14 @@ def test_stabilize_flags_a_diverging_plant_and_an_odd_length_recording(tmp_path,
     """A file whose ω (60 rad/s oscillation) contradicts its q (still), 2.994 s at 1 kHz: simulated
     to the last whole 20 ms EKF period with a note, the q–ω disagreement warned about, and the
     stabilized plant, which diverges, reported with the time it did, no metric, exit status 1."""
-    t = np.arange(2995) / 1000.0
+    t = np.arange(3995) / 1000.0  # 3.994 s, of which the window takes the last 2.994 s
     w = np.zeros((t.size, 3))
     w[:, 0] = 60.0 * np.sin(2 * np.pi * 3.0 * t)
     rec = io.MotionRecord(t, np.tile([1.0, 0.0, 0.0, 0.0], (t.size, 1)), w, np.zeros((t.size, 3)))
     motion = io.write_motion_csv(tmp_path / "wild.csv", rec)
     capsys.readouterr()
-    assert cli.main(["stabilize", str(motion), "--settle", "1", "--json"]) == 1
+    assert cli.main(["stabilize", str(motion), "--start", "1", "--duration", "2.994",
+                     "--settle", "1", "--json"]) == 1
     out = capsys.readouterr()
     err = " ".join(out.err.split())
     assert "simulating 2.98 s of the 2.994 s recorded" in err
@@ -129,3 +130,41 @@ def test_stabilize_flags_a_diverging_plant_and_an_odd_length_recording(tmp_path,
     assert report["rms_tilt_error_deg"]["stabilized"] is None
     assert report["rms_ratio_stabilized_over_fixed"] is None
     assert report["diverged"]["stabilized"][1] == "plant"
+    assert report["diverged"]["stabilized"][0] >= 1.0  # on the file's clock: the window starts at 1 s
+
+
+def test_motion_window_selects_rows_on_the_file_clock_and_refuses_empty_ones():
+    t = 5.0 + np.arange(301) / 100.0  # 3 s from t = 5 s
+    rec = io.MotionRecord(t, np.tile([1.0, 0.0, 0.0, 0.0], (t.size, 1)), np.zeros((t.size, 3)),
+                          np.arange(t.size * 3, dtype=float).reshape(-1, 3))
+    w = io.window(rec, 0.5, 1.0)
+    np.testing.assert_allclose(w.t_s[[0, -1]], [5.5, 6.5], atol=1e-12)
+    assert w.t_s.size == 101
+    np.testing.assert_array_equal(w.a_I_m_s2, rec.a_I_m_s2[50:151])
+    assert io.window(rec, 2.0).t_s[-1] == rec.t_s[-1]  # to the end
+    for start, duration, message in ((2.5, 1.0, "ends after the recording"),
+                                     (-1.0, None, "--start must be a non-negative"),
+                                     (0.0, 0.0, "--duration must be a positive"),
+                                     (2.999, None, "fewer than two rows")):
+        with pytest.raises(InputError, match=message):
+            io.window(rec, start, duration)
+
+
+def test_stabilize_reads_a_broad_recording_window(tmp_path, capsys):
+    """A BROAD file is converted as `verticality motion` converts it (same rows), and a window past
+    its end is refused in one line before anything is compiled."""
+    from pathlib import Path
+
+    from verticality.io import broad
+
+    path = Path(__file__).parents[2] / "shared" / "data" / "broad" / "15_undisturbed_fast_translation_A.hdf5"
+    if not path.is_file():
+        pytest.fail(f"BROAD data not found: expected {path}")
+    rec = io.load_motion(path, 38.0, 2.0)
+    ref = broad.motion_record(broad.load_trial(path), 38.0, 2.0)
+    for a, b in zip(rec, ref, strict=True):
+        np.testing.assert_array_equal(a, b)
+    capsys.readouterr()
+    assert cli.main(["stabilize", str(path), "--start", "38", "--duration", "2000"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "after the recording" in err and "\n" not in err

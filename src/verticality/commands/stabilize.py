@@ -1,8 +1,9 @@
-"""``verticality stabilize MOTION.csv [--out OUT.csv] [--plot OUT.png] [--json] [--seeds N]
-[--noise SIGMA] [--exact-model] [--settle S]``
+"""``verticality stabilize MOTION.csv|TRIAL.hdf5 [--start S] [--duration S] [--out OUT.csv]
+[--plot OUT.png] [--json] [--seeds N] [--noise SIGMA] [--exact-model] [--settle S]``
 
 Would servoing the head upright help on *this* trunk motion? The trunk of MOTION.csv (t, q_I_T,
-ω_T, a_I; :mod:`verticality.io.motion`) carries P13's gimbal head with its otolith pendulum and
+ω_T, a_I; :mod:`verticality.io.motion`), or of a BROAD-layout recording converted as
+``verticality motion`` does, over an optional window, carries P13's gimbal head with its otolith pendulum and
 gyros; the EKF on SO(3) of ``ekf-impact``/``ekf-jump`` estimates the head's tilt, once with the
 head rigid on the trunk (``fixed``) and once servoed upright by P13's PD fed by the estimate
 (``stabilized``). Everything but the trunk motion is the ekf-* setting (:mod:`
@@ -31,8 +32,13 @@ def register(sub):
                     "docs/simulation.md), once rigid and once stabilized, and compare the tilt "
                     "errors.",
     )
-    p.add_argument("motion", type=Path, metavar="MOTION.csv",
-                   help="the trunk's motion (e.g. from `verticality motion NAME --out ...`)")
+    p.add_argument("motion", type=Path, metavar="MOTION.csv|TRIAL.hdf5",
+                   help="the trunk's motion (e.g. from `verticality motion NAME --out ...`), or a "
+                        "BROAD-layout recording (optical q, gyro ω, a_I from the accelerometer)")
+    p.add_argument("--start", type=float, default=0.0, metavar="S",
+                   help="seconds from the file's first row at which the window starts (default 0)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="seconds to take from --start (default: to the file's end)")
     p.add_argument("--out", type=Path, default=None, metavar="OUT.csv",
                    help="write t (the file's clock) and each head's true/estimated tilt and error "
                         "at the EKF's 50 Hz")
@@ -76,11 +82,13 @@ def run(args) -> int:
 
     from verticality import recorded_trajectory as rt
     from verticality.experiments import ekf as ekf_exp
-    from verticality.io.motion import read_motion_csv, write_tilt_comparison_csv
+    from verticality.io.motion import load_motion, write_tilt_comparison_csv
     from verticality.params import P13_HEAD, P13_PENDULUM
     from verticality.simulation import CONDITIONS, SimConfig
 
-    rec = read_motion_csv(args.motion)
+    if not args.motion.is_file():
+        raise InputError(f"{args.motion}: no such file")
+    rec = load_motion(args.motion, args.start, args.duration)
     traj = rt.from_record(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s, rec.a_I_m_s2,
                        name=args.motion.stem)
     err = Console(stderr=True)

@@ -106,6 +106,42 @@ def read_motion_csv(path) -> MotionRecord:
     return MotionRecord(t, q / norm[:, None], data[:, 5:8], data[:, 8:11])
 
 
+def window(record: MotionRecord, start_s: float = 0.0, duration_s: float | None = None,
+           source: str = "input") -> MotionRecord:
+    """The rows of ``record`` from ``start_s`` to ``start_s + duration_s`` seconds after its first
+    row (to its end when ``duration_s`` is None), on the file's own clock. An empty window, one
+    past the end or one left with fewer than two rows is refused (:class:`InputError`)."""
+    t = record.t_s
+    if not (math.isfinite(start_s) and start_s >= 0.0):
+        raise InputError(f"{source}: --start must be a non-negative number of seconds, not {start_s}")
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
+        raise InputError(f"{source}: --duration must be a positive number of seconds, not {duration_s}")
+    span = float(t[-1] - t[0])
+    t_from = t[0] + start_s
+    t_to = t[-1] if duration_s is None else t_from + duration_s
+    if t_to > t[-1] + 1e-9 * max(1.0, abs(float(t[-1]))) + 1e-9:
+        raise InputError(f"{source}: the window {start_s:g} s + {duration_s:g} s ends after the "
+                         f"recording ({span:.6g} s from its first row)")
+    sel = (t >= t_from - 1e-9) & (t <= t_to + 1e-9)
+    if np.count_nonzero(sel) < 2:
+        raise InputError(f"{source}: the window from {start_s:g} s holds fewer than two rows "
+                         f"(the recording spans {span:.6g} s)")
+    return MotionRecord(*(a[sel] for a in record))
+
+
+def load_motion(path, start_s: float = 0.0, duration_s: float | None = None) -> MotionRecord:
+    """A MOTION.csv, or a BROAD-layout HDF5 recording converted by
+    :func:`verticality.io.broad.motion_record`, over a window in seconds from its start."""
+    from verticality.io import broad
+
+    path = Path(path)
+    if broad.is_broad_file(path):
+        if not (math.isfinite(start_s) and start_s >= 0.0):
+            raise InputError(f"{path}: --start must be a non-negative number of seconds, not {start_s}")
+        return broad.motion_record(broad.load_trial(path), start_s, duration_s)
+    return window(read_motion_csv(path), start_s, duration_s, str(path))
+
+
 def _where(line_no) -> str:
     """'row k (line n)': data rows count from 1, lines from the header (line 1)."""
     return f"row {int(line_no) - 1} (line {int(line_no)})"
