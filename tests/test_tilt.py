@@ -115,6 +115,7 @@ def test_irregular_time_steps_and_gap_use_true_dt():
     out = tilt.run(gyr, acc, dts)
     err = _tilt_err_deg(_up_S(R), out.up_S)
     assert np.sqrt(np.mean(err[500:] ** 2)) < 0.3
+    assert np.flatnonzero(out.flags & tilt.DT_GAP).tolist() == [1500]
     # same data but a wrong constant dt (the mean step ignoring the gap) goes wrong at the gap
     bad = tilt.run(gyr, acc, float(np.median(dts)))
     assert np.max(_tilt_err_deg(_up_S(R), bad.up_S)[1500:1600]) > 5 * np.max(err[1500:1600])
@@ -201,6 +202,7 @@ def test_plain_python_stream_equals_batch_run_with_nans_and_irregular_dt():
     dts[1200] = 1.5  # gap
     ref = _assert_stream_equals_run(gyr, acc, dts)
     assert ref.flags[3] & tilt.INIT and ref.flags[900] & tilt.BAD_DT
+    assert np.flatnonzero(ref.flags & tilt.DT_GAP).tolist() == [1200]  # the sample ending the gap
 
 
 def test_large_rotations_use_exact_exponential():
@@ -232,3 +234,28 @@ def test_jitted_packed_stepper_equals_step():
                               [r.flags]])
         np.testing.assert_allclose(np.asarray(o), ref, rtol=0, atol=1e-12)
     np.testing.assert_allclose(stepper.unpack(z).P, state.P, atol=1e-15)
+
+
+def test_motion_hidden_in_a_gap_is_flagged_and_warned_about(tmp_path, capsys):
+    """A logger gap of 1 s during which the sensor turns by 30° (still on both sides): the rate
+    integrated across the gap is ~0, so the estimate is ~30° off after it, and nothing in the
+    numbers says so. The sample that ends the gap carries DT_GAP, and `estimate` warns."""
+    from verticality import cli
+    from verticality.io import imu
+
+    rng = np.random.default_rng(0)
+    t = np.concatenate([np.arange(0.0, 10.0, 0.01), np.arange(11.0, 20.0, 0.01)])
+    roll = np.where(t < 10.5, 0.0, np.radians(30.0))
+    up = _up_S(np.asarray(so3.exp(np.outer(roll, [1.0, 0.0, 0.0]))))
+    acc = G * up + rng.normal(0, 0.02, (t.size, 3))
+    gyr = rng.normal(0, 1e-3, (t.size, 3))
+    out = tilt.run(gyr, acc, np.diff(t, prepend=-0.01))
+    k = int(np.searchsorted(t, 11.0))
+    assert np.flatnonzero(out.flags & tilt.DT_GAP).tolist() == [k]
+    assert _tilt_err_deg(up[k:k + 1], out.up_S[k:k + 1])[0] > 25.0  # what the flag warns of
+    path = imu.write_imu_csv(tmp_path / "gap.csv", imu.ImuRecording(t, gyr, acc))
+    capsys.readouterr()
+    assert cli.main(["estimate", str(path), "--out", str(tmp_path / "est.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "1 gap(s) in the time stamps longer than 0.1 s (largest 1.01 s, ending at t = 11 s)" in err
+    assert imu.read_estimate_csv(tmp_path / "est.csv").flags[k] & tilt.DT_GAP

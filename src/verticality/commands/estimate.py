@@ -107,12 +107,31 @@ def run(args) -> int:
         out = _peer_output(np.asarray(quat), np.asarray(bias))
     imu.write_estimate_csv(args.out, t, out)
     print(f"wrote {args.out} ({t.size} samples, filter {args.filter})")
+    _warn_gaps(t, dt)
     if t_origin is not None:
         print(f"t is in seconds from the input's first time stamp, {t_origin}")
     if args.plot is not None:
         path = _plot(args.plot, t, out, args.filter)
         print(f"wrote {path}")
     return 0
+
+
+def _warn_gaps(t, dt) -> None:
+    """One line on stderr when the time stamps have gaps longer than the tilt filter's
+    ``gap_flag_s``: the rate is integrated across a gap, so motion inside it goes unseen."""
+    import sys
+
+    from verticality.estimators.tilt import DEFAULT_PARAMS, DT_GAP
+
+    gaps = np.flatnonzero(np.isfinite(dt) & (dt > DEFAULT_PARAMS.gap_flag_s))
+    if gaps.size == 0:
+        return
+    k = gaps[np.argmax(dt[gaps])]
+    print(f"warning: {gaps.size} gap(s) in the time stamps longer than "
+          f"{DEFAULT_PARAMS.gap_flag_s:g} s (largest {dt[k]:.6g} s, ending at t = {t[k]:.6g} s): "
+          "the gyro rate is integrated across a gap, so if the sensor moved during one the estimate "
+          f"after it can be off for seconds; flag {DT_GAP} marks the sample that ends each gap",
+          file=sys.stderr)
 
 
 def _peer_output(quat, bias):

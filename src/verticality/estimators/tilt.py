@@ -35,8 +35,11 @@ API (one estimator API for the project)::
 ``out`` is a :class:`TiltOutput` (roll, pitch, gravity direction, quaternion, bias, covariance,
 flags). A NaN in ``y`` means "no accelerometer": predict only (flag ``ACC_MISSING``); a NaN gyro
 sample propagates the covariance with ``omega_missing_rad_s`` as the unknown rate (flag
-``GYR_MISSING``); a non-finite or non-positive Δt skips the sample (flag ``BAD_DT``). Nothing turns
-a finite estimate into NaN.
+``GYR_MISSING``); a non-finite or non-positive Δt skips the sample (flag ``BAD_DT``). A Δt above
+``gap_flag_s`` (a gap in the recording) is used as it is, the sample's rate integrated over the
+whole gap, and the sample is flagged ``DT_GAP``: motion inside the gap that this rate does not
+describe is not seen, and the estimate after it can be off until the accelerometer pulls it back
+(seconds; docs/tilt.md). Nothing turns a finite estimate into NaN.
 """
 
 from __future__ import annotations
@@ -60,6 +63,7 @@ GYR_MISSING = 2  # gyroscope sample non-finite: orientation held, covariance inf
 BAD_DT = 4  # Δt non-finite or <= 0: sample skipped entirely
 ACC_DISTURBED = 8  # inertial acceleration estimate large: accelerometer strongly down-weighted
 INIT = 16  # the sample that initialized the filter from the accelerometer
+DT_GAP = 32  # Δt above gap_flag_s: a gap in the recording (motion inside it is not seen)
 
 
 class TiltParams(NamedTuple):
@@ -72,7 +76,7 @@ class TiltParams(NamedTuple):
     correlation time ``vel_corr_s``; ``vel_rest_m_s`` at rest. ``acc_missing_m_s2``: unknown
     acceleration assumed while the accelerometer drops out; ``acc_tau_s``: low-pass of ``(|f|−g)²``
     used for the ACC_DISTURBED flag. ``omega_missing_rad_s``: unknown rate assumed while the gyro
-    drops out.
+    drops out. ``gap_flag_s``: a step Δt above it flags the sample ``DT_GAP``.
     ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. ``gyr_scale_noise`` (√s):
     gyro errors that grow with the rate (scale factor, axis misalignment), process noise density
     ``(k |ω|)²``. Rest (T eq. 1 with ω = 0, so the canal signal is the drift): when for
@@ -97,6 +101,7 @@ class TiltParams(NamedTuple):
     omega_missing_rad_s: float = 1.0
     acc_disturbed_m_s2: float = 1.0
     g_m_s2: float = G_M_S2
+    gap_flag_s: float = 0.1
 
 
 DEFAULT_PARAMS = TiltParams()
@@ -348,11 +353,8 @@ def _outputs(quat, bias, P, flags) -> TiltOutput:
     return TiltOutput(roll, pitch, up, quat, bias, jnp.diagonal(P, axis1=-2, axis2=-1), flags)
 
 
-def _flags(dt_ok, gyr_ok, acc_ok, init_now=False, disturbed=False):
-    f = (jnp.where(acc_ok | ~dt_ok, 0, ACC_MISSING) | jnp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
-         | jnp.where(dt_ok, 0, BAD_DT) | jnp.where(disturbed, ACC_DISTURBED, 0)
-         | jnp.where(init_now, INIT, 0))
-    return f.astype(jnp.int32)
+def _flags(dt_ok, gyr_ok, acc_ok, init_now=False, disturbed=False, gap=False):
+    return tilt_kernels.flags(dt_ok, gyr_ok, acc_ok, disturbed, gap) | jnp.where(init_now, INIT, 0)
 
 
 def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK):
@@ -394,7 +396,7 @@ def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block:
     quat = jnp.where(at_start, state.quat_E_S, _qnormalize(_qmul(
         _qmul(state.quat_E_S, state.blk_dquat), _qexp(-state.bias_S_rad_s * state.blk_tau))))
     out = _outputs(quat, state.bias_S_rad_s, state.P,
-                   _flags(dt_ok, gyr_ok, acc_ok, init_now, disturbed))
+                   _flags(dt_ok, gyr_ok, acc_ok, init_now, disturbed, dts > p.gap_flag_s))
     return state, out
 
 
@@ -520,7 +522,8 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         gyr_fin = np.all(np.isfinite(gyr[:k]), axis=1)
         flags = (np.where(ok[:k] | ~dt_ok[:k], 0, ACC_MISSING)
                  | np.where((gyr_fin & dt_ok[:k]) | ~dt_ok[:k], 0, GYR_MISSING)
-                 | np.where(dt_ok[:k], 0, BAD_DT)).astype(np.int32)
+                 | np.where(dt_ok[:k], 0, BAD_DT)
+                 | np.where(dt_ok[:k] & (dts[:k] > params.gap_flag_s), DT_GAP, 0)).astype(np.int32)
         quat = np.tile(np.asarray(state.quat_E_S), (k, 1))
         if found:
             q0 = _quat_from_acc_np(acc[k - 1])

@@ -33,7 +33,7 @@ NS = 20
 SMALL_TH2 = 0.04  # |rotation|² (rad²) below which the Taylor exponential is used (error < 1e-27)
 
 # flag bits (same values as in tilt)
-ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED = 1, 2, 4, 8
+ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED, DT_GAP = 1, 2, 4, 8, 32
 
 
 def qmul_c(p, q):
@@ -267,10 +267,12 @@ def masks(gyr, acc, dt):
     return masks_c(tuple(gyr[..., i] for i in range(3)), tuple(acc[..., i] for i in range(3)), dt)
 
 
-def flags(dt_ok, gyr_ok, acc_ok, disturbed):
+def flags(dt_ok, gyr_ok, acc_ok, disturbed, gap=False):
     f = (jnp.where(acc_ok | ~dt_ok, 0, ACC_MISSING) | jnp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
-         | jnp.where(dt_ok, 0, BAD_DT) | jnp.where(disturbed, ACC_DISTURBED, 0))
+         | jnp.where(dt_ok, 0, BAD_DT) | jnp.where(disturbed, ACC_DISTURBED, 0)
+         | jnp.where(gap, DT_GAP, 0))
     return f.astype(jnp.int32)
+
 
 
 def _run_chunk(x, data, params, block: int, names: tuple = ()):
@@ -347,7 +349,7 @@ def _run_chunk(x, data, params, block: int, names: tuple = ()):
     pitch = atan2(-upx, jnp.sqrt(upy * upy + upz * upz))
 
     dist = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, 28] > 0.5)
-    fl = flags(dt_ok_b, gyr_ok_b, acc_ok_b, dist)  # (block, nb), like soa
+    fl = flags(dt_ok_b, gyr_ok_b, acc_ok_b, dist, dts_b > p.gap_flag_s)  # (block, nb), like soa
     # the host writes these straight into the sample-major result arrays (a transposing copy
     # there is cheaper than XLA's transpose here, and bias/var need no per-sample array at all)
     return x, (jnp.stack([w, qx, qy, qz, upx, upy, upz, roll, pitch]), rows, fl)
@@ -414,7 +416,7 @@ def stream_step(z, sample, params, block: int):
     up = jnp.stack([2 * (qx * qz - w * qy), 2 * (qy * qz + w * qx), 1 - 2 * (qx * qx + qy * qy)])
     roll = jnp.arctan2(up[1], up[2])
     pitch = jnp.arctan2(-up[0], jnp.sqrt(up[1] ** 2 + up[2] ** 2))
-    fl = flags(dt_ok, gyr_ok, acc_ok, disturbed) | jnp.where(init_now, 16, 0)
+    fl = flags(dt_ok, gyr_ok, acc_ok, disturbed, dts > p.gap_flag_s) | jnp.where(init_now, 16, 0)
     z = jnp.concatenate([x, s, jnp.stack([count, initialized.astype(jnp.float64)])])
     out = jnp.concatenate([jnp.stack([roll, pitch]), up, q, x[4:7], fl.astype(jnp.float64)[None]])
     return z, out

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED, INIT = 1, 2, 4, 8, 16
+ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED, INIT, DT_GAP = 1, 2, 4, 8, 16, 32
 
 
 def _qmul(p, q):
@@ -143,7 +143,7 @@ class Stream:
         up = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
         fl = ((0 if acc_ok or not dt_ok else ACC_MISSING) | (0 if gyr_ok or not dt_ok else GYR_MISSING)
               | (0 if dt_ok else BAD_DT) | (ACC_DISTURBED if disturbed else 0)
-              | (INIT if init_now else 0))
+              | (INIT if init_now else 0) | (DT_GAP if dts > p.gap_flag_s else 0))
         return (math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2])), up, q,
                 tuple(self.b), fl)
 
