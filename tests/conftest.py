@@ -19,3 +19,28 @@ def quick_sweeps():
     labels = []
     out, simulated_s = sens.run_sweeps(quick=True, progress=labels.append)
     return out, simulated_s, labels
+
+
+def _swinging_imu(n=1500, dt_s=0.01, seed=0):
+    """A tilted sensor swinging about its x axis (±40°, 0.5 Hz), SI units, t from 0."""
+    import numpy as np
+
+    from verticality import so3
+    from verticality.io import imu
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt_s
+    angle = np.radians(40.0) * np.sin(np.pi * t)
+    rate = np.radians(40.0) * np.pi * np.cos(np.pi * t)
+    R0 = np.asarray(so3.rot_y(np.radians(15.0)))
+    R = np.einsum("ij,njk->nik", R0, np.asarray(so3.exp(angle[:, None] * np.array([1.0, 0, 0]))))
+    acc = 9.81 * R[:, 2, :] + rng.normal(0, 0.02, (n, 3))
+    gyr = np.column_stack([rate, np.zeros(n), np.zeros(n)]) + rng.normal(0, 1e-3, (n, 3))
+    return imu.ImuRecording(t, gyr, acc)
+
+
+@pytest.fixture
+def swinging_imu():
+    """``swinging_imu(n, dt_s, seed)``: a synthetic IMU recording (:class:`ImuRecording`) of a
+    tilted sensor swinging ±40° about its x axis at 0.5 Hz, for the IMU file tests."""
+    return _swinging_imu

@@ -6,7 +6,7 @@ import h5py
 import numpy as np
 import pytest
 
-from verticality import cli, so3
+from verticality import cli
 from verticality.errors import InputError
 from verticality.io import broad, imu, imu_layout
 
@@ -17,19 +17,6 @@ T0_NS = 1403636579758555392  # first stamp of EuRoC MH_01_easy
 BROAD_FILE = (Path(__file__).parents[2] / "shared" / "data" / "broad"
               / "01_undisturbed_slow_rotation_A.hdf5")
 MAPPING = "t=time_ms,gyr_x=wx,gyr_y=wy,gyr_z=wz,acc_x=ax,acc_y=ay,acc_z=az"
-
-
-def _swinging(n=1200, dt_s=0.005, seed=1):
-    """A tilted sensor swinging about its x axis (±40°, 0.5 Hz), SI units, t from 0."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * dt_s
-    angle = np.radians(40.0) * np.sin(np.pi * t)
-    rate = np.radians(40.0) * np.pi * np.cos(np.pi * t)
-    R0 = np.asarray(so3.rot_y(np.radians(15.0)))
-    R = np.einsum("ij,njk->nik", R0, np.asarray(so3.exp(angle[:, None] * np.array([1.0, 0, 0]))))
-    acc = G * R[:, 2, :] + rng.normal(0, 0.02, (n, 3))
-    gyr = np.column_stack([rate, np.zeros(n), np.zeros(n)]) + rng.normal(0, 1e-3, (n, 3))
-    return imu.ImuRecording(t, gyr, acc)
 
 
 def _write_euroc(path, stamps_ns, gyr, acc, header=EUROC_HEADER, sep=","):
@@ -54,8 +41,8 @@ def _refused(argv, tmp_path, capsys):
     return err
 
 
-def test_euroc_header_variants_read_back_with_exact_ns_steps(tmp_path):
-    rec = _swinging()
+def test_euroc_header_variants_read_back_with_exact_ns_steps(tmp_path, swinging_imu):
+    rec = swinging_imu(n=1200, dt_s=0.005, seed=1)
     stamps = T0_NS + 5_000_000 * np.arange(rec.t_s.size, dtype=np.int64)  # 200 Hz
     # float64 holds stamps near 1.4e18 only to 256 ns: these would lose up to 128 ns
     assert np.any(stamps.astype(np.float64).astype(np.int64) != stamps)
@@ -110,8 +97,8 @@ def _write_mapped(path, rec, header_t="time_ms", t_scale=1000.0):
     return Path(path)
 
 
-def test_column_mapping_reordered_extra_column_ms(tmp_path):
-    rec = _swinging(dt_s=0.01, n=1500)
+def test_column_mapping_reordered_extra_column_ms(tmp_path, swinging_imu):
+    rec = swinging_imu(dt_s=0.01, n=1500, seed=1)
     mapped = _write_mapped(tmp_path / "mapped.csv", rec)
     columns = imu_layout.parse_columns_spec(MAPPING)
     back = imu.read_imu_csv(mapped, columns=columns, time_unit="ms")
@@ -140,8 +127,8 @@ def test_parse_columns_spec():
         imu_layout.parse_columns_spec("t=a,t=b")
 
 
-def test_layout_refusals_are_one_line(tmp_path, capsys):
-    rec = _swinging(dt_s=0.01, n=600)
+def test_layout_refusals_are_one_line(tmp_path, capsys, swinging_imu):
+    rec = swinging_imu(dt_s=0.01, n=600, seed=1)
     mapped = _write_mapped(tmp_path / "mapped.csv", rec)
     own_ms = imu.write_imu_csv(tmp_path / "own_ms.csv", rec._replace(t_s=rec.t_s * 1000.0))
     stamps = T0_NS + 10_000_000 * np.arange(rec.t_s.size)
@@ -212,8 +199,8 @@ def test_long_header_list_is_truncated_on_one_line(tmp_path):
     assert "channel_12" not in str(exc.value) and "\n" not in str(exc.value)
 
 
-def test_deg_s_in_euroc_layout_is_refused_unless_stated(tmp_path, capsys):
-    rec = _swinging()
+def test_deg_s_in_euroc_layout_is_refused_unless_stated(tmp_path, capsys, swinging_imu):
+    rec = swinging_imu(n=1200, dt_s=0.005, seed=1)
     stamps = T0_NS + 5_000_000 * np.arange(rec.t_s.size)
     deg = _write_euroc(tmp_path / "deg.csv", stamps, np.degrees(rec.gyr_rad_s), rec.acc_m_s2)
     err = _refused([str(deg)], tmp_path, capsys)

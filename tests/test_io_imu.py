@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from verticality import cli, so3
+from verticality import cli
 from verticality.errors import InputError
 from verticality.estimators import tilt
 from verticality.io import imu
@@ -11,21 +11,8 @@ from verticality.io import imu
 G = 9.81
 
 
-def _rotating_recording(n=1500, dt=0.01, seed=0):
-    """A tilted sensor swinging about its x axis (±40°, 0.5 Hz): gyro in rad/s, acc in m/s²."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * dt
-    angle = np.radians(40.0) * np.sin(np.pi * t)
-    rate = np.radians(40.0) * np.pi * np.cos(np.pi * t)
-    R0 = np.asarray(so3.rot_y(np.radians(15.0)))
-    R = np.einsum("ij,njk->nik", R0, np.asarray(so3.exp(angle[:, None] * np.array([1.0, 0, 0]))))
-    acc = G * R[:, 2, :] + rng.normal(0, 0.02, (n, 3))
-    gyr = np.column_stack([rate, np.zeros(n), np.zeros(n)]) + rng.normal(0, 1e-3, (n, 3))
-    return imu.ImuRecording(t, gyr, acc)
-
-
-def test_csv_round_trip(tmp_path):
-    rec = _rotating_recording(n=200)
+def test_csv_round_trip(tmp_path, swinging_imu):
+    rec = swinging_imu(n=200)
     rec.acc_m_s2[10] = np.nan
     path = imu.write_imu_csv(tmp_path / "rec.csv", rec)
     back = imu.read_imu_csv(path)
@@ -35,8 +22,8 @@ def test_csv_round_trip(tmp_path):
     np.testing.assert_allclose(back.dt_s, 0.01, rtol=1e-9)
 
 
-def test_units_g_and_deg_s_are_refused_unless_stated():
-    rec = _rotating_recording()
+def test_units_g_and_deg_s_are_refused_unless_stated(swinging_imu):
+    rec = swinging_imu()
     with pytest.raises(InputError, match="looks like g"):
         imu.check_units(rec.gyr_rad_s, rec.acc_m_s2 / G)
     with pytest.raises(InputError, match="deg/s"):
@@ -65,8 +52,8 @@ def test_bad_csv_gives_one_line_errors(tmp_path):
         imu.read_imu_csv(tmp_path / "nope.csv")
 
 
-def test_estimate_cli_round_trips_through_io(tmp_path, capsys):
-    rec = _rotating_recording()
+def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
+    rec = swinging_imu()
     rec.acc_m_s2[100:110] = np.nan
     src = imu.write_imu_csv(tmp_path / "rec.csv", rec)
     out_csv = tmp_path / "est.csv"
