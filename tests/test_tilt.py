@@ -127,6 +127,7 @@ def test_run_equals_streaming_steps():
     gyr[40] = np.nan
     dts = np.full(gyr.shape[0], dt)
     dts[60] = 0.0
+    dts[100] = 0.5  # a gap: flagged DT_GAP on every path
     batch = tilt.run(gyr, acc, dts)
     state = tilt.init()
     rows = []
@@ -136,6 +137,7 @@ def test_run_equals_streaming_steps():
     for name in tilt.TiltOutput._fields:
         ref = np.stack([np.asarray(getattr(o, name)) for o in rows])
         np.testing.assert_allclose(np.asarray(getattr(batch, name)), ref, atol=1e-12, err_msg=name)
+    assert np.flatnonzero(batch.flags & tilt.DT_GAP).tolist() == [100]
     # continuing from a mid-block state gives the same as one run over everything
     out1, st1 = tilt.run(gyr[:70], acc[:70], dts[:70], return_state=True)
     assert int(st1.blk_count) == 0  # run closes a trailing partial block
@@ -224,12 +226,15 @@ def test_large_rotations_use_exact_exponential():
 def test_jitted_packed_stepper_equals_step():
     gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=80)
     acc[2] = np.nan
+    dts = np.full(gyr.shape[0], dt)
+    dts[50] = 0.5  # a gap
     stepper = tilt.make_step()
     z = stepper.init()
     state = tilt.init()
     for k in range(gyr.shape[0]):
-        z, o = stepper.step(z, gyr[k], acc[k], dt)
-        state, r = tilt.step_jit(state, gyr[k], acc[k], dt, tilt.DEFAULT_PARAMS, tilt.BLOCK)
+        z, o = stepper.step(z, gyr[k], acc[k], dts[k])
+        state, r = tilt.step_jit(state, gyr[k], acc[k], dts[k], tilt.DEFAULT_PARAMS, tilt.BLOCK)
+        assert bool(int(o[-1]) & tilt.DT_GAP) == (k == 50)
         ref = np.concatenate([[r.roll_rad, r.pitch_rad], r.up_S, r.quat_E_S, r.bias_S_rad_s,
                               [r.flags]])
         np.testing.assert_allclose(np.asarray(o), ref, rtol=0, atol=1e-12)
