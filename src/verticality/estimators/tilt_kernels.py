@@ -274,7 +274,6 @@ def flags(dt_ok, gyr_ok, acc_ok, disturbed, gap=False):
     return f.astype(jnp.int32)
 
 
-
 def _run_chunk(x, data, params, block: int, names: tuple = ()):
     """Filter a chunk of ``n = nb * block`` samples from a block boundary of an initialized packed
     state ``x``: ``data`` (n, 7) = [gyr (3), acc (3), dt] per sample (one array: one host-to-device

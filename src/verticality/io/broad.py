@@ -95,17 +95,11 @@ def motion_record(trial: BroadTrial, start_s: float = 0.0, duration_s: float | N
     removed). Rows without an optical reference are not filled in: a window that holds one raises
     :class:`InputError` naming it and the longest clean stretch of the trial."""
     from verticality import so3
-    from verticality.io.motion import MotionRecord
+    from verticality.io.motion import MotionRecord, window_mask
     from verticality.params import G_M_S2
 
     t = trial.t_s
-    end = t[-1] if duration_s is None else start_s + duration_s
-    if not (np.isfinite(start_s) and start_s >= 0.0 and end > start_s):
-        raise InputError(f"{trial.name}: the window {start_s:g} s + {duration_s} s is empty or negative")
-    if end > t[-1] + 0.5 / trial.sampling_rate_hz:
-        raise InputError(f"{trial.name}: the window ends at {end:g} s, after the recording "
-                         f"({t[-1]:.3f} s)")
-    sel = (t >= start_s - 1e-9) & (t <= end + 1e-9)
+    sel = window_mask(t, start_s, duration_s, trial.name, end_tol_s=0.5 / trial.sampling_rate_hz)
     q = trial.quat_E_S_opt[sel]
     ok = np.all(np.isfinite(q), axis=1)
     if not np.all(ok):

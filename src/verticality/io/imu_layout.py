@@ -235,8 +235,6 @@ def data_lines(lines: list[str]) -> tuple[list[str], list[int]]:
     return rows, numbers
 
 
-
-
 class Layout(NamedTuple):
     """Where our seven quantities are in a file and the unit of its time column."""
 

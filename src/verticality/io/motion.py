@@ -106,12 +106,13 @@ def read_motion_csv(path) -> MotionRecord:
     return MotionRecord(t, q / norm[:, None], data[:, 5:8], data[:, 8:11])
 
 
-def window(record: MotionRecord, start_s: float = 0.0, duration_s: float | None = None,
-           source: str = "input") -> MotionRecord:
-    """The rows of ``record`` from ``start_s`` to ``start_s + duration_s`` seconds after its first
-    row (to its end when ``duration_s`` is None), on the file's own clock. An empty window, one
-    past the end or one left with fewer than two rows is refused (:class:`InputError`)."""
-    t = record.t_s
+def window_mask(t_s: np.ndarray, start_s: float = 0.0, duration_s: float | None = None,
+                source: str = "input", end_tol_s: float = 1e-9) -> np.ndarray:
+    """The rows of the times ``t_s`` from ``start_s`` to ``start_s + duration_s`` seconds after the
+    first (to the last when ``duration_s`` is None), as a boolean mask. A negative start, a
+    non-positive duration, a window ending more than ``end_tol_s`` after the last time, and one
+    holding fewer than two rows are refused (:class:`InputError`)."""
+    t = np.asarray(t_s, float)
     if not (math.isfinite(start_s) and start_s >= 0.0):
         raise InputError(f"{source}: --start must be a non-negative number of seconds, not {start_s}")
     if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
@@ -119,13 +120,20 @@ def window(record: MotionRecord, start_s: float = 0.0, duration_s: float | None 
     span = float(t[-1] - t[0])
     t_from = t[0] + start_s
     t_to = t[-1] if duration_s is None else t_from + duration_s
-    if t_to > t[-1] + 1e-9 * max(1.0, abs(float(t[-1]))) + 1e-9:
+    if t_to > t[-1] + 1e-9 * max(1.0, abs(float(t[-1]))) + end_tol_s:
         raise InputError(f"{source}: the window {start_s:g} s + {duration_s:g} s ends after the "
                          f"recording ({span:.6g} s from its first row)")
     sel = (t >= t_from - 1e-9) & (t <= t_to + 1e-9)
     if np.count_nonzero(sel) < 2:
         raise InputError(f"{source}: the window from {start_s:g} s holds fewer than two rows "
                          f"(the recording spans {span:.6g} s)")
+    return sel
+
+
+def window(record: MotionRecord, start_s: float = 0.0, duration_s: float | None = None,
+           source: str = "input") -> MotionRecord:
+    """The rows of ``record`` in the :func:`window_mask` window, on the file's own clock."""
+    sel = window_mask(record.t_s, start_s, duration_s, source)
     return MotionRecord(*(a[sel] for a in record))
 
 
@@ -136,8 +144,6 @@ def load_motion(path, start_s: float = 0.0, duration_s: float | None = None) -> 
 
     path = Path(path)
     if broad.is_broad_file(path):
-        if not (math.isfinite(start_s) and start_s >= 0.0):
-            raise InputError(f"{path}: --start must be a non-negative number of seconds, not {start_s}")
         return broad.motion_record(broad.load_trial(path), start_s, duration_s)
     return window(read_motion_csv(path), start_s, duration_s, str(path))
 
