@@ -122,12 +122,12 @@ def test_irregular_time_steps_and_gap_use_true_dt():
 
 
 def test_run_equals_streaming_steps():
-    gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=150)
+    gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=300)
     acc[3:5] = np.nan
     gyr[40] = np.nan
     dts = np.full(gyr.shape[0], dt)
     dts[60] = 0.0
-    dts[100] = 0.5  # a gap: flagged DT_GAP on every path
+    dts[100] = 0.5  # a gap: flagged DT_GAP on every path, then re-acquired 1 s later
     batch = tilt.run(gyr, acc, dts)
     state = tilt.init()
     rows = []
@@ -138,12 +138,21 @@ def test_run_equals_streaming_steps():
         ref = np.stack([np.asarray(getattr(o, name)) for o in rows])
         np.testing.assert_allclose(np.asarray(getattr(batch, name)), ref, atol=1e-12, err_msg=name)
     assert np.flatnonzero(batch.flags & tilt.DT_GAP).tolist() == [100]
+    _assert_reacquired_once_after(batch.flags, 100)
     # continuing from a mid-block state gives the same as one run over everything
     out1, st1 = tilt.run(gyr[:70], acc[:70], dts[:70], return_state=True)
     assert int(st1.blk_count) == 0  # run closes a trailing partial block
     np.testing.assert_allclose(out1.quat_E_S, batch.quat_E_S[:70], atol=1e-12)
     out2 = tilt.run(gyr[70:], acc[70:], dts[70:], state=st1)
     assert np.all(np.isfinite(out2.quat_E_S)) and not np.any(out2.flags & tilt.INIT)
+
+
+def _assert_reacquired_once_after(flags, k_gap):
+    """One re-acquisition after the gap at ``k_gap``; every sample from the gap to it (and no
+    other) is flagged REACQUIRING."""
+    k_re = np.flatnonzero(flags & tilt.REACQUIRED)
+    assert k_re.size == 1 and k_re[0] > k_gap
+    assert np.flatnonzero(flags & tilt.REACQUIRING).tolist() == list(range(k_gap, k_re[0]))
 
 
 def test_init_with_given_state_and_quaternion_helper():
@@ -205,6 +214,7 @@ def test_plain_python_stream_equals_batch_run_with_nans_and_irregular_dt():
     ref = _assert_stream_equals_run(gyr, acc, dts)
     assert ref.flags[3] & tilt.INIT and ref.flags[900] & tilt.BAD_DT
     assert np.flatnonzero(ref.flags & tilt.DT_GAP).tolist() == [1200]  # the sample ending the gap
+    _assert_reacquired_once_after(ref.flags, 1200)
 
 
 def test_large_rotations_use_exact_exponential():
@@ -224,27 +234,32 @@ def test_large_rotations_use_exact_exponential():
 
 
 def test_jitted_packed_stepper_equals_step():
-    gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=80)
+    gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=200)
     acc[2] = np.nan
     dts = np.full(gyr.shape[0], dt)
-    dts[50] = 0.5  # a gap
+    dts[50] = 0.5  # a gap, re-acquired 1 s later
     stepper = tilt.make_step()
     z = stepper.init()
     state = tilt.init()
+    flags = []
     for k in range(gyr.shape[0]):
         z, o = stepper.step(z, gyr[k], acc[k], dts[k])
         state, r = tilt.step_jit(state, gyr[k], acc[k], dts[k], tilt.DEFAULT_PARAMS, tilt.BLOCK)
         assert bool(int(o[-1]) & tilt.DT_GAP) == (k == 50)
+        flags.append(int(o[-1]))
         ref = np.concatenate([[r.roll_rad, r.pitch_rad], r.up_S, r.quat_E_S, r.bias_S_rad_s,
                               [r.flags]])
         np.testing.assert_allclose(np.asarray(o), ref, rtol=0, atol=1e-12)
     np.testing.assert_allclose(stepper.unpack(z).P, state.P, atol=1e-15)
+    _assert_reacquired_once_after(np.array(flags), 50)
 
 
-def test_motion_hidden_in_a_gap_is_flagged_and_warned_about(tmp_path, capsys):
+def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path, capsys):
     """A logger gap of 1 s during which the sensor turns by 30° (still on both sides): the rate
-    integrated across the gap is ~0, so the estimate is ~30° off after it, and nothing in the
-    numbers says so. The sample that ends the gap carries DT_GAP, and `estimate` warns."""
+    integrated across the gap is ~0, so the estimate is ~30° off after it. The filter then sums
+    the specific force for reacquire_s (1 s) and re-acquires the tilt from its mean. The samples
+    in between are flagged REACQUIRING and their variance admits the unknown rotation; the sample
+    that ends the gap carries DT_GAP, and `estimate` warns."""
     from verticality import cli
     from verticality.io import imu
 
@@ -255,12 +270,50 @@ def test_motion_hidden_in_a_gap_is_flagged_and_warned_about(tmp_path, capsys):
     acc = G * up + rng.normal(0, 0.02, (t.size, 3))
     gyr = rng.normal(0, 1e-3, (t.size, 3))
     out = tilt.run(gyr, acc, np.diff(t, prepend=-0.01))
+    err = _tilt_err_deg(up, out.up_S)
     k = int(np.searchsorted(t, 11.0))
     assert np.flatnonzero(out.flags & tilt.DT_GAP).tolist() == [k]
-    assert _tilt_err_deg(up[k:k + 1], out.up_S[k:k + 1])[0] > 25.0  # what the flag warns of
+    _assert_reacquired_once_after(out.flags, k)
+    k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
+    assert 1.0 <= t[k_re] - t[k] <= 1.0 + 2 * tilt.BLOCK * 0.01  # the averaging time, whole blocks
+    assert err[k] > 25.0 and np.all(err[k:k_re] > 25.0)  # what the flags warn of
+    # an honest variance from the block that holds the gap on (variances are updated per block)
+    assert np.all(np.degrees(np.sqrt(out.var[k + tilt.BLOCK:k_re, 0])) > 30.0)
+    assert err[k_re] < 1.0 and np.max(err[k_re + 100:]) < 0.3  # re-acquired, then converged
+    assert np.sqrt(np.mean(err[200:k] ** 2)) < 0.05  # before the gap: unaffected
     path = imu.write_imu_csv(tmp_path / "gap.csv", imu.ImuRecording(t, gyr, acc))
     capsys.readouterr()
     assert cli.main(["estimate", str(path), "--out", str(tmp_path / "est.csv")]) == 0
-    err = capsys.readouterr().err
-    assert "1 gap(s) in the time stamps longer than 0.1 s (largest 1.01 s, ending at t = 11 s)" in err
-    assert imu.read_estimate_csv(tmp_path / "est.csv").flags[k] & tilt.DT_GAP
+    err_txt = capsys.readouterr().err
+    assert "1 gap(s) in the time stamps longer than 0.1 s (largest 1.01 s, ending at t = 11 s)" in err_txt
+    est = imu.read_estimate_csv(tmp_path / "est.csv")
+    assert est.flags[k] & tilt.DT_GAP and est.flags[k_re] & tilt.REACQUIRED
+
+
+def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
+    """tilt.run uses the batch kernel without gap handling up to the first gap (it is faster);
+    on a recording of two chunks with a gap in the second, that equals the kernel with gap
+    handling everywhere, to rounding."""
+    from verticality.estimators import tilt_kernels
+
+    n = tilt.CHUNK_BLOCKS * tilt.BLOCK + 3000
+    gyr, acc, dt, _ = _tumbling(np.array([0.01, -0.005, 0.002]), n=n)
+    acc[100:150] = np.nan
+    dts = np.full(n, dt)
+    dts[n - 1500] = 0.4  # a gap in the second chunk
+    used = []
+    real = tilt_kernels.run_chunk
+
+    def spy(*args, gaps=True, **kw):
+        used.append(gaps)
+        return real(*args, gaps=gaps, **kw)
+
+    monkeypatch.setattr(tilt_kernels, "run_chunk", spy)
+    fast = tilt.run(gyr, acc, dts)
+    assert used == [False, True]
+    monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
+    ref = tilt.run(gyr, acc, dts)
+    for name in tilt.TiltOutput._fields:
+        np.testing.assert_allclose(getattr(fast, name), getattr(ref, name), rtol=0, atol=1e-12,
+                                   err_msg=name)
+    _assert_reacquired_once_after(ref.flags, n - 1500)

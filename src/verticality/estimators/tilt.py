@@ -64,6 +64,8 @@ BAD_DT = 4  # Δt non-finite or <= 0: sample skipped entirely
 ACC_DISTURBED = 8  # inertial acceleration estimate large: accelerometer strongly down-weighted
 INIT = 16  # the sample that initialized the filter from the accelerometer
 DT_GAP = 32  # Δt above gap_flag_s: a gap in the recording (motion inside it is not seen)
+REACQUIRED = 64  # the tilt was re-acquired from the accelerometer after a gap (estimate may jump)
+REACQUIRING = 128  # from a gap to its re-acquisition: the estimate may carry the gap's rotation
 
 
 class TiltParams(NamedTuple):
@@ -76,7 +78,10 @@ class TiltParams(NamedTuple):
     correlation time ``vel_corr_s``; ``vel_rest_m_s`` at rest. ``acc_missing_m_s2``: unknown
     acceleration assumed while the accelerometer drops out; ``acc_tau_s``: low-pass of ``(|f|−g)²``
     used for the ACC_DISTURBED flag. ``omega_missing_rad_s``: unknown rate assumed while the gyro
-    drops out. ``gap_flag_s``: a step Δt above it flags the sample ``DT_GAP``.
+    drops out. ``gap_flag_s``: a step Δt above it is a gap in the recording (flag ``DT_GAP``):
+    the rotation inside it is unknown (``omega_missing_rad_s`` over the gap); after it the filter
+    averages the specific force for ``reacquire_s`` and re-acquires the tilt from that mean
+    (flag ``REACQUIRED``).
     ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. ``gyr_scale_noise`` (√s):
     gyro errors that grow with the rate (scale factor, axis misalignment), process noise density
     ``(k |ω|)²``. Rest (T eq. 1 with ω = 0, so the canal signal is the drift): when for
@@ -102,6 +107,7 @@ class TiltParams(NamedTuple):
     acc_disturbed_m_s2: float = 1.0
     g_m_s2: float = G_M_S2
     gap_flag_s: float = 0.1
+    reacquire_s: float = 1.0
 
 
 DEFAULT_PARAMS = TiltParams()
@@ -131,6 +137,10 @@ class TiltState(NamedTuple):
     blk_asum: jax.Array  # (3,) Σ f Δt (sensor frame) over valid accelerometer samples
     blk_a2: jax.Array  # () Σ |f|² Δt over valid accelerometer samples
     rest_s: jax.Array  # () time at rest so far (s)
+    reacquire: jax.Array  # () bool: after a gap, averaging the specific force to re-acquire
+    reacq_f_E: jax.Array  # (3,) Σ R f Δt (Earth, as estimated) since the gap
+    reacq_t: jax.Array  # () Σ Δt of the accelerometer samples in reacq_f_E
+    blk_gap: jax.Array  # () number of gap samples (Δt > gap_flag_s) in this block
     blk_count: jax.Array  # () int samples in the block
 
 
@@ -217,7 +227,7 @@ def _zero_block():
     z = jnp.array(0.0)
     return dict(blk_dquat=jnp.array([1.0, 0.0, 0.0, 0.0]), blk_tau=z, blk_f=jnp.zeros(3),
                 blk_t_acc=z, blk_dev2=z, blk_w2=z, blk_t=z, blk_qmiss=z, blk_gsum=jnp.zeros(3),
-                blk_asum=jnp.zeros(3), blk_a2=z,
+                blk_asum=jnp.zeros(3), blk_a2=z, blk_gap=z,
                 blk_count=jnp.array(0, dtype=jnp.int32))
 
 
@@ -234,6 +244,7 @@ def init(x0=None, P0=None) -> TiltState:
         b0 = jnp.asarray(x0[1], dtype=jnp.float64)
         initialized = jnp.array(True)
     return TiltState(q0, b0, jnp.zeros(2), P0, jnp.array(0.0), initialized, rest_s=jnp.array(0.0),
+                     reacquire=jnp.array(False), reacq_f_E=jnp.zeros(3), reacq_t=jnp.array(0.0),
                      **_zero_block())
 
 
@@ -260,11 +271,14 @@ def _kf_update(P, H, z, r):
 _J = np.array([[0.0, 1.0], [-1.0, 0.0]])  # (δ × e3)_{x,y} = J δ
 _H_VEL = np.hstack([np.zeros((2, 2)), np.eye(2), np.zeros((2, 3))])
 _H_BIAS = np.hstack([np.zeros((3, 4)), np.eye(3)])
+_H_TILT = np.hstack([np.eye(2), np.zeros((2, 5))])
 
+tilt_error_from_force = tilt_kernels.tilt_error_from_force
+reset_velocity = tilt_kernels.reset_velocity
 
 def _block_update(state: TiltState, params: TiltParams):
     """Kalman prediction over the block and the otolith updates (T eq. 7–13 in 3-D).
-    Returns (new state with empty block, disturbed flag)."""
+    Returns (new state with empty block, disturbed flag, re-acquired flag)."""
     p = params
     g = p.g_m_s2
     b = state.bias_S_rad_s
@@ -309,8 +323,10 @@ def _block_update(state: TiltState, params: TiltParams):
     a_mean = state.blk_asum / t_acc_s
     a_var = jnp.maximum(state.blk_a2 / t_acc_s - a_mean @ a_mean, 0.0)
     gd = g_mean - b
+    gap = state.blk_gap > 0  # unknown motion in this block
+    collecting = state.reacquire & ~gap  # a block after a gap: the tilt error is unknown
     quiet = (has_gyr & has_acc & (g_var < p.rest_gyr_rad_s**2) & (gd @ gd < p.rest_gyr_rad_s**2)
-             & (a_var < p.rest_acc_m_s2**2))
+             & (a_var < p.rest_acc_m_s2**2) & ~gap & ~collecting)
     rest_s = jnp.where(quiet, state.rest_s + T, 0.0)
     at_rest = rest_s >= p.rest_min_s
 
@@ -320,8 +336,21 @@ def _block_update(state: TiltState, params: TiltParams):
     # (T eq. 5) with the inertial part integrated out rather than taken as white noise.
     s_vel = jnp.where(at_rest, p.vel_rest_m_s**2, p.vel_m_s**2) * p.vel_corr_s
     dx1, P1 = _kf_update(P, _H_VEL, -vel, s_vel / t_acc_s)
-    dx = jnp.where(has_acc, dx1, 0.0)
-    P = jnp.where(has_acc, P1, P)
+    # after a gap the tilt error can be large, beyond the small-angle velocity update: the
+    # specific force is summed in Earth (as estimated; the gyro alone carries the estimate, so
+    # its error stays put) for reacquire_s, then its mean measures the tilt error directly
+    # (T eq. 5, exact angle). Its inertial part is Δv / T, with |Δv| ~ √2 vel_m_s (velocity prior).
+    f_sum = jnp.where(collecting, state.reacq_f_E + f_E_sum, 0.0)
+    t_sum = jnp.where(collecting, state.reacq_t + t_acc, 0.0)
+    reacq = collecting & (t_sum >= p.reacquire_s)
+    r_tilt = 2.0 * (p.vel_m_s / (g * jnp.where(reacq, t_sum, 1.0))) ** 2
+    dxr, Pr = _kf_update(P, _H_TILT, tilt_error_from_force(f_sum), r_tilt)
+    use_vel = has_acc & ~gap & ~collecting
+    dx = jnp.where(use_vel, dx1, jnp.where(reacq, dxr, 0.0))
+    P = jnp.where(use_vel, P1, jnp.where(reacq, Pr, P))
+    forget = gap | collecting  # the velocity integrated across the gap means nothing
+    P = jnp.where(forget, reset_velocity(P, p.vel_m_s**2), P)
+    still = gap | (collecting & ~reacq)
     # rest: the block-mean gyro measures the bias
     r_b = p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2
     dx3, P3 = _kf_update(P, _H_BIAS, g_mean - (b + dx[4:]), r_b)
@@ -329,9 +358,12 @@ def _block_update(state: TiltState, params: TiltParams):
     P = jnp.where(at_rest, P3, P)
 
     q_new = _qnormalize(_qmul(_qexp(jnp.stack([dx[0], dx[1], 0.0])), q_end))
-    new = state._replace(quat_E_S=q_new, bias_S_rad_s=b + dx[4:], vel_E_m_s=vel + dx[2:4], P=P,
-                         acc_dev_var=acc_dev_var, rest_s=rest_s, **_zero_block())
-    return new, disturbed
+    new = state._replace(quat_E_S=q_new, bias_S_rad_s=b + dx[4:],
+                         vel_E_m_s=jnp.where(forget, 0.0, vel + dx[2:4]), P=P,
+                         acc_dev_var=acc_dev_var, rest_s=rest_s,
+                         reacquire=still, reacq_f_E=jnp.where(still, f_sum, 0.0),
+                         reacq_t=jnp.where(still, t_sum, 0.0), **_zero_block())
+    return new, disturbed, reacq
 
 
 def _inv3(S):
@@ -353,8 +385,10 @@ def _outputs(quat, bias, P, flags) -> TiltOutput:
     return TiltOutput(roll, pitch, up, quat, bias, jnp.diagonal(P, axis1=-2, axis2=-1), flags)
 
 
-def _flags(dt_ok, gyr_ok, acc_ok, init_now=False, disturbed=False, gap=False):
-    return tilt_kernels.flags(dt_ok, gyr_ok, acc_ok, disturbed, gap) | jnp.where(init_now, INIT, 0)
+def _flags(dt_ok, gyr_ok, acc_ok, init_now=False, disturbed=False, gap=False, reacq=False,
+           reacquiring=False):
+    return (tilt_kernels.flags(dt_ok, gyr_ok, acc_ok, disturbed, gap, reacq, reacquiring)
+            | jnp.where(init_now, INIT, 0))
 
 
 def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK):
@@ -375,28 +409,32 @@ def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block:
     dq = _qmul(st.blk_dquat, _qexp(gyr0 * dts))
     wa = jnp.where(acc_ok, dts, 0.0)
     dev2 = (jnp.sqrt(acc_n2) - p.g_m_s2) ** 2
+    gap = dts > p.gap_flag_s  # the gyro sample does not describe the rotation inside a gap
     acc_state = st._replace(
         blk_dquat=dq, blk_tau=st.blk_tau + jnp.where(gyr_ok, dts, 0.0),
         blk_f=st.blk_f + _qrotate(dq, acc0) * wa, blk_t_acc=st.blk_t_acc + wa,
         blk_dev2=st.blk_dev2 + dev2 * wa, blk_w2=st.blk_w2 + (gyr0 @ gyr0) * dts,
         blk_t=st.blk_t + dts,
-        blk_qmiss=st.blk_qmiss + jnp.where(gyr_ok, 0.0, (p.omega_missing_rad_s * dts) ** 2),
+        blk_qmiss=st.blk_qmiss + jnp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2),
         blk_gsum=st.blk_gsum + gyr0 * dts, blk_asum=st.blk_asum + acc0 * wa,
-        blk_a2=st.blk_a2 + acc_n2 * wa, blk_count=st.blk_count + 1)
+        blk_a2=st.blk_a2 + acc_n2 * wa, blk_gap=st.blk_gap + jnp.where(gap, 1.0, 0.0),
+        blk_count=st.blk_count + 1)
     # before initialization: the first usable accelerometer sample sets the tilt
     init_now = ~st.initialized & acc_ok
     init_state = st._replace(quat_E_S=jnp.where(init_now, quat_from_acc(acc0), st.quat_E_S),
                              initialized=init_now)
     state = jax.tree_util.tree_map(lambda x, y: jnp.where(st.initialized, x, y), acc_state,
                                    init_state)
-    state, disturbed = jax.lax.cond(state.initialized & (state.blk_count >= block),
-                                    lambda s: _block_update(s, p),
-                                    lambda s: (s, jnp.array(False)), state)
+    state, disturbed, reacq = jax.lax.cond(state.initialized & (state.blk_count >= block),
+                                           lambda s: _block_update(s, p),
+                                           lambda s: (s, jnp.array(False), jnp.array(False)),
+                                           state)
     at_start = state.blk_count == 0
     quat = jnp.where(at_start, state.quat_E_S, _qnormalize(_qmul(
         _qmul(state.quat_E_S, state.blk_dquat), _qexp(-state.bias_S_rad_s * state.blk_tau))))
     out = _outputs(quat, state.bias_S_rad_s, state.P,
-                   _flags(dt_ok, gyr_ok, acc_ok, init_now, disturbed, dts > p.gap_flag_s))
+                   _flags(dt_ok, gyr_ok, acc_ok, init_now, disturbed, gap, reacq,
+                          state.reacquire | (state.blk_gap > 0)))
     return state, out
 
 
@@ -439,7 +477,7 @@ def make_step(params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK, x0=None, 
         return st._replace(
             initialized=np.bool_(z[nx + ns + 1] > 0.5), blk_dquat=sm[0:4], blk_tau=sm[4],
             blk_f=sm[5:8], blk_t_acc=sm[8], blk_dev2=sm[9], blk_w2=sm[10], blk_t=sm[11],
-            blk_qmiss=sm[12], blk_gsum=sm[13:16], blk_asum=sm[16:19], blk_a2=sm[19],
+            blk_qmiss=sm[12], blk_gsum=sm[13:16], blk_asum=sm[16:19], blk_a2=sm[19], blk_gap=sm[20],
             blk_count=np.int32(round(z[nx + ns])))
 
     return Stepper(lambda: jnp.asarray(z0), step_, step_packed, unpack)
@@ -457,10 +495,13 @@ def scan(state: TiltState, us, ys, dts, params: TiltParams = DEFAULT_PARAMS, blo
 
 def pack_state(state: TiltState):
     """The filter part of a block-boundary ``state`` as the flat vector of
-    :mod:`verticality.estimators.tilt_kernels` (q, b, v, P, acc_dev_var, rest_s)."""
+    :mod:`verticality.estimators.tilt_kernels` (q, b, v, P, acc_dev_var, rest_s, reacquire,
+    reacq_f_E, reacq_t)."""
     return np.concatenate([np.asarray(state.quat_E_S), np.asarray(state.bias_S_rad_s),
                            np.asarray(state.vel_E_m_s), np.reshape(np.asarray(state.P), -1),
-                           [float(state.acc_dev_var), float(state.rest_s)]])
+                           [float(state.acc_dev_var), float(state.rest_s),
+                            float(bool(state.reacquire))], np.asarray(state.reacq_f_E),
+                           [float(state.reacq_t)]])
 
 
 def unpack_state(x, template: TiltState) -> TiltState:
@@ -468,6 +509,8 @@ def unpack_state(x, template: TiltState) -> TiltState:
     x = np.asarray(x)
     return template._replace(quat_E_S=x[0:4], bias_S_rad_s=x[4:7], vel_E_m_s=x[7:9],
                              P=x[9:58].reshape(7, 7), acc_dev_var=x[58], rest_s=x[59],
+                             reacquire=np.bool_(x[60] > 0.5), reacq_f_E=x[61:64],
+                             reacq_t=x[64],
                              **{f: getattr(_default_init(), f) for f in TiltState._fields
                                 if f.startswith("blk_")})
 
@@ -543,6 +586,9 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         # the outputs: the host copies overlap the device work of the later chunks
         x = pack_state(state)
         p_vec = jax.device_put(np.asarray(params, dtype=np.float64))  # once per recording
+        # the kernel without gap handling serves until the first gap (the same numbers, faster)
+        is_gap = np.isfinite(dts) & (dts > params.gap_flag_s)
+        k_gap = 0 if bool(state.reacquire) else (int(np.argmax(is_gap)) if is_gap.any() else n)
         pending = []
         while k < n:
             # the chunk's samples as [gyr, acc, dt] rows (packed chunk by chunk, while the
@@ -556,7 +602,8 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
             if m < chunk:
                 data[m:, 0:6] = 0.0
                 data[m:, 6] = np.nan
-            x, outs = tilt_kernels.run_chunk(x, data, p_vec, block, params._fields)
+            x, outs = tilt_kernels.run_chunk(x, data, p_vec, block, params._fields,
+                                             gaps=k_gap < k + m)
             pending.append((k, m, outs))
             k += m
         for k0, m, outs in pending:
@@ -593,7 +640,19 @@ def _put_chunk(res: TiltOutput, k0: int, outs, block: int):
         v = dst(a)
         v[:, :-1] = start[:, None, :]
         v[:, -1] = end
-    dst(res.flags)[...] = fl.T
+    fl_dst = dst(res.flags)
+    fl_dst[...] = fl.T
+    # REACQUIRING: from a gap to the block that re-acquires (rare; tilt_kernels leaves it to us)
+    pend_start, pend_end = rows[:, 30] > 0.5, rows[:, 31] > 0.5
+    rare = np.flatnonzero(pend_start | pend_end)
+    if rare.size:
+        # a block pending at its start is flagged from its first sample; one that only turns
+        # pending (it holds a gap) from its gap on; the last sample as the state after the update
+        first = np.where(pend_start[rare], 0, np.argmax((fl[:, rare] & DT_GAP) > 0, axis=0))
+        k = np.arange(block)[None, :]
+        on = (k >= first[:, None]) & (k < block - 1)
+        on[:, -1] = pend_end[rare]
+        fl_dst[rare] |= np.where(on, REACQUIRING, 0).astype(fl_dst.dtype)
 
 
 def _angles_np(res: TiltOutput):

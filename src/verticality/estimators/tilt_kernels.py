@@ -15,9 +15,11 @@
   flags; the host writes them, and the per-block bias and variances, into the result arrays.
 
 Packed state (float64, length :data:`NX`): ``q_E_S`` (4, wxyz), ``b_S`` (3), ``v_E`` (2),
-``P`` (49, row-major 7×7), ``acc_dev_var``, ``rest_s``. Packed block sums (length :data:`NS`):
-``dquat`` (4), ``tau``, ``f`` (3), ``t_acc``, ``dev2``, ``w2``, ``t``, ``qmiss``, ``gsum`` (3),
-``asum`` (3), ``a2`` — the ``blk_*`` fields of ``tilt.TiltState``.
+``P`` (49, row-major 7×7), ``acc_dev_var``, ``rest_s``, ``reacquire`` (1.0 or 0.0),
+``reacq_f_E`` (3), ``reacq_t``. Packed block
+sums (length :data:`NS`): ``dquat`` (4), ``tau``, ``f`` (3), ``t_acc``, ``dev2``, ``w2``, ``t``,
+``qmiss``, ``gsum`` (3), ``asum`` (3), ``a2``, ``gap`` — the ``blk_*`` fields of
+``tilt.TiltState``.
 """
 
 from __future__ import annotations
@@ -28,12 +30,13 @@ from types import SimpleNamespace
 import jax
 import jax.numpy as jnp
 
-NX = 60
-NS = 20
+NX = 65
+NS = 21
 SMALL_TH2 = 0.04  # |rotation|² (rad²) below which the Taylor exponential is used (error < 1e-27)
 
 # flag bits (same values as in tilt)
-ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED, DT_GAP = 1, 2, 4, 8, 32
+ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED, DT_GAP, REACQUIRED, REACQUIRING = (
+    1, 2, 4, 8, 32, 64, 128)
 
 
 def qmul_c(p, q):
@@ -125,7 +128,25 @@ def _joseph_selector(P, i0, m, z, r):
     return dx, 0.5 * (Pn + Pn.T)
 
 
-NB = 22  # length of the per-block inputs of :func:`block_update_core` (see :func:`block_inputs`)
+def tilt_error_from_force(f_E):
+    """The tilt error ``δ`` (2,) that turns the specific force ``f_E`` (3,), expressed in Earth
+    with the estimated orientation, back to vertical: ``exp([δ, 0]) f_E ∥ e3`` (exact, any angle
+    below π; T eq. 5 without the small-angle approximation). Zero for a zero force."""
+    n = jnp.sqrt(jnp.sum(f_E * f_E))
+    u = f_E / jnp.where(n > 0, n, 1.0)
+    s = jnp.sqrt(u[0] * u[0] + u[1] * u[1])
+    k = jnp.where(s > 1e-12, jnp.arctan2(s, u[2]) / jnp.where(s > 1e-12, s, 1.0), 1.0)
+    return k * jnp.stack([u[1], -u[0]])
+
+
+def reset_velocity(P, var_m2_s2):
+    """Covariance ``P`` (7, 7) with the velocity error forgotten: its rows and columns zeroed and
+    its variance set to ``var_m2_s2`` (after a gap the integrated velocity means nothing)."""
+    keep = jnp.array([1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0])
+    return P * keep[:, None] * keep[None, :] + jnp.diag(var_m2_s2 * (1.0 - keep))
+
+
+NB = 24  # length of the per-block inputs of :func:`block_update_core` (see :func:`block_inputs`)
 
 
 def block_inputs(s, p):
@@ -134,10 +155,11 @@ def block_inputs(s, p):
     computes it for all the blocks of a chunk at once, outside the sequential scan). Returns
     (..., :data:`NB`): ``dquat`` (4), ``tau``, ``f`` (3), ``T``, ``has_acc``, ``Qd`` gyro,
     velocity and bias terms (3), ``alpha``, ``dev2``, ``g_mean`` (3), ``quiet`` without the
-    bias test, the velocity-update noise (moving, at rest) and the rest-update noise."""
+    bias test, the velocity-update noise (moving, at rest), the rest-update noise, whether the
+    block holds a gap, and ``t_acc``."""
     dquat, tau, f = s[..., 0:4], s[..., 4], s[..., 5:8]
     t_acc, dev2s, w2, T, qmiss = s[..., 8], s[..., 9], s[..., 10], s[..., 11], s[..., 12]
-    gsum, asum, a2 = s[..., 13:16], s[..., 16:19], s[..., 19]
+    gsum, asum, a2, gap = s[..., 13:16], s[..., 16:19], s[..., 19], s[..., 20] > 0
     has_acc = t_acc > 0
     t_acc_s = jnp.where(has_acc, t_acc, 1.0)
     q_gyr = p.gyr_noise**2 * tau + p.gyr_scale_noise**2 * w2 + qmiss
@@ -151,37 +173,44 @@ def block_inputs(s, p):
     g_var = jnp.maximum(w2 / jnp.where(T > 0, T, 1.0) - jnp.sum(g_mean * g_mean, -1), 0.0)
     a_mean = asum / t_acc_s[..., None]
     a_var = jnp.maximum(a2 / t_acc_s - jnp.sum(a_mean * a_mean, -1), 0.0)
-    quiet0 = has_gyr & has_acc & (g_var < p.rest_gyr_rad_s**2) & (a_var < p.rest_acc_m_s2**2)
+    quiet0 = (has_gyr & has_acc & (g_var < p.rest_gyr_rad_s**2) & (a_var < p.rest_acc_m_s2**2)
+              & ~gap)
     r_vel = (p.vel_m_s**2 * p.vel_corr_s) / t_acc_s
     r_vel_rest = (p.vel_rest_m_s**2 * p.vel_corr_s) / t_acc_s
     r_b = p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2
     one = lambda c: c[..., None].astype(jnp.float64)  # noqa: E731
     return jnp.concatenate([dquat, one(tau), f, one(T), one(has_acc), one(q_gyr), one(q_vel),
                             one(qb), one(alpha), one(dev2), g_mean, one(quiet0), one(r_vel),
-                            one(r_vel_rest), one(r_b)], axis=-1)
+                            one(r_vel_rest), one(r_b), one(gap), one(t_acc)], axis=-1)
 
 
 def block_update_packed(x, s, p):
     """``tilt._block_update`` on packed vectors: ``x`` (NX,) state at the block start, ``s`` (NS,)
-    block sums, ``p`` TiltParams. Returns ``(x_new, disturbed)``."""
+    block sums, ``p`` TiltParams. Returns ``(x_new, disturbed, reacquired)``."""
     return block_update_core(x, block_inputs(s, p), p)
 
 
-def block_update_core(x, c, p):
+def block_update_core(x, c, p, gaps: bool = True):
     """:func:`block_update_packed` from the per-block inputs ``c`` (NB,) of :func:`block_inputs`:
-    the part of the block update that depends on the filter state (the body of the scan)."""
+    the part of the block update that depends on the filter state (the body of the scan).
+    ``gaps=False`` leaves out the handling of gaps (for a stretch with no gap since the state was
+    last without one: then the results are the same, and the scan runs ~1.4x faster)."""
     g = p.g_m_s2
     q0, b, vel0 = x[0:4], x[4:7], x[7:9]
     P0 = x[9:58].reshape(7, 7)
-    acc_dev_var0, rest0 = x[58], x[59]
+    acc_dev_var0, rest0, reacquire0 = x[58], x[59], x[60] > 0.5
+    reacq_f0, reacq_t0 = x[61:64], x[64]
     dquat, tau, f, T = c[0:4], c[4], c[5:8], c[8]
     has_acc, q_gyr, q_vel, qb, alpha, dev2 = c[9] > 0.5, c[10], c[11], c[12], c[13], c[14]
     g_mean, quiet0, r_vel, r_vel_rest, r_b = c[15:18], c[18] > 0.5, c[19], c[20], c[21]
+    gap, t_acc = c[22] > 0.5, c[23]
+    collecting = reacquire0 & ~gap
 
     q_end = _qmul_vec(_qmul_vec(q0, dquat), _qexp_vec(-b * tau))
     q_end = q_end / jnp.sqrt(jnp.sum(q_end * q_end))
     R = rotmat(q_end)
-    vel = vel0 + _qrotate_vec(q0, f)[:2]
+    f_E = _qrotate_vec(q0, f)
+    vel = vel0 + f_E[:2]
 
     # F = I + E; E: δ ← −T R[:2] b̃ ; ṽ ← T gJ δ + 0.5 T gJ A b̃
     A = -T * R[:2, :]  # (2, 3)
@@ -201,26 +230,69 @@ def block_update_core(x, c, p):
 
     gd = g_mean - b
     quiet = quiet0 & (jnp.sum(gd * gd) < p.rest_gyr_rad_s**2)
+    if gaps:
+        quiet = quiet & ~collecting
     rest_s = jnp.where(quiet, rest0 + T, 0.0)
     at_rest = rest_s >= p.rest_min_s
 
     dx1, P1 = _joseph_selector(P, 2, 2, -vel, jnp.where(at_rest, r_vel_rest, r_vel))
     dx = jnp.where(has_acc, dx1, 0.0)
-    P = jnp.where(has_acc, P1, P)
+    if not gaps:
+        return _block_end_without_gaps(dx, jnp.where(has_acc, P1, P), at_rest, g_mean, b, r_b,
+                                       q_end, vel, acc_dev_var, rest_s), disturbed, jnp.array(False)
 
+    def rare(args):
+        """At rest, or after a gap (exclusive: rest needs no gap in sight); one ``lax.cond``
+        keeps the common moving block free of both. After a gap the tilt is re-acquired from the
+        mean specific force (``tilt._block_update``)."""
+        dx, P = args
+        forget = gap | collecting  # no velocity update; the velocity is forgotten
+        f_sum = jnp.where(collecting, reacq_f0 + f_E, 0.0)
+        t_sum = jnp.where(collecting, reacq_t0 + t_acc, 0.0)
+        reacq = collecting & (t_sum >= p.reacquire_s)
+        still = gap | (collecting & ~reacq)
+        dx = jnp.where(forget, 0.0, dx)
+        P = jnp.where(forget, P_pred, P)
+        dxr, Pr = _joseph_selector(P, 0, 2, tilt_error_from_force(f_sum),
+                                   2.0 * (p.vel_m_s / (g * jnp.where(reacq, t_sum, 1.0))) ** 2)
+        dx = jnp.where(reacq, dxr, dx)
+        P = jnp.where(reacq, Pr, P)
+        P = jnp.where(forget, reset_velocity(P, p.vel_m_s**2), P)
+        dx3, P3 = _joseph_selector(P, 4, 3, g_mean - (b + dx[4:]), r_b)
+        dx, P = jnp.where(at_rest, dx + dx3, dx), jnp.where(at_rest, P3, P)
+        tail = jnp.concatenate([jnp.where(still, 1.0, 0.0)[None], jnp.where(still, f_sum, 0.0),
+                                jnp.where(still, t_sum, 0.0)[None]])
+        return dx, P, jnp.where(forget, 0.0, vel + dx[2:4]), tail, reacq
+
+    def common(args):
+        dx, P = args
+        return dx, P, vel + dx[2:4], jnp.zeros(5), jnp.array(False)
+
+    P_pred = P
+    dx, P, vel, tail, reacq = jax.lax.cond(at_rest | gap | reacquire0, rare, common,
+                                           (dx, jnp.where(has_acc, P1, P)))
+
+    q_new = _qmul_vec(_qexp_vec(jnp.stack([dx[0], dx[1], 0.0])), q_end)
+    q_new = q_new / jnp.sqrt(jnp.sum(q_new * q_new))
+    x_new = jnp.concatenate([q_new, b + dx[4:], vel, P.reshape(-1),
+                             jnp.stack([acc_dev_var, rest_s]), tail])
+    return x_new, disturbed, reacq
+
+
+
+def _block_end_without_gaps(dx, P, at_rest, g_mean, b, r_b, q_end, vel, acc_dev_var, rest_s):
+    """The end of :func:`block_update_core` when no gap is in sight: the rest update (under
+    ``lax.cond``) and the new packed state, its gap fields zero (as they are then)."""
     def rest_update(dx_P):  # computed only at rest (lax.cond: no cost while moving)
         dx, P = dx_P
         dx3, P3 = _joseph_selector(P, 4, 3, g_mean - (b + dx[4:]), r_b)
         return dx + dx3, P3
 
     dx, P = jax.lax.cond(at_rest, rest_update, lambda dx_P: dx_P, (dx, P))
-
     q_new = _qmul_vec(_qexp_vec(jnp.stack([dx[0], dx[1], 0.0])), q_end)
     q_new = q_new / jnp.sqrt(jnp.sum(q_new * q_new))
-    x_new = jnp.concatenate([q_new, b + dx[4:], vel + dx[2:4], P.reshape(-1),
-                             jnp.stack([acc_dev_var, rest_s])])
-    return x_new, disturbed
-
+    return jnp.concatenate([q_new, b + dx[4:], vel + dx[2:4], P.reshape(-1),
+                            jnp.stack([acc_dev_var, rest_s]), jnp.zeros(NX - 60)])
 
 
 # atan(t) on [0, 0.66] as t + t z P(z)/Q(z), z = t² (Cephes' rational approximation, relative
@@ -267,20 +339,22 @@ def masks(gyr, acc, dt):
     return masks_c(tuple(gyr[..., i] for i in range(3)), tuple(acc[..., i] for i in range(3)), dt)
 
 
-def flags(dt_ok, gyr_ok, acc_ok, disturbed, gap=False):
+def flags(dt_ok, gyr_ok, acc_ok, disturbed, gap=False, reacq=False, reacquiring=False):
     f = (jnp.where(acc_ok | ~dt_ok, 0, ACC_MISSING) | jnp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
          | jnp.where(dt_ok, 0, BAD_DT) | jnp.where(disturbed, ACC_DISTURBED, 0)
-         | jnp.where(gap, DT_GAP, 0))
+         | jnp.where(gap, DT_GAP, 0) | jnp.where(reacq, REACQUIRED, 0)
+         | jnp.where(reacquiring, REACQUIRING, 0))
     return f.astype(jnp.int32)
 
 
-def _run_chunk(x, data, params, block: int, names: tuple = ()):
+def _run_chunk(x, data, params, block: int, names: tuple = (), gaps: bool = True):
     """Filter a chunk of ``n = nb * block`` samples from a block boundary of an initialized packed
     state ``x``: ``data`` (n, 7) = [gyr (3), acc (3), dt] per sample (one array: one host-to-device
     transfer per chunk). Returns ``(x, (soa, rows, flags))``:
     ``soa`` (9, block, nb) quaternion (4), up (3), roll, pitch of sample ``k`` of block ``j`` at
-    ``[:, k, j]``; ``rows`` (nb, 29) per block: state at the start (q 4, b 3, diag P 7), after
-    the update (the same 14) and the disturbed flag; ``flags`` (block, nb) int32. The bias and variances
+    ``[:, k, j]``; ``rows`` (nb, 32) per block: state at the start (q 4, b 3, diag P 7), after
+    the update (the same 14), the disturbed and the re-acquired flags, and ``reacquire`` at the
+    start and after the update (from which the host sets the REACQUIRING flag bit); ``flags`` (block, nb) int32. The bias and variances
     of a sample are the block's start values, except at its last sample (the updated ones)."""
     # ``params``: a TiltParams, or its values as one vector with ``names`` its fields (one
     # argument: passing it costs less than passing 16 scalars)
@@ -296,6 +370,7 @@ def _run_chunk(x, data, params, block: int, names: tuple = ()):
     gx, gy, gz = (jnp.where(gyr_ok_b, ds[i], 0.0) for i in range(3))
     ax, ay, az = (jnp.where(acc_ok_b, ds[3 + i], 0.0) for i in range(3))
     e = qexp_c(gx * dts_b, gy * dts_b, gz * dts_b)
+    gap_b = dts_b > p.gap_flag_s
 
     # pre-integration: B sequential steps, each over all nb blocks at once
     def pre(c, k):
@@ -319,18 +394,23 @@ def _run_chunk(x, data, params, block: int, names: tuple = ()):
     sums = jnp.stack([dq_end[0], dq_end[1], dq_end[2], dq_end[3], tau_b[-1], fx, fy, fz,
                       jnp.sum(wa_b, 0), jnp.sum(dev2 * wa_b, 0), jnp.sum(gg * dts_b, 0),
                       jnp.sum(dts_b, 0),
-                      jnp.sum(jnp.where(gyr_ok_b, 0.0, (p.omega_missing_rad_s * dts_b) ** 2), 0),
+                      jnp.sum(jnp.where(gyr_ok_b & ~gap_b, 0.0,
+                                        (p.omega_missing_rad_s * dts_b) ** 2), 0),
                       jnp.sum(gx * dts_b, 0), jnp.sum(gy * dts_b, 0), jnp.sum(gz * dts_b, 0),
                       jnp.sum(ax * wa_b, 0), jnp.sum(ay * wa_b, 0), jnp.sum(az * wa_b, 0),
-                      jnp.sum(acc_n2 * wa_b, 0)], axis=1)  # (nb, NS)
+                      jnp.sum(acc_n2 * wa_b, 0), jnp.sum(gap_b, 0).astype(jnp.float64)],
+                     axis=1)  # (nb, NS)
 
     def body(xc, c):
-        xn, disturbed = block_update_core(xc, c, p)
+        xn, disturbed, reacq = block_update_core(xc, c, p, gaps)
         diag = lambda v: v[9:58:8]  # noqa: E731  diagonal of the packed P
-        row = jnp.concatenate([xc[0:7], diag(xc), xn[0:7], diag(xn), disturbed[None]])
+        pend = (jnp.stack([xc[60], xn[60]]) if gaps  # (reading them costs ~30 % when no gap)
+                else jnp.zeros(2))
+        row = jnp.concatenate([xc[0:7], diag(xc), xn[0:7], diag(xn), disturbed[None],
+                               reacq[None], pend])
         return xn, row
 
-    x, rows = jax.lax.scan(body, x, block_inputs(sums, p))  # rows (nb, 29)
+    x, rows = jax.lax.scan(body, x, block_inputs(sums, p))  # rows (nb, 32)
     q0 = tuple(rows[:, i] for i in range(4))
     b0 = rows[:, 4:7]
     # per-sample quaternion: q0 ⊗ dq_k ⊗ exp(−b0 τ_k), normalized; the block's last sample
@@ -348,7 +428,10 @@ def _run_chunk(x, data, params, block: int, names: tuple = ()):
     pitch = atan2(-upx, jnp.sqrt(upy * upy + upz * upz))
 
     dist = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, 28] > 0.5)
-    fl = flags(dt_ok_b, gyr_ok_b, acc_ok_b, dist, dts_b > p.gap_flag_s)  # (block, nb), like soa
+    reacq = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, 29] > 0.5)
+    # REACQUIRING (rare: after a gap) is set by the host from rows[:, 30:32] (tilt._put_chunk);
+    # computing it here costs a third of the chunk's time (XLA's fusion of it)
+    fl = flags(dt_ok_b, gyr_ok_b, acc_ok_b, dist, gap_b, reacq)  # (block, nb), like soa
     # the host writes these straight into the sample-major result arrays (a transposing copy
     # there is cheaper than XLA's transpose here, and bias/var need no per-sample array at all)
     return x, (jnp.stack([w, qx, qy, qz, upx, upy, upz, roll, pitch]), rows, fl)
@@ -357,7 +440,7 @@ def _run_chunk(x, data, params, block: int, names: tuple = ()):
 
 # one compilation for every parameter value (``tilt.run`` puts the parameters on the device once
 # per recording, so that a call transfers only its chunk)
-run_chunk = jax.jit(_run_chunk, static_argnames=("block", "names"))
+run_chunk = jax.jit(_run_chunk, static_argnames=("block", "names", "gaps"))
 
 NZ = NX + NS + 2  # streaming state: filter (NX), block sums (NS), block count, initialized
 
@@ -384,11 +467,13 @@ def stream_step(z, sample, params, block: int):
     wa = jnp.where(acc_ok, dts, 0.0)
     wg = jnp.where(gyr_ok, dts, 0.0)
     dev2 = (jnp.sqrt(acc_n2) - p.g_m_s2) ** 2
+    gap = dts > p.gap_flag_s
     s_acc = jnp.concatenate([
         dq, s[4:5] + wg, s[5:8] + _qrotate_vec(dq, acc0) * wa, s[8:9] + wa,
         s[9:10] + dev2 * wa, s[10:11] + jnp.sum(gyr0 * gyr0) * dts, s[11:12] + dts,
-        s[12:13] + jnp.where(gyr_ok, 0.0, (p.omega_missing_rad_s * dts) ** 2),
-        s[13:16] + gyr0 * dts, s[16:19] + acc0 * wa, s[19:20] + acc_n2 * wa])
+        s[12:13] + jnp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2),
+        s[13:16] + gyr0 * dts, s[16:19] + acc0 * wa, s[19:20] + acc_n2 * wa,
+        s[20:21] + jnp.where(gap, 1.0, 0.0)])
     # before initialization: the first usable accelerometer sample sets the tilt
     init_now = ~initialized & acc_ok
     a = acc0 / jnp.sqrt(jnp.where(acc_n2 > 0, acc_n2, 1.0))
@@ -403,11 +488,16 @@ def stream_step(z, sample, params, block: int):
 
     def close(args):
         x, s = args
-        xn, disturbed = block_update_packed(x, s, p)
-        return xn, jnp.zeros(NS).at[0].set(1.0), disturbed
+        c = block_inputs(s, p)
+        # the update without gap handling unless a gap is in sight (as run_chunk; ~2x faster)
+        xn, disturbed, reacq = jax.lax.cond(
+            (x[60] > 0.5) | (s[20] > 0), lambda c: block_update_core(x, c, p, True),
+            lambda c: block_update_core(x, c, p, False), c)
+        return xn, jnp.zeros(NS).at[0].set(1.0), disturbed, reacq
 
-    x, s, disturbed = jax.lax.cond(initialized & (count >= block), close,
-                                   lambda a: (a[0], a[1], jnp.array(False)), (x, s))
+    x, s, disturbed, reacq = jax.lax.cond(initialized & (count >= block), close,
+                                          lambda a: (a[0], a[1], jnp.array(False), jnp.array(False)),
+                                          (x, s))
     count = jnp.where(count >= block, 0.0, count)
     q = _qmul_vec(_qmul_vec(x[0:4], s[0:4]), _qexp_vec(-x[4:7] * s[4]))
     q = jnp.where(count == 0, x[0:4], q / jnp.sqrt(jnp.sum(q * q)))
@@ -415,7 +505,8 @@ def stream_step(z, sample, params, block: int):
     up = jnp.stack([2 * (qx * qz - w * qy), 2 * (qy * qz + w * qx), 1 - 2 * (qx * qx + qy * qy)])
     roll = jnp.arctan2(up[1], up[2])
     pitch = jnp.arctan2(-up[0], jnp.sqrt(up[1] ** 2 + up[2] ** 2))
-    fl = flags(dt_ok, gyr_ok, acc_ok, disturbed, dts > p.gap_flag_s) | jnp.where(init_now, 16, 0)
+    fl = (flags(dt_ok, gyr_ok, acc_ok, disturbed, gap, reacq, (x[60] > 0.5) | (s[20] > 0))
+          | jnp.where(init_now, 16, 0))
     z = jnp.concatenate([x, s, jnp.stack([count, initialized.astype(jnp.float64)])])
     out = jnp.concatenate([jnp.stack([roll, pitch]), up, q, x[4:7], fl.astype(jnp.float64)[None]])
     return z, out

@@ -15,7 +15,8 @@ import math
 
 import numpy as np
 
-ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED, INIT, DT_GAP = 1, 2, 4, 8, 16, 32
+ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED, INIT, DT_GAP, REACQUIRED, REACQUIRING = (
+    1, 2, 4, 8, 16, 32, 64, 128)
 
 
 def _qmul(p, q):
@@ -45,6 +46,15 @@ def _rotate(q, v):
     tx, ty, tz = 2.0 * (uy * v[2] - uz * v[1]), 2.0 * (uz * v[0] - ux * v[2]), 2.0 * (ux * v[1] - uy * v[0])
     return (v[0] + w * tx + (uy * tz - uz * ty), v[1] + w * ty + (uz * tx - ux * tz),
             v[2] + w * tz + (ux * ty - uy * tx))
+
+
+def _tilt_error_from_force(f):
+    """``tilt_kernels.tilt_error_from_force`` in plain Python."""
+    n = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+    u = (f[0] / n, f[1] / n, f[2] / n) if n > 0 else (0.0, 0.0, 1.0)
+    s = math.hypot(u[0], u[1])
+    k = math.atan2(s, u[2]) / s if s > 1e-12 else 1.0
+    return np.array([k * u[1], -k * u[0]])
 
 
 def _kf(P, i0, m, z, r):
@@ -78,11 +88,15 @@ class Stream:
         self.vel = np.zeros(2)
         self.acc_dev_var = 0.0
         self.rest_s = 0.0
+        self.reacquire = False
+        self.reacq_f_E = np.zeros(3)
+        self.reacq_t = 0.0
         self._zero()
 
     def _zero(self):
         self.dq = (1.0, 0.0, 0.0, 0.0)
         self.tau = self.t_acc = self.dev2 = self.w2 = self.t = self.qmiss = self.a2 = 0.0
+        self.gap = 0
         self.f = [0.0, 0.0, 0.0]
         self.gsum = [0.0, 0.0, 0.0]
         self.asum = [0.0, 0.0, 0.0]
@@ -104,13 +118,15 @@ class Stream:
         if not acc_ok:
             ax = ay = az = 0.0
         init_now = False
+        gap = dts > p.gap_flag_s
         if self.initialized:
             self.dq = dq = _qmul(self.dq, _qexp(gx * dts, gy * dts, gz * dts))
             wa = dts if acc_ok else 0.0
             if gyr_ok:
                 self.tau += dts
-            else:
+            if gap or not gyr_ok:  # the rotation inside a gap is unknown
                 self.qmiss += (p.omega_missing_rad_s * dts) ** 2
+            self.gap += gap
             r = _rotate(dq, (ax, ay, az))
             f, gs, as_ = self.f, self.gsum, self.asum
             for i, (gi, ai) in enumerate(((gx, ax), (gy, ay), (gz, az))):
@@ -130,9 +146,9 @@ class Stream:
             w = 1.0 + uz
             self.q = (0.0, 1.0, 0.0, 0.0) if w < 1e-9 else _qnorm((w, uy, -ux, 0.0))
             self.initialized = True
-        disturbed = False
+        disturbed = reacq = False
         if self.initialized and self.count >= self.block:
-            disturbed = self._update()
+            disturbed, reacq = self._update()
         if self.count == 0:
             q = self.q
         else:
@@ -143,12 +159,13 @@ class Stream:
         up = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
         fl = ((0 if acc_ok or not dt_ok else ACC_MISSING) | (0 if gyr_ok or not dt_ok else GYR_MISSING)
               | (0 if dt_ok else BAD_DT) | (ACC_DISTURBED if disturbed else 0)
-              | (INIT if init_now else 0) | (DT_GAP if dts > p.gap_flag_s else 0))
+              | (INIT if init_now else 0) | (DT_GAP if gap else 0) | (REACQUIRED if reacq else 0)
+              | (REACQUIRING if self.reacquire or self.gap > 0 else 0))
         return (math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2])), up, q,
                 tuple(self.b), fl)
 
-    def _update(self) -> bool:
-        """``tilt._block_update`` (T eq. 2, 7–13 in 3-D) in NumPy."""
+    def _update(self) -> tuple[bool, bool]:
+        """``tilt._block_update`` (T eq. 2, 7–13 in 3-D) in NumPy; (disturbed, re-acquired)."""
         p = self.p
         g = p.g_m_s2
         b = np.array(self.b)
@@ -159,7 +176,8 @@ class Stream:
         T, t_acc, tau = self.t, self.t_acc, self.tau
         has_acc = t_acc > 0
         t_acc_s = t_acc if has_acc else 1.0
-        vel = self.vel + np.array(_rotate(self.q, self.f))[:2]
+        f_E = _rotate(self.q, self.f)
+        vel = self.vel + np.array(f_E)[:2]
         A = -T * R2
         gJ = g * np.array([[0.0, 1.0], [-1.0, 0.0]])
         F = np.eye(7)
@@ -182,21 +200,37 @@ class Stream:
         a_mean = np.array(self.asum) / t_acc_s
         a_var = max(self.a2 / t_acc_s - a_mean @ a_mean, 0.0)
         gd = g_mean - b
+        gap = self.gap > 0
+        collecting = self.reacquire and not gap
         quiet = (has_gyr and has_acc and g_var < p.rest_gyr_rad_s**2
-                 and gd @ gd < p.rest_gyr_rad_s**2 and a_var < p.rest_acc_m_s2**2)
+                 and gd @ gd < p.rest_gyr_rad_s**2 and a_var < p.rest_acc_m_s2**2 and not gap
+                 and not collecting)
         self.rest_s = self.rest_s + T if quiet else 0.0
         at_rest = self.rest_s >= p.rest_min_s
         dx = np.zeros(7)
-        if has_acc:
+        f_sum = self.reacq_f_E + np.array(f_E) if collecting else np.zeros(3)
+        t_sum = self.reacq_t + t_acc if collecting else 0.0
+        reacq = collecting and t_sum >= p.reacquire_s
+        if reacq:  # after a gap: the tilt from the mean specific force since the gap
+            dx, P = _kf(P, 0, 2, _tilt_error_from_force(f_sum), 2.0 * (p.vel_m_s / (g * t_sum)) ** 2)
+        elif has_acc and not gap and not collecting:
             s_vel = (p.vel_rest_m_s**2 if at_rest else p.vel_m_s**2) * p.vel_corr_s
             dx, P = _kf(P, 2, 2, -vel, s_vel / t_acc_s)
+        forget = gap or collecting
+        if forget:  # the velocity integrated across a gap means nothing
+            P[2:4, :] = 0.0
+            P[:, 2:4] = 0.0
+            P[2, 2] = P[3, 3] = p.vel_m_s**2
         if at_rest:
             r_b = p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2
             dx3, P = _kf(P, 4, 3, g_mean - (b + dx[4:]), r_b)
             dx = dx + dx3
         self.q = _qnorm(_qmul(_qexp(dx[0], dx[1], 0.0), q_end))
         self.b = [float(v) for v in b + dx[4:]]
-        self.vel = vel + dx[2:4]
+        self.vel = np.zeros(2) if forget else vel + dx[2:4]
         self.P = P
+        self.reacquire = gap or (collecting and not reacq)
+        self.reacq_f_E = f_sum if self.reacquire else np.zeros(3)
+        self.reacq_t = t_sum if self.reacquire else 0.0
         self._zero()
-        return bool(disturbed)
+        return bool(disturbed), reacq
