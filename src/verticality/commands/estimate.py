@@ -104,10 +104,10 @@ def run(args) -> int:
         out = tilt.run(gyr, acc, dt)
     else:
         quat, bias = run_filter(args.filter, gyr, acc, dt)
-        out = _peer_output(np.asarray(quat), np.asarray(bias))
+        out = _peer_output(np.asarray(quat), np.asarray(bias), dt)
     imu.write_estimate_csv(args.out, t, out)
     print(f"wrote {args.out} ({t.size} samples, filter {args.filter})")
-    _warn_gaps(t, dt)
+    _warn_gaps(t, dt, ours=args.filter == OURS)
     if t_origin is not None:
         print(f"t is in seconds from the input's first time stamp, {t_origin}")
     if args.plot is not None:
@@ -116,33 +116,53 @@ def run(args) -> int:
     return 0
 
 
-def _warn_gaps(t, dt) -> None:
+def _warn_gaps(t, dt, ours: bool = True) -> None:
     """One line on stderr when the time stamps have gaps longer than the tilt filter's
-    ``gap_flag_s``: the rate is integrated across a gap, so motion inside it goes unseen."""
+    ``gap_flag_s``: motion inside a gap goes unseen by the gyro integration."""
     import sys
 
-    from verticality.estimators.tilt import DEFAULT_PARAMS, DT_GAP
+    from verticality.estimators import tilt
 
-    gaps = np.flatnonzero(np.isfinite(dt) & (dt > DEFAULT_PARAMS.gap_flag_s))
+    p = tilt.DEFAULT_PARAMS
+    gaps = np.flatnonzero(np.isfinite(dt) & (dt > p.gap_flag_s))
     if gaps.size == 0:
         return
     k = gaps[np.argmax(dt[gaps])]
-    print(f"warning: {gaps.size} gap(s) in the time stamps longer than "
-          f"{DEFAULT_PARAMS.gap_flag_s:g} s (largest {dt[k]:.6g} s, ending at t = {t[k]:.6g} s): "
-          "the gyro rate is integrated across a gap, so if the sensor moved during one the estimate "
-          f"after it can be off for seconds; flag {DT_GAP} marks the sample that ends each gap",
-          file=sys.stderr)
+    if ours:
+        what = (f"our filter re-acquires the tilt from the accelerometer {p.reacquire_s:g} s after "
+                f"each gap (flag {tilt.REACQUIRED}); until then the estimate can be off by the "
+                f"rotation inside the gap (flag {tilt.REACQUIRING})")
+    else:
+        what = "this filter's estimate after a gap can be off for seconds"
+    print(f"warning: {gaps.size} gap(s) in the time stamps longer than {p.gap_flag_s:g} s "
+          f"(largest {dt[k]:.6g} s, ending at t = {t[k]:.6g} s): the gyro rate is integrated "
+          f"across a gap, so motion inside one is not seen; {what}. Flag {tilt.DT_GAP} marks the "
+          "sample that ends each gap", file=sys.stderr)
 
 
-def _peer_output(quat, bias):
+def _peer_output(quat, bias, dt):
+    """A peer filter's output as a ``TiltOutput``: its quaternions and bias, no variances, and of
+    our flags only ``DT_GAP`` (a property of the input)."""
     from verticality.estimators import tilt
 
     quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
     n = quat.shape[0]
     res = tilt.TiltOutput(np.zeros(n), np.zeros(n), np.zeros((n, 3)), quat, bias,
-                          np.zeros((n, 7)), np.zeros(n, dtype=np.int32))
+                          np.zeros((n, 7)),
+                          np.where(dt > tilt.DEFAULT_PARAMS.gap_flag_s, tilt.DT_GAP, 0).astype(np.int32))
     tilt._angles_np(res)
     return res
+
+
+def _shade_reacquiring(ax, t, flags) -> None:
+    """Shade the spans from a gap to the tilt's re-acquisition (flag REACQUIRING)."""
+    from verticality.estimators.tilt import REACQUIRING
+
+    on = np.concatenate([[0], (flags & REACQUIRING) > 0, [0]]).astype(int)
+    starts, ends = np.flatnonzero(np.diff(on) == 1), np.flatnonzero(np.diff(on) == -1)
+    for j, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        ax.axvspan(t[a], t[min(b, t.size - 1)], color="0.85", zorder=0,
+                   label="after a gap, re-acquiring" if j == 0 else None)
 
 
 def _plot(path: Path, t, out, name: str) -> Path:
@@ -153,13 +173,14 @@ def _plot(path: Path, t, out, name: str) -> Path:
     ax[0].plot(t, np.degrees(out.roll_rad), label="roll")
     ax[0].plot(t, np.degrees(out.pitch_rad), label="pitch")
     ax[0].set_ylabel("angle (deg)")
+    flags = np.asarray(out.flags)
+    _shade_reacquiring(ax[0], t, flags)
     ax[0].legend(loc="upper right")
     ax[0].set_title(f"tilt estimate ({name})")
     for i, c in enumerate("xyz"):
         ax[1].plot(t, np.degrees(out.bias_S_rad_s[:, i]), label=f"bias {c}")
     ax[1].set_ylabel("gyro bias (deg/s)")
     ax[1].legend(loc="upper right")
-    flags = np.asarray(out.flags)
     ax[2].step(t, flags, where="post")
     ax[2].set_ylabel("flags (bits)")
     ax[2].set_xlabel("t (s)")
