@@ -1,0 +1,67 @@
+"""Accuracy of the tilt filter after gaps in the time stamps, on the BROAD trials.
+
+Eight stretches of ``--gap`` seconds are cut out of each trial's movement phase (evenly spaced,
+from 5 s after its start to 5 s before its end); the remaining samples keep their time stamps, so
+the filter sees gaps (flag DT_GAP) with the sensor's motion hidden inside them. Reported per
+trial, against the optical reference (BROAD's inclination error, movement samples): the RMS error
+without gaps on the same samples, then with gaps: over 0–3 s after each gap (includes the
+``reacquire_s`` wait), over 1.5–5 s after each gap (after re-acquisition), and over the trial.
+
+Run: ``python benchmarks/gaps_broad.py [--gap 0.5] [--reacquire-s 1.0]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from verticality.estimators import tilt
+from verticality.io import broad
+
+BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
+
+
+def _rms(e, sel):
+    return float(np.sqrt(np.mean(e[sel] ** 2)))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--gap", type=float, default=0.5, help="length of each gap (s)")
+    ap.add_argument("--reacquire-s", type=float, default=tilt.DEFAULT_PARAMS.reacquire_s)
+    args = ap.parse_args()
+    params = tilt.DEFAULT_PARAMS._replace(reacquire_s=args.reacquire_s)
+    print(f"gaps of {args.gap:g} s, reacquire_s = {args.reacquire_s:g} s; RMS error (deg)")
+    print(f"{'trial':40s} {'no gap':>7s} {'0-3 s':>7s} {'1.5-5 s':>8s} {'trial':>7s}")
+    rows = []
+    for path in broad.list_trials(BROAD):
+        tr = broad.load_trial(path)
+        n, fs = tr.gyr_rad_s.shape[0], tr.sampling_rate_hz
+        mv = np.flatnonzero(tr.movement)
+        starts = np.linspace(mv[0] + 5 * fs, mv[-1] - 5 * fs, 8).astype(int)
+        keep = np.ones(n, dtype=bool)
+        for s in starts:
+            keep[s:s + int(args.gap * fs)] = False
+        t = tr.t_s[keep]
+        dts = np.diff(t, prepend=t[0] - 1.0 / fs)
+        out = tilt.run(tr.gyr_rad_s[keep], tr.acc_m_s2[keep], dts, params=params)
+        err = broad.inclination_error_deg(out.quat_E_S, tr.quat_E_S_opt[keep])
+        full = tilt.run(tr.gyr_rad_s, tr.acc_m_s2, tr.dt_s, params=params)
+        err_full = broad.inclination_error_deg(full.quat_E_S, tr.quat_E_S_opt)[keep]
+        ok = np.isfinite(err) & tr.movement[keep]
+        t_end = tr.t_s[starts + int(args.gap * fs)]
+        since = t[:, None] - t_end[None, :]
+        early = ok & np.any((since >= 0) & (since < 3.0), axis=1)
+        late = ok & np.any((since >= 1.5) & (since < 5.0), axis=1)
+        row = (_rms(err_full, early), _rms(err, early), _rms(err, late), _rms(err, ok))
+        rows.append(row)
+        print(f"{tr.name[:40]:40s} {row[0]:7.2f} {row[1]:7.2f} {row[2]:8.2f} {row[3]:7.2f}",
+              flush=True)
+    m = np.mean(rows, axis=0)
+    print(f"{'mean':40s} {m[0]:7.2f} {m[1]:7.2f} {m[2]:8.2f} {m[3]:7.2f}")
+
+
+if __name__ == "__main__":
+    main()
