@@ -38,8 +38,9 @@ sample propagates the covariance with ``omega_missing_rad_s`` as the unknown rat
 ``GYR_MISSING``); a non-finite or non-positive Δt skips the sample (flag ``BAD_DT``). A Δt above
 ``gap_flag_s`` (a gap in the recording) is used as it is, the sample's rate integrated over the
 whole gap, and the sample is flagged ``DT_GAP``: motion inside the gap that this rate does not
-describe is not seen, and the estimate after it can be off until the accelerometer pulls it back
-(seconds; docs/tilt.md). Nothing turns a finite estimate into NaN.
+describe is not seen. The gap then counts as a gyro dropout, and after ``reacquire_s`` the tilt is
+re-acquired from the mean specific force (flag ``REACQUIRED``; the samples in between are flagged
+``REACQUIRING``; docs/tilt.md). Nothing turns a finite estimate into NaN.
 """
 
 from __future__ import annotations

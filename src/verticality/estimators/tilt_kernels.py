@@ -279,7 +279,6 @@ def block_update_core(x, c, p, gaps: bool = True):
     return x_new, disturbed, reacq
 
 
-
 def _block_end_without_gaps(dx, P, at_rest, g_mean, b, r_b, q_end, vel, acc_dev_var, rest_s):
     """The end of :func:`block_update_core` when no gap is in sight: the rest update (under
     ``lax.cond``) and the new packed state, its gap fields zero (as they are then)."""
@@ -489,7 +488,7 @@ def stream_step(z, sample, params, block: int):
     def close(args):
         x, s = args
         c = block_inputs(s, p)
-        # the update without gap handling unless a gap is in sight (as run_chunk; ~2x faster)
+        # the update without gap handling unless a gap is in sight (as run_chunk does)
         xn, disturbed, reacq = jax.lax.cond(
             (x[60] > 0.5) | (s[20] > 0), lambda c: block_update_core(x, c, p, True),
             lambda c: block_update_core(x, c, p, False), c)
