@@ -148,11 +148,13 @@ def test_run_equals_streaming_steps():
 
 
 def _assert_reacquired_once_after(flags, k_gap):
-    """One re-acquisition after the gap at ``k_gap``; every sample from the gap to it (and no
-    other) is flagged REACQUIRING."""
+    """One re-acquisition after the gap at ``k_gap``; every sample from the gap to it (and none
+    after it) is flagged REACQUIRING."""
     k_re = np.flatnonzero(flags & tilt.REACQUIRED)
-    assert k_re.size == 1 and k_re[0] > k_gap
-    assert np.flatnonzero(flags & tilt.REACQUIRING).tolist() == list(range(k_gap, k_re[0]))
+    k_re = k_re[k_re > k_gap]
+    assert k_re.size == 1
+    on = np.flatnonzero(flags & tilt.REACQUIRING)
+    assert on[on >= k_gap].tolist() == list(range(k_gap, k_re[0]))
 
 
 def test_init_with_given_state_and_quaternion_helper():
@@ -291,16 +293,17 @@ def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path,
 
 
 def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
-    """tilt.run uses the batch kernel without gap handling up to the first gap (it is faster);
-    on a recording of two chunks with a gap in the second, that equals the kernel with gap
-    handling everywhere, to rounding."""
+    """tilt.run uses the batch kernel without gap handling for chunks with no gap and no
+    re-acquisition (it is faster); on a recording of three chunks with gaps in the first and the
+    third, that equals the kernel with gap handling everywhere, to rounding."""
     from verticality.estimators import tilt_kernels
 
-    n = tilt.CHUNK_BLOCKS * tilt.BLOCK + 3000
+    n = 2 * tilt.CHUNK_BLOCKS * tilt.BLOCK + 3000
     gyr, acc, dt, _ = _tumbling(np.array([0.01, -0.005, 0.002]), n=n)
     acc[100:150] = np.nan
     dts = np.full(n, dt)
-    dts[n - 1500] = 0.4  # a gap in the second chunk
+    dts[200] = 0.3  # a gap in the first chunk
+    dts[n - 1500] = 0.4  # a gap in the third chunk
     used = []
     real = tilt_kernels.run_chunk
 
@@ -310,10 +313,36 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
 
     monkeypatch.setattr(tilt_kernels, "run_chunk", spy)
     fast = tilt.run(gyr, acc, dts)
-    assert used == [False, True]
+    assert used == [True, False, True]
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
     ref = tilt.run(gyr, acc, dts)
     for name in tilt.TiltOutput._fields:
         np.testing.assert_allclose(getattr(fast, name), getattr(ref, name), rtol=0, atol=1e-12,
                                    err_msg=name)
     _assert_reacquired_once_after(ref.flags, n - 1500)
+
+
+def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
+    """``tilt._blocks_needing_gaps`` tells from the data alone which blocks need the kernel's gap
+    handling. Against the kernel's own flag (the kernel with gap handling everywhere): every block
+    that starts pending or holds a gap is marked, plus at most one block per re-acquisition."""
+    from verticality.estimators import tilt_kernels
+
+    gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=3000)
+    dts = np.full(3000, dt)
+    dts[[800, 850, 1450, 2990]] = [0.3, 0.5, 0.2, 0.3]  # 850 falls while 800 is pending
+    acc[1500:1700] = np.nan  # no accelerometer: the re-acquisition after 1450 waits
+    real = tilt_kernels.run_chunk
+    monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
+    out = tilt.run(gyr, acc, dts)
+    fl = out.flags[1:]  # blocks start after the sample that initializes
+    nb = -(-fl.size // tilt.BLOCK)
+    pad = np.zeros(nb * tilt.BLOCK, dtype=fl.dtype)
+    pad[:fl.size] = fl
+    blocks = pad.reshape(nb, tilt.BLOCK)
+    truth = (blocks[:, 0] & tilt.REACQUIRING > 0) | np.any(blocks & tilt.DT_GAP > 0, axis=1)
+    need = tilt._blocks_needing_gaps(dts, acc, 1, tilt.BLOCK, tilt.DEFAULT_PARAMS, False, 0.0)
+    assert need.shape == truth.shape and np.all(need[truth])
+    n_reacq = int(np.count_nonzero(out.flags & tilt.REACQUIRED))
+    assert n_reacq == 2 and np.count_nonzero(need & ~truth) <= n_reacq
+    assert truth[(1600 - 1) // tilt.BLOCK]  # still pending inside the accelerometer dropout

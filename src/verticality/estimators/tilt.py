@@ -587,9 +587,10 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         # the outputs: the host copies overlap the device work of the later chunks
         x = pack_state(state)
         p_vec = jax.device_put(np.asarray(params, dtype=np.float64))  # once per recording
-        # the kernel without gap handling serves until the first gap (the same numbers, faster)
-        is_gap = np.isfinite(dts) & (dts > params.gap_flag_s)
-        k_gap = 0 if bool(state.reacquire) else (int(np.argmax(is_gap)) if is_gap.any() else n)
+        # the kernel without gap handling serves chunks with no gap and no re-acquisition in
+        # them (the same numbers, faster)
+        need = _blocks_needing_gaps(dts, acc, k, block, params, bool(state.reacquire),
+                                    float(state.reacq_t))
         pending = []
         while k < n:
             # the chunk's samples as [gyr, acc, dt] rows (packed chunk by chunk, while the
@@ -603,8 +604,9 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
             if m < chunk:
                 data[m:, 0:6] = 0.0
                 data[m:, 6] = np.nan
+            j0 = len(pending) * CHUNK_BLOCKS
             x, outs = tilt_kernels.run_chunk(x, data, p_vec, block, params._fields,
-                                             gaps=k_gap < k + m)
+                                             gaps=bool(need[j0:j0 + CHUNK_BLOCKS].any()))
             pending.append((k, m, outs))
             k += m
         for k0, m, outs in pending:
@@ -620,6 +622,53 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         if return_state:
             state = unpack_state(x, state)
     return (res, state) if return_state else res
+
+
+def _blocks_needing_gaps(dts, acc, k, block, params, pending, t_sum):
+    """Per block from sample ``k`` on (``k`` at a block boundary): True where the block holds a gap
+    or starts while the tilt is to be re-acquired after a gap: there the
+    batch kernel needs its gap handling. A host twin of the kernel's flag from the data alone (the
+    gap samples and each block's accelerometer time); it holds the flag one block longer than the
+    kernel, so that rounding in the sums cannot make it clear first."""
+    n = dts.shape[0]
+    nb = -(-(n - k) // block)
+    need = np.zeros(nb, dtype=bool)
+    is_gap = np.isfinite(dts[k:]) & (dts[k:] > params.gap_flag_s)
+    gap_blocks = np.unique(np.flatnonzero(is_gap) // block)
+    j = 0
+    while j < nb:
+        if not pending:  # jump to the next block with a gap
+            i = int(np.searchsorted(gap_blocks, j))
+            if i == gap_blocks.size:
+                break
+            j, pending, t_sum = int(gap_blocks[i]), True, 0.0
+            need[j] = True
+            j += 1
+            continue
+        # pending from block j: the accelerometer time of the next blocks, a window at a time
+        hi_b = min(nb, j + 64)
+        lo, hi = k + j * block, min(n, k + hi_b * block)
+        a, d = acc[lo:hi], dts[lo:hi]
+        fin = np.all(np.isfinite(a), axis=1)
+        ok = (np.isfinite(d) & (d > 0) & fin
+              & (np.sum(np.where(fin[:, None], a, 0.0) ** 2, axis=1) > 1e-6))
+        w = np.zeros((hi_b - j) * block)
+        w[:hi - lo] = np.where(ok, d, 0.0)
+        t_blk = t_sum + np.cumsum(w.reshape(-1, block).sum(axis=1))
+        g = int(np.searchsorted(gap_blocks, j))
+        g = int(gap_blocks[g]) if g < gap_blocks.size and gap_blocks[g] < hi_b else hi_b
+        done = np.flatnonzero(t_blk[:g - j] >= params.reacquire_s)
+        if done.size:  # the kernel re-acquires at block c
+            c = j + int(done[0])
+            need[j:min(nb, c + 2)] = True
+            pending, j = False, c + 1
+        elif g < hi_b:  # a gap first: pending again from the block after it
+            need[j:g + 1] = True
+            t_sum, j = 0.0, g + 1
+        else:
+            need[j:hi_b] = True
+            t_sum, j = float(t_blk[-1]), hi_b
+    return need
 
 
 def _put_chunk(res: TiltOutput, k0: int, outs, block: int):

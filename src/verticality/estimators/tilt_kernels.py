@@ -369,7 +369,8 @@ def _run_chunk(x, data, params, block: int, names: tuple = (), gaps: bool = True
     gx, gy, gz = (jnp.where(gyr_ok_b, ds[i], 0.0) for i in range(3))
     ax, ay, az = (jnp.where(acc_ok_b, ds[3 + i], 0.0) for i in range(3))
     e = qexp_c(gx * dts_b, gy * dts_b, gz * dts_b)
-    gap_b = dts_b > p.gap_flag_s
+    # without gap handling the host guarantees that the chunk holds no gap
+    gap_b = dts_b > p.gap_flag_s if gaps else jnp.zeros_like(dt_ok_b)
 
     # pre-integration: B sequential steps, each over all nb blocks at once
     def pre(c, k):
@@ -427,7 +428,7 @@ def _run_chunk(x, data, params, block: int, names: tuple = (), gaps: bool = True
     pitch = atan2(-upx, jnp.sqrt(upy * upy + upz * upz))
 
     dist = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, 28] > 0.5)
-    reacq = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, 29] > 0.5)
+    reacq = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, 29] > 0.5) if gaps else False
     # REACQUIRING (rare: after a gap) is set by the host from rows[:, 30:32] (tilt._put_chunk);
     # computing it here costs a third of the chunk's time (XLA's fusion of it)
     fl = flags(dt_ok_b, gyr_ok_b, acc_ok_b, dist, gap_b, reacq)  # (block, nb), like soa
