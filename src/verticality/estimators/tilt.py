@@ -277,6 +277,7 @@ _H_TILT = np.hstack([np.eye(2), np.zeros((2, 5))])
 tilt_error_from_force = tilt_kernels.tilt_error_from_force
 reset_velocity = tilt_kernels.reset_velocity
 
+
 def _block_update(state: TiltState, params: TiltParams):
     """Kalman prediction over the block and the otolith updates (T eq. 7–13 in 3-D).
     Returns (new state with empty block, disturbed flag, re-acquired flag)."""
@@ -556,10 +557,7 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         found, lo, span = False, 0, 256
         while not found and lo < n:  # look in growing windows (usually the first sample)
             hi = min(n, lo + span)
-            dt_ok = np.isfinite(dts[:hi]) & (dts[:hi] > 0)
-            acc_fin = np.all(np.isfinite(acc[:hi]), axis=1)
-            ok = dt_ok & acc_fin & (np.sum(np.where(acc_fin[:, None], acc[:hi], 0.0) ** 2, 1)
-                                    > 1e-6)
+            dt_ok, ok = _usable_np(acc[:hi], dts[:hi])
             found = bool(ok.any())
             lo, span = hi, 4 * span
         k = int(np.argmax(ok)) + 1 if found else n
@@ -624,6 +622,14 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     return (res, state) if return_state else res
 
 
+def _usable_np(acc, dts):
+    """(dt_ok, acc_ok) per sample on the host, as ``tilt_kernels.masks``: a finite positive Δt;
+    and with it a finite, non-zero accelerometer sample."""
+    dt_ok = np.isfinite(dts) & (dts > 0)
+    fin = np.all(np.isfinite(acc), axis=1)
+    return dt_ok, dt_ok & fin & (np.sum(np.where(fin[:, None], acc, 0.0) ** 2, axis=1) > 1e-6)
+
+
 def _blocks_needing_gaps(dts, acc, k, block, params, pending, t_sum):
     """Per block from sample ``k`` on (``k`` at a block boundary): True where the block holds a gap
     or starts while the tilt is to be re-acquired after a gap: there the
@@ -648,12 +654,9 @@ def _blocks_needing_gaps(dts, acc, k, block, params, pending, t_sum):
         # pending from block j: the accelerometer time of the next blocks, a window at a time
         hi_b = min(nb, j + 64)
         lo, hi = k + j * block, min(n, k + hi_b * block)
-        a, d = acc[lo:hi], dts[lo:hi]
-        fin = np.all(np.isfinite(a), axis=1)
-        ok = (np.isfinite(d) & (d > 0) & fin
-              & (np.sum(np.where(fin[:, None], a, 0.0) ** 2, axis=1) > 1e-6))
+        _, ok = _usable_np(acc[lo:hi], dts[lo:hi])
         w = np.zeros((hi_b - j) * block)
-        w[:hi - lo] = np.where(ok, d, 0.0)
+        w[:hi - lo] = np.where(ok, dts[lo:hi], 0.0)
         t_blk = t_sum + np.cumsum(w.reshape(-1, block).sum(axis=1))
         g = int(np.searchsorted(gap_blocks, j))
         g = int(gap_blocks[g]) if g < gap_blocks.size and gap_blocks[g] < hi_b else hi_b

@@ -237,9 +237,10 @@ def block_update_core(x, c, p, gaps: bool = True):
 
     dx1, P1 = _joseph_selector(P, 2, 2, -vel, jnp.where(at_rest, r_vel_rest, r_vel))
     dx = jnp.where(has_acc, dx1, 0.0)
-    if not gaps:
-        return _block_end_without_gaps(dx, jnp.where(has_acc, P1, P), at_rest, g_mean, b, r_b,
-                                       q_end, vel, acc_dev_var, rest_s), disturbed, jnp.array(False)
+
+    def rest_update(dx, P):  # the block-mean gyro measures the bias
+        dx3, P3 = _joseph_selector(P, 4, 3, g_mean - (b + dx[4:]), r_b)
+        return dx + dx3, P3
 
     def rare(args):
         """At rest, or after a gap (exclusive: rest needs no gap in sight); one ``lax.cond``
@@ -258,8 +259,8 @@ def block_update_core(x, c, p, gaps: bool = True):
         dx = jnp.where(reacq, dxr, dx)
         P = jnp.where(reacq, Pr, P)
         P = jnp.where(forget, reset_velocity(P, p.vel_m_s**2), P)
-        dx3, P3 = _joseph_selector(P, 4, 3, g_mean - (b + dx[4:]), r_b)
-        dx, P = jnp.where(at_rest, dx + dx3, dx), jnp.where(at_rest, P3, P)
+        dx_r, P_r = rest_update(dx, P)
+        dx, P = jnp.where(at_rest, dx_r, dx), jnp.where(at_rest, P_r, P)
         tail = jnp.concatenate([jnp.where(still, 1.0, 0.0)[None], jnp.where(still, f_sum, 0.0),
                                 jnp.where(still, t_sum, 0.0)[None]])
         return dx, P, jnp.where(forget, 0.0, vel + dx[2:4]), tail, reacq
@@ -269,29 +270,19 @@ def block_update_core(x, c, p, gaps: bool = True):
         return dx, P, vel + dx[2:4], jnp.zeros(5), jnp.array(False)
 
     P_pred = P
-    dx, P, vel, tail, reacq = jax.lax.cond(at_rest | gap | reacquire0, rare, common,
-                                           (dx, jnp.where(has_acc, P1, P)))
+    if gaps:
+        dx, P, vel, tail, reacq = jax.lax.cond(at_rest | gap | reacquire0, rare, common,
+                                               (dx, jnp.where(has_acc, P1, P)))
+    else:  # no gap in sight: the rest update alone, under lax.cond (no cost while moving)
+        dx, P = jax.lax.cond(at_rest, lambda a: rest_update(*a), lambda a: a,
+                             (dx, jnp.where(has_acc, P1, P)))
+        vel, tail, reacq = vel + dx[2:4], jnp.zeros(NX - 60), jnp.array(False)
 
     q_new = _qmul_vec(_qexp_vec(jnp.stack([dx[0], dx[1], 0.0])), q_end)
     q_new = q_new / jnp.sqrt(jnp.sum(q_new * q_new))
     x_new = jnp.concatenate([q_new, b + dx[4:], vel, P.reshape(-1),
                              jnp.stack([acc_dev_var, rest_s]), tail])
     return x_new, disturbed, reacq
-
-
-def _block_end_without_gaps(dx, P, at_rest, g_mean, b, r_b, q_end, vel, acc_dev_var, rest_s):
-    """The end of :func:`block_update_core` when no gap is in sight: the rest update (under
-    ``lax.cond``) and the new packed state, its gap fields zero (as they are then)."""
-    def rest_update(dx_P):  # computed only at rest (lax.cond: no cost while moving)
-        dx, P = dx_P
-        dx3, P3 = _joseph_selector(P, 4, 3, g_mean - (b + dx[4:]), r_b)
-        return dx + dx3, P3
-
-    dx, P = jax.lax.cond(at_rest, rest_update, lambda dx_P: dx_P, (dx, P))
-    q_new = _qmul_vec(_qexp_vec(jnp.stack([dx[0], dx[1], 0.0])), q_end)
-    q_new = q_new / jnp.sqrt(jnp.sum(q_new * q_new))
-    return jnp.concatenate([q_new, b + dx[4:], vel + dx[2:4], P.reshape(-1),
-                            jnp.stack([acc_dev_var, rest_s]), jnp.zeros(NX - 60)])
 
 
 # atan(t) on [0, 0.66] as t + t z P(z)/Q(z), z = t² (Cephes' rational approximation, relative
