@@ -170,6 +170,62 @@ def test_init_with_given_state_and_quaternion_helper():
     assert np.max(_tilt_err_deg(up_true, out.up_S)) < 0.3
 
 
+def test_start_in_motion_is_reacquired():
+    """A level sensor translated back and forth (4 m/s², 0.8 Hz) from its first sample: that
+    sample reads 22° of tilt. The filter takes it with an honest variance (init_tilt_rad), flags
+    REACQUIRING, and re-acquires the tilt from the specific force averaged over reacquire_s;
+    trusting the first sample instead (the same filter given it as x0) is still 11° off at 1.5 s."""
+    dt = 0.01
+    t = np.arange(0.0, 10.0, dt)
+    rng = np.random.default_rng(4)
+    a_x = np.where(t < 4.0, 4.0 * np.cos(2 * np.pi * 0.8 * t), 0.0)
+    acc = np.column_stack([a_x, np.zeros(t.size), np.full(t.size, G)])
+    acc += rng.normal(0, 0.02, acc.shape)
+    gyr = rng.normal(0, 1e-3, acc.shape)
+    out = tilt.run(gyr, acc, dt)
+    err = _tilt_err_deg(np.array([0.0, 0.0, 1.0]), out.up_S)
+    k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
+    assert out.flags[0] & tilt.INIT and err[0] > 20.0
+    _assert_reacquired_once_after(out.flags, 0)
+    assert 1.0 <= t[k_re] <= 1.0 + 2 * tilt.BLOCK * dt
+    assert np.all(np.degrees(np.sqrt(out.var[:k_re, 0])) > 45.0)  # it says it does not know
+    k15 = int(round(1.5 / dt))
+    assert err[k15] < 2.0 and np.degrees(np.sqrt(out.var[k15, 0])) > err[k15]
+    assert np.max(err[-200:]) < 0.2 and err[-1] < 0.05
+    trusted = tilt.run(gyr, acc, dt, state=tilt.init((tilt.quat_from_acc(acc[0]), np.zeros(3))))
+    err_trusted = _tilt_err_deg(np.array([0.0, 0.0, 1.0]), trusted.up_S)
+    assert err_trusted[k15] > 5 * err[k15]
+
+
+def test_start_at_rest_reacquires_precisely():
+    """Started at rest, every block before the re-acquisition is quiet: the mean specific force is
+    then as good as the rest velocity prior says (vel_rest_m_s), not the moving one."""
+    gyr, acc, dt, up = _static(np.radians(20.0), np.radians(-35.0), n=300)
+    out = tilt.run(gyr, acc, dt)
+    k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
+    assert np.degrees(np.sqrt(out.var[k_re, 0])) < 0.2
+    assert np.max(_tilt_err_deg(up, out.up_S[k_re:])) < 0.2
+
+
+def test_start_in_motion_on_broad():
+    """BROAD trial 15 (fast translation) started mid-trial, at sample 15 000: the first sample is
+    51° off; from 1.5 to 10 s the RMS error is 1.6° (9.5° when the first sample is trusted)."""
+    from pathlib import Path
+
+    from verticality.io import broad
+
+    path = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad" / \
+        "15_undisturbed_fast_translation_A.hdf5"
+    assert path.is_file(), f"BROAD data missing: {path}"
+    trial = broad.load_trial(path)
+    k0, n = 15_000, int(10 / trial.dt_s)
+    out = tilt.run(trial.gyr_rad_s[k0:k0 + n], trial.acc_m_s2[k0:k0 + n], trial.dt_s)
+    err = broad.inclination_error_deg(out.quat_E_S, trial.quat_E_S_opt[k0:k0 + n])
+    assert err[0] > 40.0
+    sel = slice(int(1.5 / trial.dt_s), n)
+    assert np.sqrt(np.nanmean(err[sel] ** 2)) < 2.5
+
+
 def _stream_outputs(gyr, acc, dts):
     from verticality.estimators.tilt_stream import Stream
 
@@ -276,7 +332,7 @@ def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path,
     k = int(np.searchsorted(t, 11.0))
     assert np.flatnonzero(out.flags & tilt.DT_GAP).tolist() == [k]
     _assert_reacquired_once_after(out.flags, k)
-    k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
+    k_re = int(np.flatnonzero((out.flags & tilt.REACQUIRED > 0) & (np.arange(t.size) > k))[0])
     assert 1.0 <= t[k_re] - t[k] <= 1.0 + 2 * tilt.BLOCK * 0.01  # the averaging time, whole blocks
     assert err[k] > 25.0 and np.all(err[k:k_re] > 25.0)  # what the flags warn of
     # an honest variance from the block that holds the gap on (variances are updated per block)
@@ -293,9 +349,11 @@ def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path,
 
 
 def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
-    """tilt.run uses the batch kernel without gap handling for chunks with no gap and no
-    re-acquisition (it is faster); on a recording of three chunks with gaps in the first and the
-    third, that equals the kernel with gap handling everywhere, to rounding."""
+    """tilt.run uses the batch kernel without gap handling, in long chunks, where no gap and no
+    re-acquisition is in reach (it is faster), and short chunks with gap handling elsewhere (the
+    initialization, which is re-acquired too, and the gaps); on a recording with a gap near its
+    start and one near its end, that equals the kernel with gap handling everywhere, to
+    rounding."""
     from verticality.estimators import tilt_kernels
 
     n = 2 * tilt.CHUNK_BLOCKS * tilt.BLOCK + 3000
@@ -308,12 +366,18 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     real = tilt_kernels.run_chunk
 
     def spy(*args, gaps=True, **kw):
-        used.append(gaps)
+        used.append((gaps, args[1].shape[0] // tilt.BLOCK))
         return real(*args, gaps=gaps, **kw)
 
     monkeypatch.setattr(tilt_kernels, "run_chunk", spy)
     fast = tilt.run(gyr, acc, dts)
-    assert used == [True, False, True]
+    short, long = (True, tilt.GAP_CHUNK_BLOCKS), (False, tilt.CHUNK_BLOCKS)
+    assert set(used) == {short, long}
+    # one short chunk covers the initialization and the first gap; two long chunks follow (the
+    # second gap, in block 558, is beyond the reach of the one starting at block 288); short
+    # chunks from block 544 to the end (1975 samples; a tail this short takes them anyway)
+    assert tilt.GAP_CHUNK_BLOCKS == 32 and tilt.CHUNK_BLOCKS == 256
+    assert used == [short, long, long, short, short]
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
     ref = tilt.run(gyr, acc, dts)
     for name in tilt.TiltOutput._fields:
@@ -341,8 +405,9 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
     pad[:fl.size] = fl
     blocks = pad.reshape(nb, tilt.BLOCK)
     truth = (blocks[:, 0] & tilt.REACQUIRING > 0) | np.any(blocks & tilt.DT_GAP > 0, axis=1)
-    need = tilt._blocks_needing_gaps(dts, acc, 1, tilt.BLOCK, tilt.DEFAULT_PARAMS, False, 0.0)
-    assert need.shape == truth.shape and np.all(need[truth])
+    # pending from the start: the initializing sample is re-acquired too
+    need = tilt._blocks_needing_gaps(dts, acc, 1, tilt.BLOCK, tilt.DEFAULT_PARAMS, True, 0.0)
+    assert need.shape == truth.shape and np.all(need[truth]) and truth[0]
     n_reacq = int(np.count_nonzero(out.flags & tilt.REACQUIRED))
-    assert n_reacq == 2 and np.count_nonzero(need & ~truth) <= n_reacq
+    assert n_reacq == 3 and np.count_nonzero(need & ~truth) <= n_reacq
     assert truth[(1600 - 1) // tilt.BLOCK]  # still pending inside the accelerometer dropout

@@ -155,14 +155,14 @@ def _peer_output(quat, bias, dt):
 
 
 def _shade_reacquiring(ax, t, flags) -> None:
-    """Shade the spans from a gap to the tilt's re-acquisition (flag REACQUIRING)."""
+    """Shade the spans from the start or a gap to the tilt's re-acquisition (flag REACQUIRING)."""
     from verticality.estimators.tilt import REACQUIRING
 
     on = np.concatenate([[0], (flags & REACQUIRING) > 0, [0]]).astype(int)
     starts, ends = np.flatnonzero(np.diff(on) == 1), np.flatnonzero(np.diff(on) == -1)
     for j, (a, b) in enumerate(zip(starts, ends, strict=True)):
         ax.axvspan(t[a], t[min(b, t.size - 1)], color="0.85", zorder=0,
-                   label="after a gap, re-acquiring" if j == 0 else None)
+                   label="re-acquiring (after the start or a gap)" if j == 0 else None)
 
 
 def _plot(path: Path, t, out, name: str) -> Path:

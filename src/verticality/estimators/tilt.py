@@ -40,7 +40,9 @@ sample propagates the covariance with ``omega_missing_rad_s`` as the unknown rat
 whole gap, and the sample is flagged ``DT_GAP``: motion inside the gap that this rate does not
 describe is not seen. The gap then counts as a gyro dropout, and after ``reacquire_s`` the tilt is
 re-acquired from the mean specific force (flag ``REACQUIRED``; the samples in between are flagged
-``REACQUIRING``; docs/tilt.md). Nothing turns a finite estimate into NaN.
+``REACQUIRING``; docs/tilt.md). The initialization from the accelerometer is treated the same
+way (the first sample may hold an inertial acceleration): wide tilt variance (``init_tilt_rad``),
+re-acquired after ``reacquire_s``. Nothing turns a finite estimate into NaN.
 """
 
 from __future__ import annotations
@@ -82,7 +84,10 @@ class TiltParams(NamedTuple):
     drops out. ``gap_flag_s``: a step Δt above it is a gap in the recording (flag ``DT_GAP``):
     the rotation inside it is unknown (``omega_missing_rad_s`` over the gap); after it the filter
     averages the specific force for ``reacquire_s`` and re-acquires the tilt from that mean
-    (flag ``REACQUIRED``).
+    (flag ``REACQUIRED``). ``init_tilt_rad``: when the accelerometer initializes the filter (no
+    ``x0``), the tilt standard deviation added for that sample's unknown inertial acceleration;
+    the tilt is then re-acquired after ``reacquire_s`` as after a gap, so a start in motion is
+    caught (flag ``REACQUIRING`` until then).
     ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. ``gyr_scale_noise`` (√s):
     gyro errors that grow with the rate (scale factor, axis misalignment), process noise density
     ``(k |ω|)²``. Rest (T eq. 1 with ω = 0, so the canal signal is the drift): when for
@@ -109,6 +114,7 @@ class TiltParams(NamedTuple):
     g_m_s2: float = G_M_S2
     gap_flag_s: float = 0.1
     reacquire_s: float = 1.0
+    init_tilt_rad: float = 1.0
 
 
 DEFAULT_PARAMS = TiltParams()
@@ -276,6 +282,7 @@ _H_TILT = np.hstack([np.eye(2), np.zeros((2, 5))])
 
 tilt_error_from_force = tilt_kernels.tilt_error_from_force
 reset_velocity = tilt_kernels.reset_velocity
+widen_tilt = tilt_kernels.widen_tilt
 
 
 def _block_update(state: TiltState, params: TiltParams):
@@ -328,7 +335,7 @@ def _block_update(state: TiltState, params: TiltParams):
     gap = state.blk_gap > 0  # unknown motion in this block
     collecting = state.reacquire & ~gap  # a block after a gap: the tilt error is unknown
     quiet = (has_gyr & has_acc & (g_var < p.rest_gyr_rad_s**2) & (gd @ gd < p.rest_gyr_rad_s**2)
-             & (a_var < p.rest_acc_m_s2**2) & ~gap & ~collecting)
+             & (a_var < p.rest_acc_m_s2**2) & ~gap)
     rest_s = jnp.where(quiet, state.rest_s + T, 0.0)
     at_rest = rest_s >= p.rest_min_s
 
@@ -341,11 +348,13 @@ def _block_update(state: TiltState, params: TiltParams):
     # after a gap the tilt error can be large, beyond the small-angle velocity update: the
     # specific force is summed in Earth (as estimated; the gyro alone carries the estimate, so
     # its error stays put) for reacquire_s, then its mean measures the tilt error directly
-    # (T eq. 5, exact angle). Its inertial part is Δv / T, with |Δv| ~ √2 vel_m_s (velocity prior).
+    # (T eq. 5, exact angle). Its inertial part is Δv / T, with |Δv| ~ √2 vel_m_s (velocity prior;
+    # vel_rest_m_s if every block since the gap was quiet).
     f_sum = jnp.where(collecting, state.reacq_f_E + f_E_sum, 0.0)
     t_sum = jnp.where(collecting, state.reacq_t + t_acc, 0.0)
     reacq = collecting & (t_sum >= p.reacquire_s)
-    r_tilt = 2.0 * (p.vel_m_s / (g * jnp.where(reacq, t_sum, 1.0))) ** 2
+    v_r = jnp.where(rest_s >= t_sum, p.vel_rest_m_s, p.vel_m_s)
+    r_tilt = 2.0 * (v_r / (g * jnp.where(reacq, t_sum, 1.0))) ** 2
     dxr, Pr = _kf_update(P, _H_TILT, tilt_error_from_force(f_sum), r_tilt)
     use_vel = has_acc & ~gap & ~collecting
     dx = jnp.where(use_vel, dx1, jnp.where(reacq, dxr, 0.0))
@@ -421,10 +430,12 @@ def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block:
         blk_gsum=st.blk_gsum + gyr0 * dts, blk_asum=st.blk_asum + acc0 * wa,
         blk_a2=st.blk_a2 + acc_n2 * wa, blk_gap=st.blk_gap + jnp.where(gap, 1.0, 0.0),
         blk_count=st.blk_count + 1)
-    # before initialization: the first usable accelerometer sample sets the tilt
+    # before initialization: the first usable accelerometer sample sets the tilt, to be
+    # re-acquired after reacquire_s (the sample may hold an inertial acceleration)
     init_now = ~st.initialized & acc_ok
     init_state = st._replace(quat_E_S=jnp.where(init_now, quat_from_acc(acc0), st.quat_E_S),
-                             initialized=init_now)
+                             initialized=init_now, reacquire=init_now,
+                             P=jnp.where(init_now, widen_tilt(st.P, p.init_tilt_rad), st.P))
     state = jax.tree_util.tree_map(lambda x, y: jnp.where(st.initialized, x, y), acc_state,
                                    init_state)
     state, disturbed, reacq = jax.lax.cond(state.initialized & (state.blk_count >= block),
@@ -518,6 +529,7 @@ def unpack_state(x, template: TiltState) -> TiltState:
 
 
 CHUNK_BLOCKS = 256
+GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: it costs ~1.4x per sample
 
 
 def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
@@ -570,8 +582,11 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         if found:
             q0 = _quat_from_acc_np(acc[k - 1])
             quat[-1] = np.asarray(q0)
-            flags[-1] |= INIT
-            state = state._replace(quat_E_S=q0, initialized=np.bool_(True))
+            flags[-1] |= INIT | REACQUIRING
+            state = state._replace(quat_E_S=q0, initialized=np.bool_(True),
+                                   reacquire=np.bool_(True), reacq_f_E=np.zeros(3),
+                                   reacq_t=np.float64(0.0),
+                                   P=np.asarray(widen_tilt(state.P, params.init_tilt_rad)))
         put(0, _outputs_np(quat, np.tile(np.asarray(state.bias_S_rad_s), (k, 1)),
                            np.tile(np.diagonal(np.asarray(state.P)), (k, 1)), flags))
     if int(state.blk_count) != 0:  # finish the current block sample by sample
@@ -579,7 +594,6 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
             state, o = step_jit(state, gyr[j], acc[j], dts[j], params, block)
             put(j, jax.tree_util.tree_map(lambda x: np.asarray(x)[None], o))
             k = j + 1
-    chunk = CHUNK_BLOCKS * block
     if k < n:
         # dispatch every chunk first (asynchronous, the state stays on the device), then copy
         # the outputs: the host copies overlap the device work of the later chunks
@@ -589,31 +603,35 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         # them (the same numbers, faster)
         need = _blocks_needing_gaps(dts, acc, k, block, params, bool(state.reacquire),
                                     float(state.reacq_t))
-        pending = []
+        pending, j = [], 0
         while k < n:
+            # a gap or a re-acquisition (after a gap, and after the initialization) within a
+            # chunk's reach: short chunks with gap handling until it is past; and for a tail of
+            # at most half a long chunk (less padding)
+            gaps = bool(need[j:j + CHUNK_BLOCKS].any()) or 2 * (n - k) <= CHUNK_BLOCKS * block
+            size = (GAP_CHUNK_BLOCKS if gaps else CHUNK_BLOCKS) * block
             # the chunk's samples as [gyr, acc, dt] rows (packed chunk by chunk, while the
             # device works on the previous one); the last chunk padded with skipped samples
-            # (dt = NaN: BAD_DT) so that every chunk has the one compiled shape
-            m = min(chunk, n - k)
-            data = np.empty((chunk, 7))
+            # (dt = NaN: BAD_DT) so that every chunk has one of the two compiled shapes
+            m = min(size, n - k)
+            data = np.empty((size, 7))
             data[:m, 0:3] = gyr[k:k + m]
             data[:m, 3:6] = acc[k:k + m]
             data[:m, 6] = dts[k:k + m]
-            if m < chunk:
+            if m < size:
                 data[m:, 0:6] = 0.0
                 data[m:, 6] = np.nan
-            j0 = len(pending) * CHUNK_BLOCKS
-            x, outs = tilt_kernels.run_chunk(x, data, p_vec, block, params._fields,
-                                             gaps=bool(need[j0:j0 + CHUNK_BLOCKS].any()))
-            pending.append((k, m, outs))
+            x, outs = tilt_kernels.run_chunk(x, data, p_vec, block, params._fields, gaps=gaps)
+            pending.append((k, m, size, outs))
             k += m
-        for k0, m, outs in pending:
-            if m == chunk:
+            j += size // block
+        for k0, m, size, outs in pending:
+            if m == size:
                 _put_chunk(res, k0, outs, block)
             else:  # the padded last chunk: through a temporary
-                tmp = TiltOutput(np.empty(chunk), np.empty(chunk), np.empty((chunk, 3)),
-                                 np.empty((chunk, 4)), np.empty((chunk, 3)), np.empty((chunk, 7)),
-                                 np.empty(chunk, dtype=np.int32))
+                tmp = TiltOutput(np.empty(size), np.empty(size), np.empty((size, 3)),
+                                 np.empty((size, 4)), np.empty((size, 3)), np.empty((size, 7)),
+                                 np.empty(size, dtype=np.int32))
                 _put_chunk(tmp, 0, outs, block)
                 for dst, src in zip(res, tmp, strict=True):
                     dst[k0:k0 + m] = src[:m]

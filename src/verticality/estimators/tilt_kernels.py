@@ -146,6 +146,12 @@ def reset_velocity(P, var_m2_s2):
     return P * keep[:, None] * keep[None, :] + jnp.diag(var_m2_s2 * (1.0 - keep))
 
 
+def widen_tilt(P, sigma_rad):
+    """Covariance ``P`` (7, 7) with ``sigma_rad²`` added to both tilt variances (the accelerometer
+    sample that initializes the filter may hold an inertial acceleration of unknown size)."""
+    return P + jnp.diag(jnp.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]) * sigma_rad**2)
+
+
 NB = 24  # length of the per-block inputs of :func:`block_update_core` (see :func:`block_inputs`)
 
 
@@ -230,8 +236,6 @@ def block_update_core(x, c, p, gaps: bool = True):
 
     gd = g_mean - b
     quiet = quiet0 & (jnp.sum(gd * gd) < p.rest_gyr_rad_s**2)
-    if gaps:
-        quiet = quiet & ~collecting
     rest_s = jnp.where(quiet, rest0 + T, 0.0)
     at_rest = rest_s >= p.rest_min_s
 
@@ -254,8 +258,9 @@ def block_update_core(x, c, p, gaps: bool = True):
         still = gap | (collecting & ~reacq)
         dx = jnp.where(forget, 0.0, dx)
         P = jnp.where(forget, P_pred, P)
+        v_r = jnp.where(rest_s >= t_sum, p.vel_rest_m_s, p.vel_m_s)  # quiet since the gap
         dxr, Pr = _joseph_selector(P, 0, 2, tilt_error_from_force(f_sum),
-                                   2.0 * (p.vel_m_s / (g * jnp.where(reacq, t_sum, 1.0))) ** 2)
+                                   2.0 * (v_r / (g * jnp.where(reacq, t_sum, 1.0))) ** 2)
         dx = jnp.where(reacq, dxr, dx)
         P = jnp.where(reacq, Pr, P)
         P = jnp.where(forget, reset_velocity(P, p.vel_m_s**2), P)
@@ -465,14 +470,18 @@ def stream_step(z, sample, params, block: int):
         s[12:13] + jnp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2),
         s[13:16] + gyr0 * dts, s[16:19] + acc0 * wa, s[19:20] + acc_n2 * wa,
         s[20:21] + jnp.where(gap, 1.0, 0.0)])
-    # before initialization: the first usable accelerometer sample sets the tilt
+    # before initialization: the first usable accelerometer sample sets the tilt, to be
+    # re-acquired after reacquire_s (``tilt.step``)
     init_now = ~initialized & acc_ok
     a = acc0 / jnp.sqrt(jnp.where(acc_n2 > 0, acc_n2, 1.0))
     w = 1.0 + a[2]
     q_init = jnp.where(w < 1e-9, jnp.array([0.0, 1.0, 0.0, 0.0]),
                        jnp.stack([w, a[1], -a[0], 0.0]))
     q_init = q_init / jnp.sqrt(jnp.sum(q_init * q_init))
-    x = jnp.where(init_now, x.at[0:4].set(q_init), x)
+    x_init = jnp.concatenate([q_init, x[4:9], widen_tilt(x[9:58].reshape(7, 7),
+                                                         p.init_tilt_rad).reshape(-1),
+                              x[58:60], jnp.array([1.0, 0.0, 0.0, 0.0, 0.0])])
+    x = jnp.where(init_now, x_init, x)
     s = jnp.where(initialized, s_acc, s)
     count = jnp.where(initialized, count + 1, count)
     initialized = initialized | init_now

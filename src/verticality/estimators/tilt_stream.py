@@ -146,6 +146,11 @@ class Stream:
             w = 1.0 + uz
             self.q = (0.0, 1.0, 0.0, 0.0) if w < 1e-9 else _qnorm((w, uy, -ux, 0.0))
             self.initialized = True
+            # the sample may hold an inertial acceleration: re-acquire after reacquire_s
+            self.reacquire = True
+            self.P = self.P.copy()
+            self.P[0, 0] += p.init_tilt_rad**2
+            self.P[1, 1] += p.init_tilt_rad**2
         disturbed = reacq = False
         if self.initialized and self.count >= self.block:
             disturbed, reacq = self._update()
@@ -203,8 +208,7 @@ class Stream:
         gap = self.gap > 0
         collecting = self.reacquire and not gap
         quiet = (has_gyr and has_acc and g_var < p.rest_gyr_rad_s**2
-                 and gd @ gd < p.rest_gyr_rad_s**2 and a_var < p.rest_acc_m_s2**2 and not gap
-                 and not collecting)
+                 and gd @ gd < p.rest_gyr_rad_s**2 and a_var < p.rest_acc_m_s2**2 and not gap)
         self.rest_s = self.rest_s + T if quiet else 0.0
         at_rest = self.rest_s >= p.rest_min_s
         dx = np.zeros(7)
@@ -212,7 +216,8 @@ class Stream:
         t_sum = self.reacq_t + t_acc if collecting else 0.0
         reacq = collecting and t_sum >= p.reacquire_s
         if reacq:  # after a gap: the tilt from the mean specific force since the gap
-            dx, P = _kf(P, 0, 2, _tilt_error_from_force(f_sum), 2.0 * (p.vel_m_s / (g * t_sum)) ** 2)
+            v_r = p.vel_rest_m_s if self.rest_s >= t_sum else p.vel_m_s  # quiet since the gap
+            dx, P = _kf(P, 0, 2, _tilt_error_from_force(f_sum), 2.0 * (v_r / (g * t_sum)) ** 2)
         elif has_acc and not gap and not collecting:
             s_vel = (p.vel_rest_m_s**2 if at_rest else p.vel_m_s**2) * p.vel_corr_s
             dx, P = _kf(P, 2, 2, -vel, s_vel / t_acc_s)
