@@ -1,6 +1,7 @@
 import os
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+os.environ["VERTICALITY_JAX_CACHE"] = "off"  # the tests leave no compiled kernels behind
 
 import jax  # noqa: E402
 

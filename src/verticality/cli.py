@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
+from pathlib import Path
 
 from verticality import commands
 from verticality.errors import InputError
@@ -26,7 +28,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def compile_cache_dir() -> Path | None:
+    """Where the command keeps JAX's persistent compilation cache: ``$VERTICALITY_JAX_CACHE``
+    (``off`` for none), else ``$XDG_CACHE_HOME/verticality/jax`` (``~/.cache/...``); None when
+    turned off or when ``JAX_COMPILATION_CACHE_DIR`` already tells JAX."""
+    if os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        return None
+    setting = os.environ.get("VERTICALITY_JAX_CACHE", "")
+    if setting.lower() in ("off", "0", "no", "false"):
+        return None
+    if setting:
+        return Path(setting).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "verticality" / "jax"
+
+
+def _enable_compile_cache() -> None:
+    """Keep the compiled kernels between runs (JAX's persistent cache), so that a second call
+    of a command does not compile them again (a tilt estimate's first call: ~7 s → ~2 s)."""
+    path = compile_cache_dir()
+    if path is None:
+        return
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return  # an unwritable cache folder costs only the compile time
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
 def main(argv: list[str] | None = None) -> int:
+    _enable_compile_cache()
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
