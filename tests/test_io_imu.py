@@ -78,3 +78,25 @@ def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
     assert cli.main(["estimate", str(g_csv), "--out", str(tmp_path / "x.csv"), "--units", "g"]) == 0
     np.testing.assert_allclose(imu.read_estimate_csv(tmp_path / "x.csv").roll_rad,
                                ref.roll_rad, atol=1e-9)
+
+
+def test_estimate_plot_has_one_labelled_row_per_flag_that_occurs():
+    import matplotlib.pyplot as plt
+
+    from verticality.commands.estimate import _plot_flags
+    from verticality.estimators import tilt
+
+    t = np.arange(100) * 0.01
+    flags = np.zeros(100, dtype=np.int32)
+    flags[40] |= tilt.DT_GAP
+    flags[40:50] |= tilt.REACQUIRING
+    fig, ax = plt.subplots()
+    _plot_flags(ax, t, flags)
+    labels = [lab.get_text() for lab in ax.get_yticklabels()]
+    assert labels == ["gap in the time stamps (32): 1", "re-acquiring (128): 10"]
+    gap_bar, reacq_bar = ax.collections  # per row, one bar per run of flagged samples
+    np.testing.assert_allclose(np.asarray(gap_bar.get_segments()), [[[t[40], 0], [t[40], 0]]])
+    np.testing.assert_allclose(np.asarray(reacq_bar.get_segments()), [[[t[40], 1], [t[49], 1]]])
+    _plot_flags(ax2 := fig.add_subplot(2, 1, 2), t, np.zeros(100, dtype=np.int32))
+    assert ax2.get_title() == "flags: none"
+    plt.close(fig)

@@ -181,7 +181,24 @@ def _plot(path: Path, t, out, name: str) -> Path:
         ax[1].plot(t, np.degrees(out.bias_S_rad_s[:, i]), label=f"bias {c}")
     ax[1].set_ylabel("gyro bias (deg/s)")
     ax[1].legend(loc="upper right")
-    ax[2].step(t, flags, where="post")
-    ax[2].set_ylabel("flags (bits)")
+    _plot_flags(ax[2], t, flags)
     ax[2].set_xlabel("t (s)")
     return save(fig, path)
+
+
+def _plot_flags(ax, t, flags) -> None:
+    """One row per flag bit that occurs: a bar over each run of flagged samples and a tick at
+    its start (one-sample events, such as a gap, stay visible); the row's label gives the bit and
+    the number of samples."""
+    from verticality.estimators.tilt import FLAG_NAMES
+
+    rows = [(bit, name) for bit, name in FLAG_NAMES.items() if np.any(flags & bit)]
+    for y, (bit, _) in enumerate(rows):
+        on = np.concatenate([[0], (flags & bit) > 0, [0]]).astype(int)
+        starts, ends = np.flatnonzero(np.diff(on) == 1), np.flatnonzero(np.diff(on) == -1) - 1
+        ax.hlines(np.full(starts.size, y), t[starts], t[ends], linewidth=6, color=f"C{y % 10}")
+        ax.plot(t[starts], np.full(starts.size, y), "|", markersize=10, color=f"C{y % 10}")
+    ax.set_yticks(range(len(rows)),
+                  [f"{name} ({bit}): {np.count_nonzero(flags & bit)}" for bit, name in rows])
+    ax.set_ylim(-0.6, max(len(rows), 1) - 0.4)
+    ax.set_title("flags (samples)" if rows else "flags: none", fontsize="medium")

@@ -69,6 +69,10 @@ INIT = 16  # the sample that initialized the filter from the accelerometer
 DT_GAP = 32  # Δt above gap_flag_s: a gap in the recording (motion inside it is not seen)
 REACQUIRED = 64  # the tilt was re-acquired from the accelerometer after a gap (estimate may jump)
 REACQUIRING = 128  # from a gap to its re-acquisition: the estimate may carry the gap's rotation
+FLAG_NAMES = {ACC_MISSING: "accelerometer missing", GYR_MISSING: "gyro missing",
+              BAD_DT: "bad time step", ACC_DISTURBED: "accelerometer disturbed",
+              INIT: "initialization", DT_GAP: "gap in the time stamps",
+              REACQUIRED: "tilt re-acquired", REACQUIRING: "re-acquiring"}
 
 
 class TiltParams(NamedTuple):
