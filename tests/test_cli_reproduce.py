@@ -47,3 +47,21 @@ def test_reporting_helpers():
     assert format_value({"value": 0.5, "tolerance": 1.0, "pass": False}).endswith("FAIL")
     assert format_value([{"x": 1}, {"x": 2}]) == "2 rows (see results.json)"
     assert len(format_value("x" * 500)) == 118
+
+
+def test_compile_cache_folder_follows_the_environment(monkeypatch, tmp_path):
+    """The command keeps JAX's compilation cache where the environment says: our variable (a
+    folder, or off), else XDG's cache folder; JAX's own variable takes precedence."""
+    for var in ("JAX_COMPILATION_CACHE_DIR", "VERTICALITY_JAX_CACHE", "XDG_CACHE_HOME"):
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert cli.compile_cache_dir() == tmp_path / "home" / ".cache" / "verticality" / "jax"
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cli.compile_cache_dir() == tmp_path / "xdg" / "verticality" / "jax"
+    monkeypatch.setenv("VERTICALITY_JAX_CACHE", str(tmp_path / "mine"))
+    assert cli.compile_cache_dir() == tmp_path / "mine"
+    monkeypatch.setenv("VERTICALITY_JAX_CACHE", "off")
+    assert cli.compile_cache_dir() is None
+    monkeypatch.setenv("VERTICALITY_JAX_CACHE", str(tmp_path / "mine"))
+    monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", str(tmp_path / "jax"))
+    assert cli.compile_cache_dir() is None

@@ -45,7 +45,8 @@ def compile_cache_dir() -> Path | None:
 
 def _enable_compile_cache() -> None:
     """Keep the compiled kernels between runs (JAX's persistent cache), so that a second call
-    of a command does not compile them again (a tilt estimate's first call: ~7 s → ~2 s)."""
+    of a command does not compile them again (`estimate` on a 37 556-sample file: 9.7 s the
+    first time, 4.2 s after)."""
     path = compile_cache_dir()
     if path is None:
         return

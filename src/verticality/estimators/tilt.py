@@ -67,8 +67,8 @@ BAD_DT = 4  # Δt non-finite or <= 0: sample skipped entirely
 ACC_DISTURBED = 8  # inertial acceleration estimate large: accelerometer strongly down-weighted
 INIT = 16  # the sample that initialized the filter from the accelerometer
 DT_GAP = 32  # Δt above gap_flag_s: a gap in the recording (motion inside it is not seen)
-REACQUIRED = 64  # the tilt was re-acquired from the accelerometer after a gap (estimate may jump)
-REACQUIRING = 128  # from a gap to its re-acquisition: the estimate may carry the gap's rotation
+REACQUIRED = 64  # the tilt was re-acquired from the accelerometer after a gap or the start
+REACQUIRING = 128  # from a gap (or the start) to its re-acquisition: the estimate may be off
 FLAG_NAMES = {ACC_MISSING: "accelerometer missing", GYR_MISSING: "gyro missing",
               BAD_DT: "bad time step", ACC_DISTURBED: "accelerometer disturbed",
               INIT: "initialization", DT_GAP: "gap in the time stamps",
