@@ -147,20 +147,25 @@ def _peer_output(quat, bias, dt):
 
     quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
     n = quat.shape[0]
+    gap = dt > tilt.DEFAULT_PARAMS.gap_flag_s
     res = tilt.TiltOutput(np.zeros(n), np.zeros(n), np.zeros((n, 3)), quat, bias,
-                          np.zeros((n, 7)),
-                          np.where(dt > tilt.DEFAULT_PARAMS.gap_flag_s, tilt.DT_GAP, 0).astype(np.int32))
+                          np.zeros((n, 7)), np.where(gap, tilt.DT_GAP, 0).astype(np.int32))
     tilt._angles_np(res)
     return res
+
+
+def _runs(flags, bit):
+    """(first, last) sample indices of each run of consecutive samples carrying ``bit``."""
+    on = np.concatenate([[0], (flags & bit) > 0, [0]]).astype(int)
+    return np.flatnonzero(np.diff(on) == 1), np.flatnonzero(np.diff(on) == -1) - 1
 
 
 def _shade_reacquiring(ax, t, flags) -> None:
     """Shade the spans from the start or a gap to the tilt's re-acquisition (flag REACQUIRING)."""
     from verticality.estimators.tilt import REACQUIRING
 
-    on = np.concatenate([[0], (flags & REACQUIRING) > 0, [0]]).astype(int)
-    starts, ends = np.flatnonzero(np.diff(on) == 1), np.flatnonzero(np.diff(on) == -1)
-    for j, (a, b) in enumerate(zip(starts, ends, strict=True)):
+    starts, lasts = _runs(flags, REACQUIRING)
+    for j, (a, b) in enumerate(zip(starts, lasts + 1, strict=True)):
         ax.axvspan(t[a], t[min(b, t.size - 1)], color="0.85", zorder=0,
                    label="re-acquiring (after the start or a gap)" if j == 0 else None)
 
@@ -194,9 +199,8 @@ def _plot_flags(ax, t, flags) -> None:
 
     rows = [(bit, name) for bit, name in FLAG_NAMES.items() if np.any(flags & bit)]
     for y, (bit, _) in enumerate(rows):
-        on = np.concatenate([[0], (flags & bit) > 0, [0]]).astype(int)
-        starts, ends = np.flatnonzero(np.diff(on) == 1), np.flatnonzero(np.diff(on) == -1) - 1
-        ax.hlines(np.full(starts.size, y), t[starts], t[ends], linewidth=6, color=f"C{y % 10}")
+        starts, lasts = _runs(flags, bit)
+        ax.hlines(np.full(starts.size, y), t[starts], t[lasts], linewidth=6, color=f"C{y % 10}")
         ax.plot(t[starts], np.full(starts.size, y), "|", markersize=10, color=f"C{y % 10}")
     ax.set_yticks(range(len(rows)),
                   [f"{name} ({bit}): {np.count_nonzero(flags & bit)}" for bit, name in rows])

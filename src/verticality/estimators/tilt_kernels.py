@@ -349,8 +349,9 @@ def _run_chunk(x, data, params, block: int, names: tuple = (), gaps: bool = True
     ``soa`` (9, block, nb) quaternion (4), up (3), roll, pitch of sample ``k`` of block ``j`` at
     ``[:, k, j]``; ``rows`` (nb, 32) per block: state at the start (q 4, b 3, diag P 7), after
     the update (the same 14), the disturbed and the re-acquired flags, and ``reacquire`` at the
-    start and after the update (from which the host sets the REACQUIRING flag bit); ``flags`` (block, nb) int32. The bias and variances
-    of a sample are the block's start values, except at its last sample (the updated ones)."""
+    start and after the update (from which the host sets the REACQUIRING flag bit); ``flags``
+    (block, nb) int32. The bias and variances of a sample are the block's start values, except
+    at its last sample (the updated ones)."""
     # ``params``: a TiltParams, or its values as one vector with ``names`` its fields (one
     # argument: passing it costs less than passing 16 scalars)
     p = SimpleNamespace(**dict(zip(names, params, strict=True))) if names else params
