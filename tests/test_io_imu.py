@@ -58,9 +58,12 @@ def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
     src = imu.write_imu_csv(tmp_path / "rec.csv", rec)
     out_csv = tmp_path / "est.csv"
     png = tmp_path / "est.png"
-    assert cli.main(["estimate", str(src), "--out", str(out_csv), "--plot", str(png)]) == 0
+    assert cli.main(["estimate", str(src), "--out", str(out_csv), "--plot", str(png),
+                     "--sigma"]) == 0
+    assert "tilt σ outside re-acquisitions: median" in capsys.readouterr().out
     table = imu.read_estimate_csv(out_csv)
     ref = tilt.run(rec.gyr_rad_s, rec.acc_m_s2, imu.dt_from_t(rec.t_s))
+    np.testing.assert_allclose(table.tilt_sigma_rad, tilt.tilt_sigma_rad(ref.var), rtol=1e-15)
     np.testing.assert_allclose(table.t_s, rec.t_s, rtol=1e-15)
     np.testing.assert_allclose(table.roll_rad, ref.roll_rad, atol=1e-12)
     np.testing.assert_allclose(table.pitch_rad, ref.pitch_rad, atol=1e-12)
@@ -76,8 +79,16 @@ def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
     err = capsys.readouterr().err
     assert "looks like g" in err and len(err.strip().splitlines()) == 1
     assert cli.main(["estimate", str(g_csv), "--out", str(tmp_path / "x.csv"), "--units", "g"]) == 0
-    np.testing.assert_allclose(imu.read_estimate_csv(tmp_path / "x.csv").roll_rad,
-                               ref.roll_rad, atol=1e-9)
+    x = imu.read_estimate_csv(tmp_path / "x.csv")
+    np.testing.assert_allclose(x.roll_rad, ref.roll_rad, atol=1e-9)
+    assert x.tilt_sigma_rad is None  # the contract's columns unless --sigma asks for σ
+    assert (tmp_path / "x.csv").read_text().splitlines()[0] == ",".join(imu.ESTIMATE_COLUMNS)
+    # a peer reports no uncertainty: --sigma is refused before anything runs
+    capsys.readouterr()
+    assert cli.main(["estimate", str(src), "--out", str(tmp_path / "y.csv"), "--filter", "vqf",
+                     "--sigma"]) == 2
+    assert "reports no uncertainty" in capsys.readouterr().err
+    assert not (tmp_path / "y.csv").exists()
 
 
 def test_estimate_plot_has_one_labelled_row_per_flag_that_occurs():

@@ -123,6 +123,7 @@ def test_irregular_time_steps_and_gap_use_true_dt():
 
 def test_run_equals_streaming_steps():
     gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=300)
+    acc[:2] = np.nan  # no estimate before the first accelerometer sample: the variance says so
     acc[3:5] = np.nan
     gyr[40] = np.nan
     dts = np.full(gyr.shape[0], dt)
@@ -139,6 +140,7 @@ def test_run_equals_streaming_steps():
         np.testing.assert_allclose(np.asarray(getattr(batch, name)), ref, atol=1e-12, err_msg=name)
     assert np.flatnonzero(batch.flags & tilt.DT_GAP).tolist() == [100]
     _assert_reacquired_once_after(batch.flags, 100)
+    assert np.all(np.degrees(tilt.tilt_sigma_rad(batch.var[:3])) > 45.0)
     # continuing from a mid-block state gives the same as one run over everything
     out1, st1 = tilt.run(gyr[:70], acc[:70], dts[:70], return_state=True)
     assert int(st1.blk_count) == 0  # run closes a trailing partial block
@@ -207,6 +209,25 @@ def test_start_at_rest_reacquires_precisely():
     assert np.max(_tilt_err_deg(up, out.up_S[k_re:])) < 0.2
 
 
+def test_tilt_sigma_spans_the_start_and_rests_on_the_calibration_floor():
+    """The reported σ (tilt_sigma_rad): wide on the sample that initializes from the
+    accelerometer, and at rest after the re-acquisition no smaller than the accelerometer's
+    calibration error allows (atan(c/g)) and not far above it; the errors stay inside it; a larger
+    calibration error raises the floor, the estimate is unchanged."""
+    gyr, acc, dt, up = _static(np.radians(20.0), np.radians(-35.0), n=1000)
+    out = tilt.run(gyr, acc, dt)
+    sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
+    floor = np.degrees(tilt.DEFAULT_PARAMS.acc_calib_m_s2 / tilt.DEFAULT_PARAMS.g_m_s2)
+    assert sigma[0] > 45.0
+    k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
+    assert np.all(sigma[k_re:] >= floor) and np.all(sigma[k_re:] < 1.5 * floor)
+    assert np.all(_tilt_err_deg(up, out.up_S) <= sigma)
+    wide = tilt.DEFAULT_PARAMS._replace(acc_calib_m_s2=0.5)
+    out_wide = tilt.run(gyr, acc, dt, params=wide)
+    np.testing.assert_array_equal(out_wide.quat_E_S, out.quat_E_S)
+    assert np.degrees(tilt.tilt_sigma_rad(out_wide.var[-1], wide)) > 2.5
+
+
 def test_start_in_motion_on_broad():
     """BROAD trial 15 (fast translation) started mid-trial, at sample 15 000: the first sample is
     51° off; from 1.5 to 10 s the RMS error is 1.6° (9.5° when the first sample is trusted)."""
@@ -224,23 +245,33 @@ def test_start_in_motion_on_broad():
     assert err[0] > 40.0
     sel = slice(int(1.5 / trial.dt_s), n)
     assert np.sqrt(np.nanmean(err[sel] ** 2)) < 2.5
+    # the reported σ covers the error throughout, the first wrong second included
+    sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
+    fin = np.isfinite(err)
+    assert np.all(err[fin] <= 2 * sigma[fin])
 
 
 def _stream_outputs(gyr, acc, dts):
     from verticality.estimators.tilt_stream import Stream
 
     s = Stream()
-    rows = [s.step(gyr[k], acc[k], dts[k]) for k in range(gyr.shape[0])]
+    rows, sigma = [], []
+    for k in range(gyr.shape[0]):
+        rows.append(s.step(gyr[k], acc[k], dts[k]))
+        sigma.append(s.tilt_sigma_rad)
     return {"roll_rad": np.array([r[0] for r in rows]), "pitch_rad": np.array([r[1] for r in rows]),
             "up_S": np.array([r[2] for r in rows]), "quat_E_S": np.array([r[3] for r in rows]),
-            "bias_S_rad_s": np.array([r[4] for r in rows]), "flags": np.array([r[5] for r in rows])}
+            "bias_S_rad_s": np.array([r[4] for r in rows]), "flags": np.array([r[5] for r in rows]),
+            "tilt_sigma_rad": np.array(sigma)}
 
 
 def _assert_stream_equals_run(gyr, acc, dts):
     ref = tilt.run(gyr, acc, dts)
     got = _stream_outputs(gyr, acc, dts)
+    sigma_ref = tilt.tilt_sigma_rad(ref.var)
     for name, val in got.items():
-        np.testing.assert_allclose(val, getattr(ref, name), rtol=0, atol=1e-9, err_msg=name)
+        want = sigma_ref if name == "tilt_sigma_rad" else getattr(ref, name)
+        np.testing.assert_allclose(val, want, rtol=0, atol=1e-9, err_msg=name)
     return ref
 
 

@@ -3,7 +3,8 @@ VQF (vqf, 6D, defaults, ``VQF(Ts).updateBatch``), Madgwick and Mahony (ahrs, 6D,
 
 Peers are imported lazily; a missing one is reported by :func:`peer_status` with the reason and
 left out of the results (never silently replaced). Every filter gets the same gyro/accelerometer
-arrays; the score is the official BROAD inclination RMSE (:mod:`verticality.io.broad`).
+arrays; the score is the official BROAD inclination RMSE (:mod:`verticality.io.broad`). Our filter
+also reports its uncertainty, and :func:`sigma_calibration` scores that against the same errors.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ def _ours(gyr, acc, dt_s):
     from verticality.estimators import tilt
 
     out = tilt.run(gyr, acc, dt_s)
-    return out.quat_E_S, out.bias_S_rad_s
+    return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
 
 
 def _vqf(gyr, acc, dt_s):
@@ -50,21 +51,21 @@ def _vqf(gyr, acc, dt_s):
 
     res = VQF(float(np.median(dt_s))).updateBatch(np.ascontiguousarray(gyr, dtype=np.float64),
                                                   np.ascontiguousarray(acc, dtype=np.float64))
-    return res["quat6D"], res["bias"]
+    return res["quat6D"], res["bias"], None
 
 
 def _madgwick(gyr, acc, dt_s):
     from ahrs.filters import Madgwick
 
     f = Madgwick(gyr=np.asarray(gyr), acc=np.asarray(acc), frequency=1.0 / float(np.median(dt_s)))
-    return f.Q, np.zeros_like(gyr)
+    return f.Q, np.zeros_like(gyr), None
 
 
 def _mahony(gyr, acc, dt_s):
     from ahrs.filters import Mahony
 
     f = Mahony(gyr=np.asarray(gyr), acc=np.asarray(acc), frequency=1.0 / float(np.median(dt_s)))
-    return f.Q, np.zeros_like(gyr)
+    return f.Q, np.zeros_like(gyr), None
 
 
 _RUNNERS: dict[str, Callable] = {OURS: _ours, "vqf": _vqf, "madgwick": _madgwick,
@@ -75,6 +76,11 @@ def run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
     """Quaternions ``q_E_S`` (N, 4) wxyz and gyro bias (N, 3) of filter ``name``. Peers need a
     constant rate (the median step is used) and finite samples; they report no bias except VQF
     (zeros otherwise)."""
+    return _run_filter(name, gyr_rad_s, acc_m_s2, dt_s)[:2]
+
+
+def _run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
+    """:func:`run_filter` and the tilt's standard deviation (N,) rad, or None for the peers."""
     if name not in _RUNNERS:
         raise InputError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}")
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
@@ -89,12 +95,28 @@ def run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
     return _RUNNERS[name](gyr, acc, dts)
 
 
+def sigma_calibration(quat_est_wxyz, sigma_rad, trial: broad.BroadTrial) -> dict[str, float]:
+    """How the reported tilt σ compares with the official inclination error, over the samples the
+    metric scores (``movement``, valid reference): ``within_1sigma`` and ``within_2sigma``, the
+    fractions of samples whose error is at most σ and 2σ (a calibrated σ of a 2-D Gaussian error
+    gives 0.632 and 0.982), and ``rms_sigma_deg``, the RMS of σ (deg), to set beside the RMSE."""
+    err = broad.inclination_error_deg(quat_est_wxyz, trial.quat_E_S_opt)
+    sel = trial.movement & np.isfinite(err)
+    if not np.any(sel):
+        raise InputError(f"{trial.name}: no movement samples with a valid optical reference")
+    e, s = err[sel], np.degrees(np.asarray(sigma_rad)[sel])
+    return {"within_1sigma": float(np.mean(e <= s)), "within_2sigma": float(np.mean(e <= 2 * s)),
+            "rms_sigma_deg": float(np.sqrt(np.mean(s**2)))}
+
+
 def evaluate_trials(paths: Iterable[Path], filters: Iterable[str],
                     progress: Callable[[str], None] | None = None) -> dict:
     """``{"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg},
-    "runtime_s": {FILTER: s}, "samples": int}`` for the given filters over the given trials."""
+    "runtime_s": {FILTER: s}, "samples": int, "sigma": {NAME: sigma_calibration}}`` for the given
+    filters over the given trials (``sigma`` for our filter, when it runs)."""
     filters = list(filters)
     trials: dict[str, dict[str, float]] = {}
+    sigma: dict[str, dict[str, float]] = {}
     runtime = {f: 0.0 for f in filters}
     samples = 0
     for path in paths:
@@ -105,8 +127,11 @@ def evaluate_trials(paths: Iterable[Path], filters: Iterable[str],
             if progress is not None:
                 progress(f"{trial.name}: {name}")
             t0 = time.perf_counter()
-            quat, _ = run_filter(name, trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+            quat, _, sig = _run_filter(name, trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
             runtime[name] += time.perf_counter() - t0
             trials[trial.name][name] = broad.inclination_rmse_deg(np.asarray(quat), trial)
+            if sig is not None:
+                sigma[trial.name] = sigma_calibration(np.asarray(quat), sig, trial)
     mean = {f: float(np.mean([t[f] for t in trials.values()])) for f in filters}
-    return {"trials": trials, "mean": mean, "runtime_s": runtime, "samples": samples}
+    return {"trials": trials, "mean": mean, "runtime_s": runtime, "samples": samples,
+            "sigma": sigma}

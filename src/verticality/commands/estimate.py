@@ -3,7 +3,8 @@
 
 INPUT is an IMU CSV (``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z``, SI units; an EuRoC / TUM-VI IMU
 file; or any header mapped with ``--columns``) or a BROAD-layout HDF5 file. Writes
-``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags``.
+``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags``; with ``--sigma`` (our filter) a last
+column ``tilt_sigma_rad``, the tilt's standard deviation.
 """
 
 from __future__ import annotations
@@ -26,10 +27,13 @@ def register(sub):
                         "IMU CSV, CSV with --columns, or BROAD .hdf5")
     p.add_argument("--out", type=Path, required=True, metavar="OUT.csv",
                    help="output CSV t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags")
+    p.add_argument("--sigma", action="store_true",
+                   help="also write a last column tilt_sigma_rad, the standard deviation of the "
+                        "tilt (our filter only; docs/tilt.md)")
     p.add_argument("--filter", default=OURS, choices=FILTERS,
                    help=f"filter (default {OURS}; peers need the optional peers extra)")
     p.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
-                   help="also draw roll, pitch and bias over time")
+                   help="also draw roll, pitch, bias, the tilt's σ and the flags over time")
     p.add_argument("--units", nargs="+", default=[], metavar="UNIT",
                    help="input units when not SI: deg/s and/or g (e.g. --units deg/s g)")
     p.add_argument("--columns", default=None, metavar="t=NAME,gyr_x=NAME,...",
@@ -97,23 +101,43 @@ def run(args) -> int:
 
     if not args.input.is_file():
         raise InputError(f"{args.input}: no such file")
+    if args.sigma and args.filter != OURS:
+        raise InputError(f"--sigma: filter {args.filter} reports no uncertainty; use --filter {OURS}")
     t, gyr, acc, dt, t_origin = load_input(args.input, args.units, args.columns, args.time_unit)
+    sigma = None
     if args.filter == OURS:
         from verticality.estimators import tilt
 
         out = tilt.run(gyr, acc, dt)
+        sigma = tilt.tilt_sigma_rad(out.var)
     else:
         quat, bias = run_filter(args.filter, gyr, acc, dt)
         out = _peer_output(np.asarray(quat), np.asarray(bias), dt)
-    imu.write_estimate_csv(args.out, t, out)
+    imu.write_estimate_csv(args.out, t, out, tilt_sigma_rad=sigma if args.sigma else None)
     print(f"wrote {args.out} ({t.size} samples, filter {args.filter})")
+    if sigma is not None:
+        _print_sigma(sigma, np.asarray(out.flags))
     _warn_gaps(t, dt, ours=args.filter == OURS)
     if t_origin is not None:
         print(f"t is in seconds from the input's first time stamp, {t_origin}")
     if args.plot is not None:
-        path = _plot(args.plot, t, out, args.filter)
+        path = _plot(args.plot, t, out, args.filter, sigma)
         print(f"wrote {path}")
     return 0
+
+
+def _print_sigma(sigma_rad, flags) -> None:
+    """One line: the tilt's standard deviation over the samples not flagged re-acquiring (after the
+    start and each gap the filter has not yet settled on the vertical)."""
+    from verticality.estimators.tilt import REACQUIRING
+
+    s = np.degrees(sigma_rad[(flags & REACQUIRING) == 0])
+    if s.size == 0:
+        print("tilt σ: every sample is still re-acquiring (the recording is shorter than the "
+              "re-acquisition time), the estimate is unconfirmed")
+        return
+    print(f"tilt σ outside re-acquisitions: median {np.median(s):.2f}°, "
+          f"95 % of samples below {np.percentile(s, 95):.2f}°, largest {np.max(s):.2f}°")
 
 
 def _warn_gaps(t, dt, ours: bool = True) -> None:
@@ -170,10 +194,10 @@ def _shade_reacquiring(ax, t, flags) -> None:
                    label="re-acquiring (after the start or a gap)" if j == 0 else None)
 
 
-def _plot(path: Path, t, out, name: str) -> Path:
+def _plot(path: Path, t, out, name: str, sigma_rad=None) -> Path:
     from verticality.plots import new_figure, save
 
-    fig, axes = new_figure(3, 1, height_per_row=2.2)
+    fig, axes = new_figure(3 if sigma_rad is None else 4, 1, height_per_row=2.2)
     ax = axes[:, 0]
     ax[0].plot(t, np.degrees(out.roll_rad), label="roll")
     ax[0].plot(t, np.degrees(out.pitch_rad), label="pitch")
@@ -186,9 +210,24 @@ def _plot(path: Path, t, out, name: str) -> Path:
         ax[1].plot(t, np.degrees(out.bias_S_rad_s[:, i]), label=f"bias {c}")
     ax[1].set_ylabel("gyro bias (deg/s)")
     ax[1].legend(loc="upper right")
-    _plot_flags(ax[2], t, flags)
-    ax[2].set_xlabel("t (s)")
+    if sigma_rad is not None:
+        _plot_sigma(ax[2], t, sigma_rad, flags)
+    _plot_flags(ax[-1], t, flags)
+    ax[-1].set_xlabel("t (s)")
     return save(fig, path)
+
+
+def _plot_sigma(ax, t, sigma_rad, flags) -> None:
+    """The tilt's standard deviation on a log scale (it spans ~0.3° at rest to tens of degrees
+    after the start or a gap), with the accelerometer-calibration floor it never goes below."""
+    from verticality.estimators.tilt import DEFAULT_PARAMS as p
+
+    ax.semilogy(t, np.degrees(sigma_rad), color="C3", label="tilt σ")
+    ax.axhline(np.degrees(p.acc_calib_m_s2 / p.g_m_s2), color="0.4", linestyle=":",
+               label=f"accelerometer calibration ({p.acc_calib_m_s2:g} m/s²)")
+    _shade_reacquiring(ax, t, flags)
+    ax.set_ylabel("tilt σ (deg)")
+    ax.legend(loc="upper right")
 
 
 def _plot_flags(ax, t, flags) -> None:

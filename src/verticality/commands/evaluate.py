@@ -51,11 +51,23 @@ def run_broad(args) -> int:
     table.add_column("trial")
     for f in filters:
         table.add_column(f, justify="right")
+    sig = res["sigma"]  # our filter's reported σ against its errors (docs/tilt.md)
+    if sig:
+        table.add_column(f"{OURS}: RMS σ", justify="right")
+        table.add_column("within σ / 2σ", justify="right")
     best = {name: min(v.values()) for name, v in res["trials"].items()}
     for name, v in res["trials"].items():
-        table.add_row(name, *[(f"[bold]{v[f]:.3f}[/bold]" if v[f] == best[name] else f"{v[f]:.3f}")
-                              for f in filters])
+        cells = [(f"[bold]{v[f]:.3f}[/bold]" if v[f] == best[name] else f"{v[f]:.3f}")
+                 for f in filters]
+        if sig:
+            c = sig[name]
+            cells += [f"{c['rms_sigma_deg']:.3f}",
+                      f"{100 * c['within_1sigma']:.1f} / {100 * c['within_2sigma']:.1f} %"]
+        table.add_row(name, *cells)
     table.add_row("mean", *[f"{res['mean'][f]:.3f}" for f in filters], end_section=True)
     table.add_row("runtime (s)", *[f"{res['runtime_s'][f]:.2f}" for f in filters])
     Console().print(table)
+    if sig:
+        Console().print("within σ / 2σ: the share of scored samples whose error is at most the "
+                        "reported σ / 2σ (0.632 / 0.982 if σ were exact for a 2-D Gaussian error)")
     return 0

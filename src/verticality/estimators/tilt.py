@@ -92,6 +92,9 @@ class TiltParams(NamedTuple):
     ``x0``), the tilt standard deviation added for that sample's unknown inertial acceleration;
     the tilt is then re-acquired after ``reacquire_s`` as after a gap, so a start in motion is
     caught (flag ``REACQUIRING`` until then).
+    ``acc_calib_m_s2``: the accelerometer's calibration error (bias, scale, misalignment), which
+    gravity alone cannot reveal; it does not change the estimate, only the reported uncertainty
+    (:func:`tilt_sigma_rad`).
     ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. ``gyr_scale_noise`` (√s):
     gyro errors that grow with the rate (scale factor, axis misalignment), process noise density
     ``(k |ω|)²``. Rest (T eq. 1 with ω = 0, so the canal signal is the drift): when for
@@ -119,6 +122,7 @@ class TiltParams(NamedTuple):
     gap_flag_s: float = 0.1
     reacquire_s: float = 1.0
     init_tilt_rad: float = 1.0
+    acc_calib_m_s2: float = 0.05
 
 
 DEFAULT_PARAMS = TiltParams()
@@ -163,6 +167,17 @@ class TiltOutput(NamedTuple):
     bias_S_rad_s: jax.Array  # (3,)
     var: jax.Array  # (7,) variances of (δx, δy [rad²], ṽx, ṽy [m²/s²], b̃x, b̃y, b̃z [rad²/s²])
     flags: jax.Array  # int32 bit set
+
+
+def tilt_sigma_rad(var, params: TiltParams = DEFAULT_PARAMS) -> np.ndarray:
+    """Standard deviation of the tilt (rad) from a :class:`TiltOutput`'s ``var`` ((..., 7)): the
+    RMS angle between the true and the estimated vertical, ``sqrt(var_δx + var_δy + (c/g)²)``.
+    The first two terms are the filter's covariance of its tilt error (frame-free: the trace does
+    not depend on the heading); ``c = params.acc_calib_m_s2`` adds the accelerometer's calibration
+    error, a systematic error that the filter cannot average out and that sets the error at rest
+    (docs/tilt.md, "The uncertainty")."""
+    v = np.asarray(var, dtype=np.float64)
+    return np.sqrt(v[..., 0] + v[..., 1] + (params.acc_calib_m_s2 / params.g_m_s2) ** 2)
 
 
 # --- small quaternion helpers, written out so that XLA fuses them (batched over leading axes) ---
@@ -449,7 +464,10 @@ def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block:
     at_start = state.blk_count == 0
     quat = jnp.where(at_start, state.quat_E_S, _qnormalize(_qmul(
         _qmul(state.quat_E_S, state.blk_dquat), _qexp(-state.bias_S_rad_s * state.blk_tau))))
-    out = _outputs(quat, state.bias_S_rad_s, state.P,
+    # before initialization there is no estimate: the variance reported is the initialization's
+    # (as run reports it), not P0's
+    P_out = jnp.where(state.initialized, state.P, widen_tilt(state.P, p.init_tilt_rad))
+    out = _outputs(quat, state.bias_S_rad_s, P_out,
                    _flags(dt_ok, gyr_ok, acc_ok, init_now, disturbed, gap, reacq,
                           state.reacquire | (state.blk_gap > 0)))
     return state, out

@@ -72,7 +72,8 @@ def _kf(P, i0, m, z, r):
 class Stream:
     """Sample-by-sample tilt filter: ``s = Stream()``, ``out = s.step(gyr, acc, dt)`` with
     ``out = (roll, pitch, up(3), quat(4), bias(3), flags)`` — the per-sample outputs of
-    ``tilt.step`` (variances in :attr:`P`). ``params`` is a ``tilt.TiltParams``."""
+    ``tilt.step`` (variances in :attr:`P`, the tilt's standard deviation in
+    :attr:`tilt_sigma_rad`). ``params`` is a ``tilt.TiltParams``."""
 
     def __init__(self, params=None, block: int = 32, P0=None, x0=None):
         from verticality.estimators import tilt
@@ -92,6 +93,18 @@ class Stream:
         self.reacq_f_E = np.zeros(3)
         self.reacq_t = 0.0
         self._zero()
+
+    @property
+    def tilt_sigma_rad(self) -> float:
+        """Standard deviation of the tilt (rad) at the last step: ``tilt.tilt_sigma_rad`` of
+        :attr:`P`'s diagonal (the value ``tilt.run`` reports for that sample); before the
+        initialization, when there is no estimate yet, the initialization's."""
+        from verticality.estimators import tilt
+
+        var = np.diagonal(self.P)
+        if not self.initialized:
+            var = var + np.array([1.0, 1.0, 0, 0, 0, 0, 0]) * self.p.init_tilt_rad**2
+        return float(tilt.tilt_sigma_rad(var, self.p))
 
     def _zero(self):
         self.dq = (1.0, 0.0, 0.0, 0.0)

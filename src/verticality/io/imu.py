@@ -29,6 +29,7 @@ from verticality.io import imu_layout as layout
 IMU_COLUMNS = layout.IMU_COLUMNS
 ESTIMATE_COLUMNS = ("t", "roll_rad", "pitch_rad", "gx", "gy", "gz", "bias_x", "bias_y", "bias_z",
                     "flags")
+SIGMA_COLUMN = "tilt_sigma_rad"  # appended when the filter reports its uncertainty
 G_M_S2 = 9.81
 GYR_UNITS = {"rad/s": 1.0, "deg/s": np.pi / 180.0}
 ACC_UNITS = {"m/s2": 1.0, "m/s^2": 1.0, "g": G_M_S2}
@@ -190,18 +191,25 @@ def write_imu_csv(path, rec: ImuRecording) -> Path:
     return path
 
 
-def write_estimate_csv(path, t_s, out) -> Path:
+def write_estimate_csv(path, t_s, out, tilt_sigma_rad=None) -> Path:
     """Write a :class:`verticality.estimators.tilt.TiltOutput` (or any object with roll_rad,
     pitch_rad, up_S, bias_S_rad_s, flags) as ``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,
-    flags``; ``(gx, gy, gz)`` is the unit gravity direction (down) in the sensor frame."""
+    flags``; ``(gx, gy, gz)`` is the unit gravity direction (down) in the sensor frame. With
+    ``tilt_sigma_rad`` (N,) a last column ``tilt_sigma_rad`` holds the tilt's standard deviation
+    (``tilt.tilt_sigma_rad``); filters that report none (the peers) are written without it."""
     path = Path(path)
     grav = -np.asarray(out.up_S)
     data = np.column_stack([np.asarray(t_s), np.asarray(out.roll_rad), np.asarray(out.pitch_rad),
                             grav, np.asarray(out.bias_S_rad_s)])
-    lines = [",".join(ESTIMATE_COLUMNS)]
+    columns = ESTIMATE_COLUMNS
     flags = np.asarray(out.flags).astype(int)
-    for row, f in zip(data, flags, strict=True):
-        lines.append(",".join(f"{v:.17g}" for v in row) + f",{f}")
+    tail = [""] * len(flags)
+    if tilt_sigma_rad is not None:
+        columns = columns + (SIGMA_COLUMN,)
+        tail = [f",{v:.17g}" for v in np.asarray(tilt_sigma_rad, dtype=np.float64)]
+    lines = [",".join(columns)]
+    for row, f, end in zip(data, flags, tail, strict=True):
+        lines.append(",".join(f"{v:.17g}" for v in row) + f",{f}{end}")
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
@@ -214,16 +222,21 @@ class EstimateTable(NamedTuple):
     gravity_S: np.ndarray  # (N, 3)
     bias_S_rad_s: np.ndarray  # (N, 3)
     flags: np.ndarray  # (N,) int
+    tilt_sigma_rad: np.ndarray | None = None  # (N,), None when the file has no such column
 
 
 def read_estimate_csv(path) -> EstimateTable:
+    """Read what :func:`write_estimate_csv` wrote (with or without the ``tilt_sigma_rad``
+    column)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     with open(path, encoding="utf-8") as fh:
-        header = fh.readline().strip().split(",")
-    if tuple(header) != ESTIMATE_COLUMNS:
-        raise InputError(f"{path}: expected header {','.join(ESTIMATE_COLUMNS)}")
+        header = tuple(fh.readline().strip().split(","))
+    if header not in (ESTIMATE_COLUMNS, ESTIMATE_COLUMNS + (SIGMA_COLUMN,)):
+        raise InputError(f"{path}: expected header {','.join(ESTIMATE_COLUMNS)}"
+                         f"[,{SIGMA_COLUMN}]")
     data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    sigma = data[:, 10] if len(header) > len(ESTIMATE_COLUMNS) else None
     return EstimateTable(data[:, 0], data[:, 1], data[:, 2], data[:, 3:6], data[:, 6:9],
-                         data[:, 9].astype(int))
+                         data[:, 9].astype(int), sigma)
