@@ -465,8 +465,11 @@ def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block:
     quat = jnp.where(at_start, state.quat_E_S, _qnormalize(_qmul(
         _qmul(state.quat_E_S, state.blk_dquat), _qexp(-state.bias_S_rad_s * state.blk_tau))))
     # before initialization there is no estimate: the variance reported is the initialization's
-    # (as run reports it), not P0's
+    # (as run reports it), not P0's; within a block, the tilt variance that gyro dropouts and gaps
+    # have added since its start (it enters P at the block's update; without it the samples after
+    # a gap would show the variance from before it)
     P_out = jnp.where(state.initialized, state.P, widen_tilt(state.P, p.init_tilt_rad))
+    P_out = P_out + jnp.diag(jnp.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]) * state.blk_qmiss)
     out = _outputs(quat, state.bias_S_rad_s, P_out,
                    _flags(dt_ok, gyr_ok, acc_ok, init_now, disturbed, gap, reacq,
                           state.reacquire | (state.blk_gap > 0)))
@@ -616,6 +619,7 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
             state, o = step_jit(state, gyr[j], acc[j], dts[j], params, block)
             put(j, jax.tree_util.tree_map(lambda x: np.asarray(x)[None], o))
             k = j + 1
+    k_chunks = k
     if k < n:
         # dispatch every chunk first (asynchronous, the state stays on the device), then copy
         # the outputs: the host copies overlap the device work of the later chunks
@@ -657,9 +661,28 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
                 _put_chunk(tmp, 0, outs, block)
                 for dst, src in zip(res, tmp, strict=True):
                     dst[k0:k0 + m] = src[:m]
+        _add_dropout_variance(res.var, gyr, dts, k_chunks, block, params)
         if return_state:
             state = unpack_state(x, state)
     return (res, state) if return_state else res
+
+
+def _add_dropout_variance(var, gyr, dts, k0, block, params):
+    """Within each block from sample ``k0`` on (``k0`` at a block boundary), add to the tilt
+    variances the part that gyro dropouts and gaps have added since the block's start, as
+    :func:`step` reports it (the kernels give the block-start variances; the block's last sample
+    already has the updated ones). In place; nothing to do on a recording without dropouts."""
+    if np.isfinite(np.sum(gyr[k0:])) and not np.any(dts[k0:] > params.gap_flag_s):
+        return  # every gyro sample finite (a finite sum says so) and no gap: the usual case
+    dt_ok = np.isfinite(dts[k0:]) & (dts[k0:] > 0)
+    dts0 = np.where(dt_ok, dts[k0:], 0.0)
+    lost = dt_ok & ~(np.all(np.isfinite(gyr[k0:]), axis=1) & (dts0 <= params.gap_flag_s))
+    m = dts0.shape[0]
+    q = np.zeros(-(-m // block) * block)
+    q[:m] = np.where(lost, (params.omega_missing_rad_s * dts0) ** 2, 0.0)
+    q = np.cumsum(q.reshape(-1, block), axis=1)
+    q[:, -1] = 0.0
+    var[k0:, 0:2] += q.reshape(-1)[:m, None]
 
 
 def _usable_np(acc, dts):

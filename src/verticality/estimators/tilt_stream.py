@@ -97,13 +97,13 @@ class Stream:
     @property
     def tilt_sigma_rad(self) -> float:
         """Standard deviation of the tilt (rad) at the last step: ``tilt.tilt_sigma_rad`` of
-        :attr:`P`'s diagonal (the value ``tilt.run`` reports for that sample); before the
-        initialization, when there is no estimate yet, the initialization's."""
+        :attr:`P`'s diagonal (the value ``tilt.run`` reports for that sample) with what gyro
+        dropouts and gaps have added since the block's start; before the initialization, when
+        there is no estimate yet, the initialization's."""
         from verticality.estimators import tilt
 
-        var = np.diagonal(self.P)
-        if not self.initialized:
-            var = var + np.array([1.0, 1.0, 0, 0, 0, 0, 0]) * self.p.init_tilt_rad**2
+        widen = self.qmiss if self.initialized else self.p.init_tilt_rad**2
+        var = np.diagonal(self.P) + np.array([1.0, 1.0, 0, 0, 0, 0, 0]) * widen
         return float(tilt.tilt_sigma_rad(var, self.p))
 
     def _zero(self):
