@@ -111,3 +111,33 @@ def test_estimate_plot_has_one_labelled_row_per_flag_that_occurs():
     _plot_flags(ax2 := fig.add_subplot(2, 1, 2), t, np.zeros(100, dtype=np.int32))
     assert ax2.get_title() == "flags: none"
     plt.close(fig)
+
+
+@pytest.mark.parametrize("body,fast", [
+    ("0,0.1,0.2,0.3,0,0,9.81\n0.01,0.1,0.2,0.3,0,0,9.81\n", True),  # seconds from "0"
+    ("1403715273262142976,1,2,3,4,5,6\n1403715273267142912,1,2,3,4,5,6\n", True),  # ns, exact
+    ("0,1,2,3,4,5,6 # note\n1,nan,2,3,4,5,6\n", True),  # inline comment, a nan cell
+    ("0,1,,3,4,5,6\n1,1,2,3,4,5,6\n", False),  # empty cell: NaN, by the general parser
+    ("0,1,x,3,4,5,6\n1,1,2,3,4,5,6\n", False),  # text in a data cell: NaN, as before
+    ("5.0,1,2,3,4,5,6\n6,1,2,3,4,5,6\n", False),  # integer-valued but not all integers: float
+    ("99999999999999999999,1,2,3,4,5,6\n", False),  # beyond int64: refused by the general one
+])
+def test_fast_csv_parser_agrees_with_the_general_one(body, fast):
+    """read_imu_csv parses clean files with NumPy's C parser and everything else with the general
+    parser; where the fast one answers, both give the same values and time type (ns stamps stay
+    int64, exact)."""
+    from verticality.io import imu_layout
+
+    rows = body.splitlines()
+    lay = imu_layout.locate(",".join(imu.IMU_COLUMNS))
+    got = imu._parse_clean_rows(rows, lay)
+    assert (got is not None) == fast
+    try:
+        ref = imu._parse_rows(rows, list(range(2, len(rows) + 2)), lay, "f.csv")
+    except InputError as exc:
+        assert not fast and "beyond int64" in str(exc)
+        return
+    if got is not None:
+        np.testing.assert_array_equal(got[0], ref[0])
+        assert got[1].dtype == ref[1].dtype
+        np.testing.assert_array_equal(got[1], ref[1])

@@ -103,17 +103,24 @@ def run(args) -> int:
         raise InputError(f"{args.input}: no such file")
     if args.sigma and args.filter != OURS:
         raise InputError(f"--sigma: filter {args.filter} reports no uncertainty; use --filter {OURS}")
-    t, gyr, acc, dt, t_origin = load_input(args.input, args.units, args.columns, args.time_unit)
-    sigma = None
-    if args.filter == OURS:
-        from verticality.estimators import tilt
+    from rich.console import Console
 
-        out = tilt.run(gyr, acc, dt)
-        sigma = tilt.tilt_sigma_rad(out.var)
-    else:
-        quat, bias = run_filter(args.filter, gyr, acc, dt)
-        out = _peer_output(np.asarray(quat), np.asarray(bias), dt)
-    imu.write_estimate_csv(args.out, t, out, tilt_sigma_rad=sigma if args.sigma else None)
+    # a spinner on a terminal (nothing otherwise): a long recording takes a while to read and write
+    with Console(stderr=True).status(f"reading {args.input} …") as status:
+        t, gyr, acc, dt, t_origin = load_input(args.input, args.units, args.columns,
+                                               args.time_unit)
+        status.update(f"filtering {t.size} samples ({args.filter}) …")
+        sigma = None
+        if args.filter == OURS:
+            from verticality.estimators import tilt
+
+            out = tilt.run(gyr, acc, dt)
+            sigma = tilt.tilt_sigma_rad(out.var)
+        else:
+            quat, bias = run_filter(args.filter, gyr, acc, dt)
+            out = _peer_output(np.asarray(quat), np.asarray(bias), dt)
+        status.update(f"writing {args.out} …")
+        imu.write_estimate_csv(args.out, t, out, tilt_sigma_rad=sigma if args.sigma else None)
     print(f"wrote {args.out} ({t.size} samples, filter {args.filter})")
     if sigma is not None:
         _print_sigma(sigma, np.asarray(out.flags))

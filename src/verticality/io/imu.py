@@ -162,18 +162,11 @@ def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = 
     rows, line_numbers = layout.data_lines(lines)
     if not rows:
         raise InputError(f"{path}: no data rows")
-    try:
-        data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, filling_values=np.nan,
-                             invalid_raise=True, ndmin=2)
-    except ValueError as exc:
-        raise InputError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
-    if data.size == 0:
-        raise InputError(f"{path}: no data rows")
-    if data.shape[1] != lay.n_columns:
-        raise InputError(f"{path}: {data.shape[1]} values per row but {lay.n_columns} header "
-                         "columns")
-    t_cells = [r.split("#", 1)[0].split(",")[lay.index["t"]].strip() for r in rows]
-    t_raw = layout.parse_time_cells(t_cells, line_numbers, source, lay.time_label)
+    fast = _parse_clean_rows(rows, lay)
+    if fast is not None:
+        data, t_raw = fast
+    else:
+        data, t_raw = _parse_rows(rows, line_numbers, lay, source)
     layout.check_time_steps(t_raw, line_numbers, lay.time_unit, source, lay.time_label)
     unit = lay.time_unit or "s"
     t_s, t0 = layout.time_to_seconds(t_raw, unit)
@@ -182,6 +175,46 @@ def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = 
     gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=source,
                            dt_s=dt_from_t(t_s))
     return ImuRecording(t_s, gyr, acc, t0, unit)
+
+
+def _parse_clean_rows(rows: list[str], lay) -> tuple[np.ndarray, np.ndarray] | None:
+    """The fast path of :func:`read_imu_csv` (NumPy's C parser, ~3× faster than
+    :func:`_parse_rows`): ``(data, t_raw)`` when every cell is a number (``nan`` included) and
+    every row has the header's number of columns, with the values :func:`_parse_rows` would give;
+    None otherwise (empty cells, text, ragged rows, a time column that is not all finite), and then
+    :func:`_parse_rows` reads the file, with its messages."""
+    try:
+        data = np.loadtxt(rows, delimiter=",", comments="#", dtype=np.float64, ndmin=2)
+    except ValueError:
+        return None
+    k = lay.index["t"]
+    if data.shape[1] != lay.n_columns or not np.all(np.isfinite(data[:, k])):
+        return None
+    t = data[:, k]
+    if not np.all(t == np.round(t)):  # some stamp is not an integer: float64, as _parse_rows
+        return data, t
+    try:  # integer stamps stay exact (ns since 1970 do not survive float64)
+        t_int = np.loadtxt(rows, delimiter=",", comments="#", dtype=np.int64, usecols=k, ndmin=1)
+    except (ValueError, OverflowError):  # "5.0", "1e3", beyond int64: _parse_rows decides
+        return None
+    return data, t_int
+
+
+def _parse_rows(rows: list[str], line_numbers: list[int], lay, source: str):
+    """``(data, t_raw)`` of data rows of any form: empty and non-numeric cells become NaN (the
+    time column's are refused, naming their lines), ragged rows are refused."""
+    try:
+        data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, filling_values=np.nan,
+                             invalid_raise=True, ndmin=2)
+    except ValueError as exc:
+        raise InputError(f"{source}: malformed CSV ({str(exc).splitlines()[0]})") from None
+    if data.size == 0:
+        raise InputError(f"{source}: no data rows")
+    if data.shape[1] != lay.n_columns:
+        raise InputError(f"{source}: {data.shape[1]} values per row but {lay.n_columns} header "
+                         "columns")
+    t_cells = [r.split("#", 1)[0].split(",")[lay.index["t"]].strip() for r in rows]
+    return data, layout.parse_time_cells(t_cells, line_numbers, source, lay.time_label)
 
 
 def write_imu_csv(path, rec: ImuRecording) -> Path:
@@ -202,16 +235,19 @@ def write_estimate_csv(path, t_s, out, tilt_sigma_rad=None) -> Path:
     data = np.column_stack([np.asarray(t_s), np.asarray(out.roll_rad), np.asarray(out.pitch_rad),
                             grav, np.asarray(out.bias_S_rad_s)])
     columns = ESTIMATE_COLUMNS
-    flags = np.asarray(out.flags).astype(int)
-    tail = [""] * len(flags)
+    flags = np.asarray(out.flags).astype(np.int64)
+    fmt = ",".join(["%.17g"] * data.shape[1]) + ",%d"
+    cells = np.empty((data.shape[0], data.shape[1] + 1 + (tilt_sigma_rad is not None)),
+                     dtype=object)  # Python floats and ints, one %-format per row
+    cells[:, :data.shape[1]] = data
+    cells[:, data.shape[1]] = flags
     if tilt_sigma_rad is not None:
         columns = columns + (SIGMA_COLUMN,)
-        tail = [f",{v:.17g}" for v in np.asarray(tilt_sigma_rad, dtype=np.float64)]
-    lines = [",".join(columns)]
-    for row, f, end in zip(data, flags, tail, strict=True):
-        lines.append(",".join(f"{v:.17g}" for v in row) + f",{f}{end}")
+        cells[:, -1] = np.asarray(tilt_sigma_rad, dtype=np.float64)
+        fmt += ",%.17g"
+    body = [fmt % tuple(row) for row in cells.tolist()]
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    path.write_text(",".join(columns) + "\n" + "\n".join(body) + "\n", encoding="utf-8")
     return path
 
 

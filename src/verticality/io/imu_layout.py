@@ -154,6 +154,11 @@ def stated_time_unit(header_unit: str | None, time_unit: str | None, source: str
     return time_unit if time_unit is not None else header_unit
 
 
+def is_integer_cell(cell: str) -> bool:
+    """Whether a (stripped) time cell is an integer, as :func:`parse_time_cells` tells them."""
+    return bool(_INTEGER.match(cell))
+
+
 def parse_time_cells(cells: list[str], line_numbers: list[int], source: str = "input",
                      label: str = "t") -> np.ndarray:
     """Time cells → int64 when every cell is an integer (ns stamps ~1.4e18 do not survive float64:
