@@ -83,6 +83,11 @@ def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
     np.testing.assert_allclose(x.roll_rad, ref.roll_rad, atol=1e-9)
     assert x.tilt_sigma_rad is None  # the contract's columns unless --sigma asks for σ
     assert (tmp_path / "x.csv").read_text().splitlines()[0] == ",".join(imu.ESTIMATE_COLUMNS)
+    # one row has no time step: refused
+    one = tmp_path / "one.csv"
+    one.write_text(src.read_text().splitlines()[0] + "\n" + src.read_text().splitlines()[1] + "\n")
+    assert cli.main(["estimate", str(one), "--out", str(tmp_path / "y.csv")]) == 2
+    assert "one data row; the filter needs at least two" in capsys.readouterr().err
     # a peer reports no uncertainty: --sigma is refused before anything runs
     capsys.readouterr()
     assert cli.main(["estimate", str(src), "--out", str(tmp_path / "y.csv"), "--filter", "vqf",

@@ -141,6 +141,10 @@ def test_run_equals_streaming_steps():
     assert np.flatnonzero(batch.flags & tilt.DT_GAP).tolist() == [100]
     _assert_reacquired_once_after(batch.flags, 100)
     assert np.all(np.degrees(tilt.tilt_sigma_rad(batch.var[:3])) > 45.0)
+    # nothing ever initializes the filter: no estimate anywhere, and σ says so (not P0's 4°)
+    never = tilt.run(gyr[:50], np.full((50, 3), np.nan), dts[:50])
+    assert not np.any(never.flags & tilt.INIT)
+    assert np.all(np.degrees(tilt.tilt_sigma_rad(never.var)) > 45.0)
     # continuing from a mid-block state gives the same as one run over everything
     out1, st1 = tilt.run(gyr[:70], acc[:70], dts[:70], return_state=True)
     assert int(st1.blk_count) == 0  # run closes a trailing partial block

@@ -91,6 +91,8 @@ def load_input(path: Path, units: list[str], columns: str | None = None,
     mapping = imu_layout.parse_columns_spec(columns) if columns is not None else None
     rec = imu.read_imu_csv(path, gyr_units=gyr_u, acc_units=acc_u, columns=mapping,
                            time_unit=time_unit)
+    if rec.t_s.size < 2:
+        raise InputError(f"{path}: one data row; the filter needs at least two (a time step)")
     origin = None if rec.t0_stamp is None else f"{rec.t0_stamp} {rec.time_unit}"
     return LoadedInput(rec.t_s, rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, origin)
 
@@ -134,11 +136,19 @@ def run(args) -> int:
 
 
 def _print_sigma(sigma_rad, flags) -> None:
-    """One line: the tilt's standard deviation over the samples not flagged re-acquiring (after the
-    start and each gap the filter has not yet settled on the vertical)."""
-    from verticality.estimators.tilt import REACQUIRING
+    """One line: the tilt's standard deviation over the samples from the initialization on that
+    are not flagged re-acquiring (after the start and each gap the filter has not yet settled on
+    the vertical)."""
+    from verticality.estimators.tilt import INIT, REACQUIRING
 
-    s = np.degrees(sigma_rad[(flags & REACQUIRING) == 0])
+    init = np.flatnonzero(flags & INIT)
+    if init.size == 0:
+        print("tilt σ: no sample initialized the filter (no usable accelerometer sample with a "
+              "valid time step), so there is no estimate")
+        return
+    settled = (flags & REACQUIRING) == 0
+    settled[:init[0]] = False
+    s = np.degrees(sigma_rad[settled])
     if s.size == 0:
         print("tilt σ: every sample is still re-acquiring (the recording is shorter than the "
               "re-acquisition time), the estimate is unconfirmed")

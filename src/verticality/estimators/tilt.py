@@ -604,6 +604,8 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
                  | np.where(dt_ok[:k], 0, BAD_DT)
                  | np.where(dt_ok[:k] & (dts[:k] > params.gap_flag_s), DT_GAP, 0)).astype(np.int32)
         quat = np.tile(np.asarray(state.quat_E_S), (k, 1))
+        # no estimate before the initialization: those samples report its variance (as step)
+        var = np.tile(np.diagonal(np.asarray(widen_tilt(state.P, params.init_tilt_rad))), (k, 1))
         if found:
             q0 = _quat_from_acc_np(acc[k - 1])
             quat[-1] = np.asarray(q0)
@@ -612,8 +614,7 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
                                    reacquire=np.bool_(True), reacq_f_E=np.zeros(3),
                                    reacq_t=np.float64(0.0),
                                    P=np.asarray(widen_tilt(state.P, params.init_tilt_rad)))
-        put(0, _outputs_np(quat, np.tile(np.asarray(state.bias_S_rad_s), (k, 1)),
-                           np.tile(np.diagonal(np.asarray(state.P)), (k, 1)), flags))
+        put(0, _outputs_np(quat, np.tile(np.asarray(state.bias_S_rad_s), (k, 1)), var, flags))
     if int(state.blk_count) != 0:  # finish the current block sample by sample
         for j in range(k, min(n, k + block - int(state.blk_count))):
             state, o = step_jit(state, gyr[j], acc[j], dts[j], params, block)
