@@ -107,6 +107,12 @@ def run(args) -> int:
         raise InputError(f"--sigma: filter {args.filter} reports no uncertainty; use --filter {OURS}")
     from rich.console import Console
 
+    from verticality.io.output import check_writable_file
+
+    check_writable_file(args.out, "--out")
+    if args.plot is not None:
+        check_writable_file(args.plot, "--plot")
+
     # a spinner on a terminal (nothing otherwise): a long recording takes a while to read and write
     with Console(stderr=True).status(f"reading {args.input} …") as status:
         t, gyr, acc, dt, t_origin = load_input(args.input, args.units, args.columns,

@@ -43,8 +43,10 @@ def _check_positive(name: str, value) -> None:
 
 def run(args) -> int:
     from verticality.io.motion import write_motion_csv
+    from verticality.io.output import check_writable_file
     from verticality.trajectories import BY_NAME
 
+    check_writable_file(args.out, "--out")
     _check_positive("duration", args.duration)
     _check_positive("rate", args.rate)
     if not args.start >= 0.0:

@@ -82,7 +82,9 @@ def run(args) -> int:
 
     from verticality import simulation
     from verticality.io.motion import read_motion_csv, write_otolith_csv
+    from verticality.io.output import check_writable_file
 
+    check_writable_file(args.out, "--out")
     overrides = parse_params(args.param, args.model)
     rec = read_motion_csv(args.motion)
     pendulums, suffixes = pendulums_for(args.model, overrides)

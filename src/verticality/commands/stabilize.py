@@ -88,6 +88,11 @@ def run(args) -> int:
 
     if not args.motion.is_file():
         raise InputError(f"{args.motion}: no such file")
+    from verticality.io.output import check_writable_file
+
+    for option, path in (("--out", args.out), ("--plot", args.plot)):
+        if path is not None:
+            check_writable_file(path, option)
     rec = load_motion(args.motion, args.start, args.duration)
     traj = rt.from_record(rec.t_s, rec.q_I_H_wxyz, rec.omega_H_rad_s, rec.a_I_m_s2,
                        name=args.motion.stem)
