@@ -34,6 +34,12 @@ def register(sub):
                    help=f"filter (default {OURS}; peers need the optional peers extra)")
     p.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                    help="also draw roll, pitch, bias, the tilt's σ and the flags over time")
+    add_layout_options(p)
+    p.set_defaults(func=run)
+
+
+def add_layout_options(p) -> None:
+    """``--units``, ``--columns`` and ``--time-unit``: how an IMU CSV is read (also ``stream``)."""
     p.add_argument("--units", nargs="+", default=[], metavar="UNIT",
                    help="input units when not SI: deg/s and/or g (e.g. --units deg/s g)")
     p.add_argument("--columns", default=None, metavar="t=NAME,gyr_x=NAME,...",
@@ -43,7 +49,6 @@ def register(sub):
     p.add_argument("--time-unit", default=None, metavar="s|ms|us|ns",
                    help="CSV only: unit of the time column (default: the header's [unit], else s; "
                         "ms, us and ns times are written relative to the first stamp)")
-    p.set_defaults(func=run)
 
 
 def _parse_units(units: list[str]) -> tuple[str | None, str | None]:

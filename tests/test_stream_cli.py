@@ -1,0 +1,87 @@
+"""`verticality stream`: IMU CSV rows in (a pipe or a file), one estimate row out per row."""
+
+import io
+
+import numpy as np
+
+from verticality import cli
+from verticality.estimators import tilt
+from verticality.io import imu
+
+EUROC_HEADER = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+                "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]")
+T0_NS = 1403636579758555392  # first stamp of EuRoC MH_01_easy
+
+
+def _stream(argv, capsys, monkeypatch, stdin_text=None):
+    if stdin_text is not None:
+        monkeypatch.setattr("sys.stdin", io.StringIO(stdin_text))
+    capsys.readouterr()
+    code = cli.main(["stream", *argv])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def _table(text, tmp_path):
+    (tmp_path / "out.csv").write_text(text)
+    return imu.read_estimate_csv(tmp_path / "out.csv")
+
+
+def test_stream_from_stdin_equals_estimate_on_the_file(tmp_path, capsys, monkeypatch,
+                                                       swinging_imu):
+    """The pipe gives, row for row, what `estimate --sigma` gives for the whole file (the
+    plain-Python twin of the filter equals the batch run), including the held-back first
+    second."""
+    rec = swinging_imu(n=1500, dt_s=0.01, seed=3)
+    rec.acc_m_s2[700:705] = np.nan
+    src = imu.write_imu_csv(tmp_path / "rec.csv", rec)
+    code, out, _ = _stream(["--sigma"], capsys, monkeypatch, src.read_text())
+    assert code == 0
+    got = _table(out, tmp_path)
+    assert cli.main(["estimate", str(src), "--out", str(tmp_path / "est.csv"), "--sigma"]) == 0
+    ref = imu.read_estimate_csv(tmp_path / "est.csv")
+    for name in ref._fields:
+        np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=0, atol=1e-9,
+                                   err_msg=name)
+    assert np.all(got.flags[700:705] & tilt.ACC_MISSING)
+
+
+def test_unreadable_rows_are_written_flagged_and_named(tmp_path, capsys, monkeypatch,
+                                                       swinging_imu):
+    """After the checked head, a row with too few cells, one with a time that is not a number and
+    one whose time goes back are each still written (one output row per input row), flagged as a
+    bad time step, and named on stderr; the rows after them are filtered as usual."""
+    rec = swinging_imu(n=400, dt_s=0.01, seed=4)
+    lines = imu.write_imu_csv(tmp_path / "rec.csv", rec).read_text().splitlines()
+    cells = lines[301].split(",")
+    lines[301] = ",".join(cells[:3])  # data row 300: too few cells
+    lines[302] = ",".join(["x"] + lines[302].split(",")[1:])  # row 301: time not a number
+    lines[303] = ",".join(["0.5"] + lines[303].split(",")[1:])  # row 302: time goes back
+    code, out, err = _stream([], capsys, monkeypatch, "\n".join(lines) + "\n")
+    assert code == 0
+    got = _table(out, tmp_path)
+    assert got.t_s.size == 400
+    assert np.all(got.flags[300:303] & tilt.BAD_DT)
+    assert not np.any(got.flags[303:] & tilt.BAD_DT)
+    assert "line 302: 3 cells, the header has 7" in err
+    assert "line 303: time 'x' is not a number" in err
+    assert "line 304: time 0.5 s does not follow 2.99 s" in err
+    np.testing.assert_allclose(got.t_s[303:], rec.t_s[303:], rtol=0, atol=1e-12)
+
+
+def test_euroc_ns_stamps_on_a_pipe_and_refusals(tmp_path, capsys, monkeypatch, swinging_imu):
+    """EuRoC rows: times relative to the first stamp, exact to the ns; data in g are refused
+    before any row is written, as `estimate` refuses the file."""
+    rec = swinging_imu(n=600, dt_s=0.005, seed=5)
+    stamps = T0_NS + np.arange(600, dtype=np.int64) * 5_000_000
+    rows = [EUROC_HEADER] + [",".join([str(int(s))] + [f"{v:.17g}" for v in (*g, *a)])
+                             for s, g, a in zip(stamps, rec.gyr_rad_s, rec.acc_m_s2, strict=True)]
+    code, out, err = _stream([], capsys, monkeypatch, "\n".join(rows) + "\n")
+    assert code == 0 and f"first time stamp, {T0_NS} ns" in err
+    got = _table(out, tmp_path)
+    np.testing.assert_array_equal(got.t_s, (stamps - T0_NS) / 1e9)
+    src = imu.write_imu_csv(tmp_path / "g.csv", rec._replace(acc_m_s2=rec.acc_m_s2 / 9.81))
+    code, out, err = _stream([str(src)], capsys, monkeypatch)
+    assert code == 2 and out == "" and "looks like g" in err
+    code, out, err = _stream([str(src), "--units", "g"], capsys, monkeypatch)
+    assert code == 0 and len(out.splitlines()) == 601
