@@ -50,3 +50,13 @@ def test_an_os_error_during_a_command_is_one_line(tmp_path, capsys, monkeypatch)
     assert cli.main(["motion", "still", "--duration", "0.1", "--out", str(tmp_path / "m.csv")]) == 2
     err = capsys.readouterr().err.strip()
     assert err == f"verticality motion: error: No space left on device ({tmp_path / 'm.csv'})"
+
+
+@pytest.mark.parametrize("command", [["estimate", "{f}", "--out", "{d}/e.csv"], ["stream", "{f}"],
+                                     ["otolith", "{f}", "--out", "{d}/o.csv"], ["stabilize", "{f}"]])
+def test_a_binary_file_is_one_line_not_a_traceback(tmp_path, capsys, command):
+    f = tmp_path / "binary.csv"
+    f.write_bytes(b"\xff\xfe\x00\x01 not text")
+    assert cli.main([a.format(f=f, d=tmp_path) for a in command]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "the input is not UTF-8 text" in err and len(err.splitlines()) == 1

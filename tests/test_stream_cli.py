@@ -85,3 +85,10 @@ def test_euroc_ns_stamps_on_a_pipe_and_refusals(tmp_path, capsys, monkeypatch, s
     assert code == 2 and out == "" and "looks like g" in err
     code, out, err = _stream([str(src), "--units", "g"], capsys, monkeypatch)
     assert code == 0 and len(out.splitlines()) == 601
+
+
+def test_a_byte_order_mark_on_the_pipe_is_ignored(tmp_path, capsys, monkeypatch, swinging_imu):
+    """Files are read as utf-8-sig; a pipe gets the same treatment of a leading BOM."""
+    src = imu.write_imu_csv(tmp_path / "rec.csv", swinging_imu(n=300, dt_s=0.01, seed=6))
+    code, out, err = _stream([], capsys, monkeypatch, "\ufeff" + src.read_text())
+    assert code == 0 and err == "" and len(out.splitlines()) == 301

@@ -69,6 +69,10 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"verticality {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except UnicodeDecodeError as exc:  # a binary or non-UTF-8 file where text was expected
+        print(f"verticality {args.command}: error: the input is not UTF-8 text ({exc.reason} at "
+              f"byte {exc.start}); expected a CSV file", file=sys.stderr)
+        return 2
     except OSError as exc:  # a file that could not be read or written, as one line
         where = f" ({exc.filename})" if exc.filename else ""
         print(f"verticality {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)

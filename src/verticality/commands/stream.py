@@ -66,7 +66,7 @@ def _stream(fh, source, mapping, time_unit, gyr_u, acc_u, sigma: bool) -> int:
     from verticality.estimators.tilt_stream import Stream
     from verticality.io import imu, imu_layout
 
-    header = fh.readline()
+    header = fh.readline().removeprefix("\ufeff")  # a byte-order mark, as files are read
     lay = imu_layout.locate(header.rstrip("\r\n"), mapping, time_unit, source)
     reader = _RowReader(lay, source)
     head, numbers, line_no, t_span = [], [], 1, 0.0
