@@ -99,7 +99,7 @@ def _stream(fh, source, mapping, time_unit, gyr_u, acc_u, sigma: bool) -> int:
     dt_head = imu.dt_from_t(t_head)
     gyr, acc = imu.check_units(gyr, acc, gyr_units=gyr_u, acc_units=acc_u, source=source,
                                dt_s=dt_head)
-    reader.set_origin(t_raw[0].item() if unit != "s" else None, unit,
+    reader.set_origin(t_raw[0].item() if unit != "s" else None,
                       imu.GYR_UNITS[gyr_u or "rad/s"], imu.ACC_UNITS[acc_u or "m/s2"])
     out = sys.stdout
     columns = imu.ESTIMATE_COLUMNS + ((imu.SIGMA_COLUMN,) if sigma else ())
@@ -149,30 +149,26 @@ class _RowReader:
         self.k_t = lay.index["t"]
         self.cols = [lay.index[c] for c in imu_layout.IMU_COLUMNS[1:]]
         self.bad = 0
-        self.origin, self.per_s, self.gyr_scale, self.acc_scale = None, 1, 1.0, 1.0
+        self.per_s = imu_layout.TIME_UNITS[lay.time_unit or "s"]  # stamps per second
+        self.is_integer = imu_layout.is_integer_cell
+        self.origin, self.gyr_scale, self.acc_scale = None, 1.0, 1.0
 
     def time_cell(self, line: str):
         cells = line.split("#", 1)[0].split(",")
         return cells[self.k_t].strip() if len(cells) == self.lay.n_columns else None
 
     def seconds(self, cell: str, first: str) -> float:
-        """Time since ``first`` in seconds, for the head's length (unit as the layout's)."""
-        from verticality.io import imu_layout
-
+        """Time since ``first`` in seconds, for the head's length."""
         try:
-            return (float(cell) - float(first)) / imu_layout.TIME_UNITS[self.lay.time_unit or "s"]
+            return (float(cell) - float(first)) / self.per_s
         except ValueError:
             return 0.0
 
-    def set_origin(self, origin, unit: str, gyr_scale: float, acc_scale: float):
-        from verticality.io import imu_layout
-
-        self.origin, self.per_s = origin, imu_layout.TIME_UNITS[unit]
-        self.gyr_scale, self.acc_scale = gyr_scale, acc_scale
+    def set_origin(self, origin, gyr_scale: float, acc_scale: float):
+        """The first stamp (None for seconds, kept as written) and the unit conversions."""
+        self.origin, self.gyr_scale, self.acc_scale = origin, gyr_scale, acc_scale
 
     def sample(self, text: str, line_no: int):
-        from verticality.io import imu_layout
-
         cells = text.split("#", 1)[0].split(",")
         if len(cells) != self.lay.n_columns:
             self.warn(line_no, f"{len(cells)} cells, the header has {self.lay.n_columns}")
@@ -181,7 +177,7 @@ class _RowReader:
         t_cell = cells[self.k_t].strip()
         if self.origin is None:
             t_s = _number(t_cell)
-        elif imu_layout.is_integer_cell(t_cell):  # exact, as the file parser converts stamps
+        elif self.is_integer(t_cell):  # exact, as the file parser converts stamps
             t_s = (int(t_cell) - self.origin) / self.per_s
         else:
             t_s = (_number(t_cell) - self.origin) / self.per_s

@@ -469,7 +469,7 @@ def step(state: TiltState, u, y, dt, params: TiltParams = DEFAULT_PARAMS, block:
     # have added since its start (it enters P at the block's update; without it the samples after
     # a gap would show the variance from before it)
     P_out = jnp.where(state.initialized, state.P, widen_tilt(state.P, p.init_tilt_rad))
-    P_out = P_out + jnp.diag(jnp.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]) * state.blk_qmiss)
+    P_out = tilt_kernels.add_tilt_variance(P_out, state.blk_qmiss)
     out = _outputs(quat, state.bias_S_rad_s, P_out,
                    _flags(dt_ok, gyr_ok, acc_ok, init_now, disturbed, gap, reacq,
                           state.reacquire | (state.blk_gap > 0)))
@@ -605,7 +605,8 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
                  | np.where(dt_ok[:k] & (dts[:k] > params.gap_flag_s), DT_GAP, 0)).astype(np.int32)
         quat = np.tile(np.asarray(state.quat_E_S), (k, 1))
         # no estimate before the initialization: those samples report its variance (as step)
-        var = np.tile(np.diagonal(np.asarray(widen_tilt(state.P, params.init_tilt_rad))), (k, 1))
+        P_init = np.asarray(widen_tilt(state.P, params.init_tilt_rad))
+        var = np.tile(np.diagonal(P_init), (k, 1))
         if found:
             q0 = _quat_from_acc_np(acc[k - 1])
             quat[-1] = np.asarray(q0)
@@ -613,7 +614,7 @@ def run(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
             state = state._replace(quat_E_S=q0, initialized=np.bool_(True),
                                    reacquire=np.bool_(True), reacq_f_E=np.zeros(3),
                                    reacq_t=np.float64(0.0),
-                                   P=np.asarray(widen_tilt(state.P, params.init_tilt_rad)))
+                                   P=P_init)
         put(0, _outputs_np(quat, np.tile(np.asarray(state.bias_S_rad_s), (k, 1)), var, flags))
     if int(state.blk_count) != 0:  # finish the current block sample by sample
         for j in range(k, min(n, k + block - int(state.blk_count))):

@@ -146,10 +146,15 @@ def reset_velocity(P, var_m2_s2):
     return P * keep[:, None] * keep[None, :] + jnp.diag(var_m2_s2 * (1.0 - keep))
 
 
+def add_tilt_variance(P, var_rad2):
+    """Covariance ``P`` (7, 7) with ``var_rad2`` added to both tilt variances."""
+    return P + jnp.diag(jnp.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]) * var_rad2)
+
+
 def widen_tilt(P, sigma_rad):
     """Covariance ``P`` (7, 7) with ``sigma_rad²`` added to both tilt variances (the accelerometer
     sample that initializes the filter may hold an inertial acceleration of unknown size)."""
-    return P + jnp.diag(jnp.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]) * sigma_rad**2)
+    return add_tilt_variance(P, sigma_rad**2)
 
 
 NB = 24  # length of the per-block inputs of :func:`block_update_core` (see :func:`block_inputs`)

@@ -69,6 +69,15 @@ def _kf(P, i0, m, z, r):
     return K @ z, 0.5 * (P + P.T)
 
 
+def _widen_tilt(P, var_rad2):
+    """A copy of ``P`` with ``var_rad2`` added to both tilt variances
+    (``tilt_kernels.add_tilt_variance`` in NumPy)."""
+    P = P.copy()
+    P[0, 0] += var_rad2
+    P[1, 1] += var_rad2
+    return P
+
+
 class Stream:
     """Sample-by-sample tilt filter: ``s = Stream()``, ``out = s.step(gyr, acc, dt)`` with
     ``out = (roll, pitch, up(3), quat(4), bias(3), flags)`` — the per-sample outputs of
@@ -103,8 +112,7 @@ class Stream:
         from verticality.estimators import tilt
 
         widen = self.qmiss if self.initialized else self.p.init_tilt_rad**2
-        var = np.diagonal(self.P) + np.array([1.0, 1.0, 0, 0, 0, 0, 0]) * widen
-        return float(tilt.tilt_sigma_rad(var, self.p))
+        return float(tilt.tilt_sigma_rad(np.diagonal(_widen_tilt(self.P, widen)), self.p))
 
     def _zero(self):
         self.dq = (1.0, 0.0, 0.0, 0.0)
@@ -161,9 +169,7 @@ class Stream:
             self.initialized = True
             # the sample may hold an inertial acceleration: re-acquire after reacquire_s
             self.reacquire = True
-            self.P = self.P.copy()
-            self.P[0, 0] += p.init_tilt_rad**2
-            self.P[1, 1] += p.init_tilt_rad**2
+            self.P = _widen_tilt(self.P, p.init_tilt_rad**2)
         disturbed = reacq = False
         if self.initialized and self.count >= self.block:
             disturbed, reacq = self._update()
