@@ -24,10 +24,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-jax.config.update("jax_enable_x64", True)
-
-from verticality.experiments import newton as E  # noqa: E402
-from verticality.models import lissajous_plant as lp  # noqa: E402
+from verticality.experiments import newton as E
+from verticality.models import lissajous_plant as lp
 
 CASES = [("fixed", "exact"), ("stabilized", "exact"), ("fixed", "perturbed"), ("stabilized", "perturbed")]
 

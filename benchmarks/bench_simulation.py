@@ -1,4 +1,4 @@
-"""Speed of the simulator (issue 2): the 3-D medial model under the P13 impact motion, 60 s at
+"""Speed of the simulator: the 3-D medial model under the P13 impact motion, 60 s at
 1 ms, one run and a vmap batch of 256 runs.
 
     python benchmarks/bench_simulation.py [--batch 256] [--duration 60]

@@ -3,12 +3,9 @@ import os
 os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ["VERTICALITY_JAX_CACHE"] = "off"  # the tests leave no compiled kernels behind
 
-import jax  # noqa: E402
-
-jax.config.update("jax_enable_x64", True)
-
-
 import pytest  # noqa: E402
+
+import verticality  # noqa: E402, F401  (switches JAX to float64, as every use of the package does)
 
 
 @pytest.fixture(scope="session")

@@ -1,4 +1,4 @@
-"""The `reproduce` and `list` commands: the JSON contract of REPRODUCTION.md, figures, exit codes."""
+"""The `reproduce` and `list` commands: the JSON contract of docs/reproduction.md, figures, exit codes."""
 
 import json
 import math

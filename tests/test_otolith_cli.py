@@ -23,7 +23,7 @@ def test_recorded_impact_medial_lateral_and_refusals(tmp_path, capsys):
     s = np.column_stack([o["sx"], o["sy"], o["sz"]])
     np.testing.assert_allclose(np.linalg.norm(s, axis=1), 1.0, atol=1e-12)
     assert np.max(np.abs(o["phi_x"]) + np.abs(o["phi_y"])) > 0.5  # the spike swings it
-    # lateral with r = 0 is the medial model (issue 2 validation: 1e-12)
+    # lateral with r = 0 is the medial model (model-checks: 1e-12)
     lat = tmp_path / "lat.csv"
     assert cli.main(["otolith", str(motion), "--out", str(lat), "--model", "lateral",
                      "--param", "r=0"]) == 0

@@ -161,7 +161,7 @@ def test_stabilize_reads_a_broad_recording_window(tmp_path, capsys):
     if not path.is_file():
         pytest.fail(f"BROAD data not found: expected {path}")
     rec = io.load_motion(path, 38.0, 2.0)
-    ref = broad.motion_record(broad.load_trial(path), 38.0, 2.0)
+    ref = io.from_broad_trial(broad.load_trial(path), 38.0, 2.0)
     for a, b in zip(rec, ref, strict=True):
         np.testing.assert_array_equal(a, b)
     capsys.readouterr()

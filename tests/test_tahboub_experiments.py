@@ -1,4 +1,4 @@
-"""The registered experiments tahboub-* and ground-* (REPRODUCTION.md contracts)."""
+"""The registered experiments tahboub-* and ground-* (docs/reproduction.md contracts)."""
 
 import numpy as np
 

@@ -5,7 +5,7 @@ differentiated (for identification or observability) and batched with ``vmap``. 
 a simplified form of a model are floats too (1.0 = term on, 0.0 = term off), so that one compiled
 function serves both forms.
 
-Sources: P13 §5 (EKF plant), P11 §V (planar Newton-observer plant), REPRODUCTION.md.
+Sources: P13 §5 (EKF plant), P11 §V (planar Newton-observer plant), docs/reproduction.md.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 G_M_S2 = 9.81
-"""Magnitude of gravity used throughout (REPRODUCTION.md: g_I = (0, 0, -9.81))."""
+"""Magnitude of gravity used throughout (docs/conventions.md: g_I = (0, 0, -9.81))."""
 
 
 def gravity_I():
@@ -68,7 +68,7 @@ class HeadParams(NamedTuple):
         return self._replace(J_H=jnp.asarray(J, dtype=float))
 
 
-# P13 §5 / REPRODUCTION.md `ekf-*`: the plant.
+# P13 §5 (docs/reproduction.md, `ekf-*`): the plant.
 P13_PENDULUM = PendulumParams(m_kg=0.05, l_m=0.06, beta_Nms=0.001).resolved()
 P13_HEAD = HeadParams(J_H=jnp.array([0.125, 0.125, 0.125])).resolved()
 # P13 §5: the parameters known to the EKF (deliberately wrong).
@@ -77,5 +77,5 @@ P13_EKF_HEAD = HeadParams(J_H=jnp.array([0.15, 0.15, 0.15])).resolved()
 P13_KP_NM_RAD = 32.0
 P13_KD_NMS_RAD = 5.0
 
-# Lateral model default (issue 2): pivots at +-r along head y.
+# Lateral model default: pivots at +-r along head y (F Fig. 2.3).
 LATERAL_R_M = 0.05

@@ -7,7 +7,7 @@ batchable (``vmap`` over keys). Two forms are offered for each sensor:
 - a whole record: ``gyro_record(key, omega_series, dt, p) -> (readings, biases)`` (vectorised,
   the random-walk bias by a cumulative sum, no Python loop).
 
-Models (T §III.A for the noise levels of REPRODUCTION.md `tahboub-*`; P13 §5 for white noise
+Models (T §III.A for the noise levels of docs/reproduction.md `tahboub-*`; P13 §5 for white noise
 on the inclinometer angles and gyro rates):
 
     gyro          ω_m = ω_B + b + n,     ḃ = w,   n ~ N(0, σ²),  w white, E[w w] = q δ(t)

@@ -1,5 +1,5 @@
 """Closed-loop simulator: trunk trajectory → head on the gimbal → otolith pendulum(s) → sensors →
-estimator → controller → motors (P13 §3 and §5; REPRODUCTION.md `ekf-impact`, `ekf-jump`).
+estimator → controller → motors (P13 §3 and §5; docs/reproduction.md, `ekf-impact`, `ekf-jump`).
 
 Three clocks, each an integer multiple of the one below::
 
@@ -19,7 +19,7 @@ Plug-in API
 -----------
 *Estimator* (:class:`Estimator`): any object with
 
-    step(state, u, y, dt) -> (state, out)       the common estimator API (DESIGN.md)
+    step(state, u, y, dt) -> (state, out)       the common estimator API (estimators/base.py)
     R_I_H(state) -> (3, 3)                      the head-orientation estimate the controller uses
 
 called once per estimator tick t_k (k ≥ 1) with
@@ -58,7 +58,7 @@ velocity").
 
 Records (:class:`Record`, leading axis = estimator ticks t_1 … t_K, plus the optional per-control-tick
 :class:`ControlRecord`) hold the truth, the estimate, measurements and inputs, and the tilt error of
-REPRODUCTION.md.
+docs/conventions.md.
 """
 
 from __future__ import annotations
@@ -150,7 +150,7 @@ class Record(NamedTuple):
     R_I_H: jnp.ndarray  # true head orientation (K, 3, 3)
     R_I_T: jnp.ndarray  # trunk orientation
     R_I_H_est: jnp.ndarray  # the estimate after the tick's update (truth if no estimator)
-    tilt_error_deg: jnp.ndarray  # REPRODUCTION.md tilt error of R_I_H_est
+    tilt_error_deg: jnp.ndarray  # tilt error of R_I_H_est (docs/conventions.md)
     theta_rad: jnp.ndarray  # (K, 2) joint angles
     thetadot_rad_s: jnp.ndarray
     otolith_rad: jnp.ndarray  # (K, P, 2) true (noise-free) otolith angles
@@ -440,7 +440,7 @@ def simulate_batch(run: Callable, keys, params: PlantParams = DEFAULT_PARAMS,
 
 
 def tilt_metrics(record: Record, t_min_s: float = 2.0) -> dict:
-    """``max`` and ``rms`` tilt error (deg) after ``t_min_s`` (REPRODUCTION.md `ekf-*`)."""
+    """``max`` and ``rms`` tilt error (deg) after ``t_min_s`` (docs/reproduction.md, `ekf-*`)."""
     mask = record.t_s >= t_min_s
     e = jnp.where(mask, record.tilt_error_deg, 0.0)
     n = jnp.maximum(jnp.sum(mask), 1)
@@ -496,7 +496,7 @@ _replay_chunk_jit = jax.jit(_replay_chunk)
 
 def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendulums: tuple,
                    max_substep_s: float = 1e-3, chunk: int = 8192, progress=None):
-    """What the otolith pendulum(s) report for a recorded head motion (issue 2 item 9).
+    """What the otolith pendulum(s) report for a recorded head motion.
 
     Between rows the inputs are interpolated linearly (the quaternion then normalized; ω̇ is the
     slope of ω over the interval) and integrated by RK4 with ⌈Δt / max_substep_s⌉ equal sub-steps.

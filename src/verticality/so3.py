@@ -11,10 +11,7 @@ use ``jax.vmap`` for batches.
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
-
-jax.config.update("jax_enable_x64", True)
 
 _SMALL_ANGLE = 1e-6
 
@@ -90,21 +87,36 @@ def quat_normalize(q_wxyz):
     return q / jnp.linalg.norm(q, axis=-1, keepdims=True)
 
 
-def quat_multiply(p_wxyz, q_wxyz):
-    """Hamilton product p ⊗ q (scalar first)."""
-    p = jnp.asarray(p_wxyz)
-    q = jnp.asarray(q_wxyz)
-    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
-    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return jnp.stack(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
+def quat_multiply_components(p, q):
+    """Hamilton product p ⊗ q on component tuples ``(w, x, y, z)`` of arrays (or floats).
+
+    The one definition of the product: :func:`quat_multiply` stacks it, and kernels that keep
+    quaternions as separate component arrays (structure-of-arrays) use it directly. Pure
+    arithmetic, so it also works on NumPy arrays and Python floats.
+    """
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (pw * qw - px * qx - py * qy - pz * qz,
             pw * qx + px * qw + py * qz - pz * qy,
             pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ],
-        axis=-1,
-    )
+            pw * qz + px * qy - py * qx + pz * qw)
+
+
+def quat_multiply(p_wxyz, q_wxyz):
+    """Hamilton product p ⊗ q (scalar first), batched over leading axes."""
+    p = jnp.asarray(p_wxyz)
+    q = jnp.asarray(q_wxyz)
+    return jnp.stack(quat_multiply_components(tuple(p[..., i] for i in range(4)),
+                                              tuple(q[..., i] for i in range(4))), axis=-1)
+
+
+def quat_rotate(q_wxyz, v):
+    """``R(q) v`` for a unit quaternion, batched, without forming the matrix
+    (``v + w t + u × t`` with ``t = 2 u × v``)."""
+    q = jnp.asarray(q_wxyz)
+    w, u = q[..., :1], q[..., 1:]
+    t = 2.0 * jnp.cross(u, v)
+    return v + w * t + jnp.cross(u, t)
 
 
 def quat_conjugate(q_wxyz):
@@ -178,6 +190,21 @@ def rot_z(angle_rad):
     return exp(jnp.array([0.0, 0.0, 1.0]) * angle_rad)
 
 
+def log_principal(R):
+    """Rotation vector of R for rotation angles below π (cheap and smooth; error-state maps).
+
+    θ = atan2(|s|, (tr R − 1)/2) with s = vee(R) = sin θ · axis; exact for θ < π, where error
+    states live (differences of nearby rotations). :func:`log` covers θ ≈ π.
+    """
+    s = vee(R)
+    sin_t = _safe_norm(s)
+    cos_t = 0.5 * (jnp.trace(R, axis1=-2, axis2=-1) - 1.0)
+    theta = jnp.arctan2(sin_t, cos_t)
+    small = sin_t < 1e-8
+    factor = jnp.where(small, 1.0 + sin_t * sin_t / 6.0, theta / jnp.where(small, 1.0, sin_t))
+    return factor[..., None] * s
+
+
 def orthonormalize(R):
     """Project a near-rotation matrix back onto SO(3) (one Newton–Schulz polar step twice).
 
@@ -226,7 +253,7 @@ def angle_between_unit_vectors(a, b):
 def tilt_error_rad(R_I_H_true, R_I_H_est):
     """Tilt error: angle between the true and estimated gravity direction in the head frame.
 
-    REPRODUCTION.md: ``arccos(<R_IH^T e3, R̂_IH^T e3>)``; yaw never enters. Radians.
+    docs/conventions.md: ``arccos(<R_IH^T e3, R̂_IH^T e3>)``; yaw never enters. Radians.
     """
     return angle_between_unit_vectors(up_in_frame(R_I_H_true), up_in_frame(R_I_H_est))
 

@@ -31,7 +31,6 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.special import ndtr
 
-from verticality import so3  # noqa: F401  (imported first: enables float64)
 from verticality.models.kinematics import RigidMotion
 from verticality.params import G_M_S2
 
@@ -219,7 +218,7 @@ def impact(
     rotation_amplitude_rad=(0.2, 0.3, 0.2),
     rotation_frequency_hz=(0.7, 0.5, 0.3),
 ) -> Trajectory:
-    """P13 §5 scenario A (REPRODUCTION.md `ekf-impact`): the trunk oscillates in 3-D (rotation and
+    """P13 §5 scenario A (docs/reproduction.md, `ekf-impact`): the trunk oscillates in 3-D (rotation and
     translation, amplitudes of tenths of a radian and of a metre, 0.3–1 Hz), a sudden impact at
     ``t_impact_s`` gives a 30 m/s² acceleration spike, then the trunk stops.
 
@@ -273,7 +272,7 @@ def jump(
     pitch_rad: float = 0.2,
     roll_rad: float = 0.05,
 ) -> Trajectory:
-    """P13 §5 scenario B (REPRODUCTION.md `ekf-jump`): a forward jump along x — take-off push
+    """P13 §5 scenario B (docs/reproduction.md, `ekf-jump`): a forward jump along x — take-off push
     upward, flight (free fall), landing impact, then stop.
 
     The head centre's acceleration (gravity excluded) is built from closed-form pieces whose double
@@ -402,7 +401,7 @@ def _lean(angle_fn, lever_m: float, duration_s: float, name: str) -> Trajectory:
 
 def step(amplitude_rad: float = math.radians(5.0), t_step_s: float = 1.0, settle_s: float = 0.3,
          lever_m: float = 0.0, duration_s: float = 10.0) -> Trajectory:
-    """T §III.A (REPRODUCTION.md `tahboub-step`): a lean of ``amplitude_rad`` commanded as a step
+    """T §III.A (docs/reproduction.md, `tahboub-step`): a lean of ``amplitude_rad`` commanded as a step
     through a critically damped 2nd-order response, θ = A(1 − (1 + ω τ) e^{−ω τ}), τ = t − t_step.
 
     Reading: "0.3 s" is the 95 % settling time, so ω = 4.744/0.3 s⁻¹. The angular acceleration

@@ -51,8 +51,6 @@ from verticality import so3
 from verticality.analysis.observability_taylor import taylor
 from verticality.errors import InputError
 
-jax.config.update("jax_enable_x64", True)
-
 SO3 = "so3"
 DEFAULT_RTOL = 1e-8
 DEFAULT_QTOL = 1e-6

@@ -25,8 +25,6 @@ import numpy as np
 from jax import lax
 from jax.extend import core as jcore
 
-jax.config.update("jax_enable_x64", True)
-
 
 class _S:
     """A Taylor series: ``c`` has shape (K + 1, *shape)."""

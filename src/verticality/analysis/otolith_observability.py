@@ -342,7 +342,7 @@ def run_table(*, chart: str = "tangent", params: str = "generic", output: str = 
 
 
 def row_dict(case: CaseResult) -> dict:
-    """The REPRODUCTION.md row plus the evidence behind it."""
+    """The docs/reproduction.md row plus the evidence behind it."""
     r = case.result
     tilt = r.quantities["tilt"]
     return {

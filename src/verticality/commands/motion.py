@@ -82,6 +82,7 @@ def _built_in(args):
 
 def _recording(args):
     from verticality.io import broad
+    from verticality.io.motion import from_broad_trial
 
     path = Path(args.name)
     if not broad.is_broad_file(path):
@@ -91,6 +92,6 @@ def _recording(args):
         raise InputError("--rate applies to built-in trajectories; a recording keeps its own "
                          "sampling rate")
     trial = broad.load_trial(path)
-    rec = broad.motion_record(trial, args.start, args.duration)
+    rec = from_broad_trial(trial, args.start, args.duration)
     span = rec.t_s[-1] - rec.t_s[0]
     return rec, f"{path.name} ({span:.3f} s from {rec.t_s[0]:.3f} s at {trial.sampling_rate_hz:g} Hz)"

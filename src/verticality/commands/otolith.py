@@ -1,6 +1,6 @@
 """``verticality otolith MOTION.csv --out OUT.csv [--model medial|lateral] [--param NAME=VALUE]...``
 
-What the otolith pendulum(s) report for a recorded head motion (issue 2 item 9; file formats in
+What the otolith pendulum(s) report for a recorded head motion (file formats in
 :mod:`verticality.io.motion` and docs/simulation.md). Defaults: the P13 plant (m = 0.05 kg,
 l = 0.06 m, J_S = m·diag(l², l², l²/20) about the pivot, β = 0.001 N·m·s); the lateral model's
 pivots at ±r along the head's y, r = 0.05 m.

@@ -9,7 +9,7 @@ integrated exactly by one matrix exponential per step, so the discrete observer 
 ``exp(p·dt)`` for any ``dt``. A NaN in ``y`` (any component) means no measurement: that step
 predicts with ``A, B`` only and is flagged.
 
-API (DESIGN.md): the design is the first argument, then the common ``init``/``step``/``run``::
+API (estimators/base.py): the design is the first argument, then the common ``init``/``step``/``run``::
 
     obs = design(model, poles)
     state = init(x0)                       # P0 accepted and ignored (no covariance here)
@@ -27,7 +27,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3  # noqa: F401  (enables float64)
 from verticality.errors import InputError
 from verticality.models.linearize import LinearModel
 

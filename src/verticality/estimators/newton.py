@@ -41,7 +41,7 @@ at the previous sample to the state at this one, and ``output(x, u)`` gives y. `
 for the common estimator API but the sample spacing belongs to the discrete model. State and
 input may be any pytrees (flattened with ``ravel_pytree``); y is flattened to a vector.
 
-API (DESIGN.md): ``obs = make(transition, output, u_template, NewtonConfig(...))``, then
+API (estimators/base.py): ``obs = make(transition, output, u_template, NewtonConfig(...))``, then
 ``obs.init(x0, P0=None)``, ``obs.step(state, u, y, dt)``, ``obs.run(state, us, ys, dts)`` (lax.scan),
 and ``obs.solve(xi0, us, ys, mask)`` for one window.
 """

@@ -1,7 +1,7 @@
 """Tahboub's stand-alone otolith–canal Kalman filter (T §II.A, eq. 1–13, 20–22).
 
 States ``x_v = (φ, ω, ω_drift)``: head (trunk) orientation in space [rad], its angular velocity
-[rad/s] and the canal (gyro) drift [rad/s]. Measurements, in this order (REPRODUCTION.md):
+[rad/s] and the canal (gyro) drift [rad/s]. Measurements, in this order (docs/reproduction.md):
 ``y_v = (ω_g, a_xa)`` — gyro / canal angular velocity (T eq. 1) and tangential otolith /
 accelerometer reading (T eq. 5, ``a_xa = g φ + v_a``; the body's own angular acceleration term of
 T eq. 4 is left to the measurement noise, as the paper does).

@@ -56,8 +56,6 @@ import numpy as np
 
 from verticality.estimators import tilt_kernels
 
-jax.config.update("jax_enable_x64", True)
-
 G_M_S2 = 9.81
 
 # Flag bits of TiltOutput.flags

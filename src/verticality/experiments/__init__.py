@@ -3,7 +3,7 @@
 An experiment module in this package registers itself with :func:`register`; the registry imports
 every module of the package on first use (:func:`discover`), so adding an experiment is adding a file.
 
-Each experiment returns a :class:`Result`: metrics (the JSON contract of REPRODUCTION.md), the
+Each experiment returns a :class:`Result`: metrics (the JSON contract of docs/reproduction.md), the
 published values (``paper``), time series for figures, and the simulated duration. Figures are drawn
 by the experiment's ``figures`` function from the result, so that ``--json`` runs need no plotting.
 """

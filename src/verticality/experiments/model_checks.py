@@ -1,4 +1,4 @@
-"""`model-checks` — validation of the physics models (issue 2; F §2.1–2.2, P13 §3, F §4.4).
+"""`model-checks` — validation of the physics models (F §2.1–2.2, P13 §3, F §4.4).
 
 Every check is a metric ``{"value", "tolerance", "pass"}``. Plant: the P13 otolith pendulum
 (m = 50 g, l = 0.06 m, J_S = m·diag(l², l², l²/20) about the pivot, β = 0.001 N·m·s; ζ ≈ 0.22,
@@ -475,7 +475,7 @@ def nonlinear_loop_jacobian(law, J_H, kp, kd, kd_z):
 
 # ------------------------------------------------------------------------------------- run
 @register("model-checks", "Validation of the pendulum, medial/lateral, planar models and stabilizers",
-          source="issue 2; F §2.1–2.2, F §4.4 (4.6–4.9), P13 §3",
+          source="F §2.1–2.2, F §4.4 (4.6–4.9), P13 §3",
           figures=lambda result, out_dir: figures(result, out_dir))
 def run(quick: bool = False) -> Result:
     metrics, series = {}, {}
@@ -504,7 +504,7 @@ def run(quick: bool = False) -> Result:
         simulated += T_LONG_S
     paper = {"oscillation_frequency_analytic_rad_s": metrics["oscillation_frequency_analytic_rad_s"]}
     return Result(metrics=metrics, paper=paper, series=series, simulated_s=simulated,
-                  notes="all tolerances from issue 2 (validation list)")
+                  notes="tolerances: docs/models.md")
 
 
 # ---------------------------------------------------------------------------------- figures

@@ -1,6 +1,6 @@
 """`newton-lissajous` and `newton-uncertainty`: the Newton observer on the P11 Lissajous test.
 
-P11 §V–VI (Figs. 3–7), §VII; F §4.3 (eq. 4.1–4.5, Figs. 4.4–4.8). REPRODUCTION.md fixes the
+P11 §V–VI (Figs. 3–7), §VII; F §4.3 (eq. 4.1–4.5, Figs. 4.4–4.8). docs/reproduction.md fixes the
 parameters; the readings and choices the papers leave open are these:
 
 Plant (models/lissajous_plant.py): the planar head + pendulum of models/planar.py with P11's

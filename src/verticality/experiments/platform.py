@@ -41,7 +41,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3  # noqa: F401  (enables float64)
 from verticality.estimators import luenberger as lu
 from verticality.experiments import Result, check, register
 from verticality.integrate import rk4_step

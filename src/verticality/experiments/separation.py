@@ -27,7 +27,7 @@ Readings the thesis leaves open, fixed here:
   ever non-finite or exceeds 1 rad in magnitude after t ≥ 1 s, or if its envelope grows (max |error|
   over the last quarter of the run > 2 × that over the second quarter, and > 0.05 rad).
   The loop is called unstable when it is unstable at both references (F: "not stable both for ...").
-- Errors (``max_error_rad``) are max |θ̂_H − θ_H| for t ≥ 1 s (REPRODUCTION.md's settling default).
+- Errors (``max_error_rad``) are max |θ̂_H − θ_H| for t ≥ 1 s (docs/reproduction.md's settling default).
 """
 
 from __future__ import annotations
@@ -39,7 +39,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3  # noqa: F401  (enables float64)
 from verticality.estimators import kalman as kf
 from verticality.estimators import luenberger as lu
 from verticality.experiments import Result, check, register

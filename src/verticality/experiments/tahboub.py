@@ -1,7 +1,7 @@
 """Tahboub's stand-alone otolith–canal Kalman filter on PostuRob (T §II.A, §III.A.1, eq. 20–22,
 Fig. 5–8): ``tahboub-gains``, ``tahboub-step``, ``tahboub-sine``, ``tahboub-prts``.
 
-Readings and choices (the paper leaves them open; REPRODUCTION.md fixes the first ones):
+Readings and choices (the paper leaves them open; docs/reproduction.md fixes the first ones):
 
 * Filter: F_v, H_v of T eq. 7–8 with g = 9.81, measurement order ``(ω_g, a_xa)``, Q and R of
   T eq. 20–21 read as continuous noise intensities; steady-state gain from the CARE (T eq. 10–11).
@@ -14,7 +14,7 @@ Readings and choices (the paper leaves them open; REPRODUCTION.md fixes the firs
   ω_n = 11.2 rad/s (10–90 % rise time ≈ 0.3 s); the actual lean and its exact first and second
   derivatives come from that servo. The accelerometer reads ``g sin φ − h φ̈`` (physical sign;
   see :mod:`verticality.models.body`), the gyro ``φ̇ + drift + noise``.
-* Sensor noise (REPRODUCTION.md): gyro white σ = 3.2e-3 rad/s per 100 Hz sample, drift a random
+* Sensor noise (docs/reproduction.md): gyro white σ = 3.2e-3 rad/s per 100 Hz sample, drift a random
   walk of intensity 1e-6 rad²/s³ starting at 0; accelerometer white σ = 0.05 m/s². Seeded with
   ``jax.random`` keys (one fixed seed per experiment).
 * Step: 5° step commanded at t = 2 s, 20 s run (quick 8 s). Sine: 5°, 0.2 Hz, 60 s (quick 20 s).
@@ -27,7 +27,7 @@ Readings and choices (the paper leaves them open; REPRODUCTION.md fixes the firs
   ramp within a 60.5 s cycle leaks through the rectangular window into every harmonic with the
   same 1/f shape as the stimulus. Without end matching the in-band coherence depends on the drift
   realization (0.71–0.98 over seeds 7–9); ``mean_coherence_no_end_match`` reports it.
-* Errors are taken after t ≥ 1 s (REPRODUCTION.md default).
+* Errors are taken after t ≥ 1 s (docs/reproduction.md default).
 """
 
 from __future__ import annotations

@@ -87,44 +87,6 @@ def load_trial(path) -> BroadTrial:
     return BroadTrial(path.stem, gyr, acc, mag, quat, movement, rate)
 
 
-def motion_record(trial: BroadTrial, start_s: float = 0.0, duration_s: float | None = None):
-    """The trial's rigid motion as a :class:`verticality.io.motion.MotionRecord` (MOTION.csv rows),
-    over ``[start_s, start_s + duration_s]`` (to the end when ``duration_s`` is None):
-    q = ``opt_quat`` (ENU is our frame I: z up), ω = ``imu_gyr`` (measured, with its bias and
-    noise), a_I = R_I_S·``imu_acc`` + (0, 0, −g) (the specific force rotated into I, gravity
-    removed). Rows without an optical reference are not filled in: a window that holds one raises
-    :class:`InputError` naming it and the longest clean stretch of the trial."""
-    from verticality import so3
-    from verticality.io.motion import MotionRecord, window_mask
-    from verticality.params import G_M_S2
-
-    t = trial.t_s
-    sel = window_mask(t, start_s, duration_s, trial.name, end_tol_s=0.5 / trial.sampling_rate_hz)
-    q = trial.quat_E_S_opt[sel]
-    ok = np.all(np.isfinite(q), axis=1)
-    if not np.all(ok):
-        first = np.nonzero(~ok)[0][0]
-        a, b = _longest_valid_stretch(np.all(np.isfinite(trial.quat_E_S_opt), axis=1))
-        raise InputError(
-            f"{trial.name}: no optical reference (opt_quat NaN) at t = {t[sel][first]:.3f} s, "
-            f"inside the window; the longest stretch with one is {t[a]:.3f}–{t[b - 1]:.3f} s "
-            f"(choose a window inside it)")
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    R = np.asarray(so3.matrix_from_quat(q))
-    a_I = np.einsum("nij,nj->ni", R, trial.acc_m_s2[sel]) - np.array([0.0, 0.0, G_M_S2])
-    return MotionRecord(t[sel], q, trial.gyr_rad_s[sel], a_I)
-
-
-def _longest_valid_stretch(valid: np.ndarray) -> tuple[int, int]:
-    """[a, b) of the longest run of True in ``valid`` ((0, 0) when there is none)."""
-    edges = np.diff(np.concatenate([[0], valid.astype(np.int8), [0]]))
-    starts, stops = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
-    if starts.size == 0:
-        return 0, 0
-    k = int(np.argmax(stops - starts))
-    return int(starts[k]), int(stops[k])
-
-
 def list_trials(directory) -> list[Path]:
     """The ``*.hdf5`` / ``*.h5`` files of a BROAD folder, sorted by name."""
     directory = Path(directory)

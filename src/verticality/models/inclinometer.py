@@ -34,7 +34,6 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from verticality import so3  # noqa: F401  (enables float64)
 from verticality.errors import InputError
 from verticality.params import G_M_S2
 

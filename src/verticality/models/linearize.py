@@ -20,7 +20,6 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from verticality import so3  # noqa: F401  (enables float64)
 from verticality.errors import InputError
 
 

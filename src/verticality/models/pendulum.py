@@ -16,7 +16,7 @@ which taken literally is an inverted (unstable) pendulum; its planar form (F p. 
 g is read as −9.81. We keep the physics of a hanging pendulum and put the z axis of S *from the mass
 to the pivot*: the centre of mass is at ``c_S = (0, 0, −l)``. The z axis of S is then the normal of the
 liquid surface of an inclinometer (the gravito-inertial "up"), a pendulum at rest in a level head has
-``R_HS = I``, and the otolith angles of F 2.8–2.9 read zero. ``s_H`` (REPRODUCTION.md: unit vector
+``R_HS = I``, and the otolith angles of F 2.8–2.9 read zero. ``s_H`` (docs/conventions.md: unit vector
 from pivot to mass, head frame) is ``−R_HS e3``.
 
 Sign of the otolith angles: for a still head, ``R_HS = R_IH^T`` (up to yaw of the pendulum), so the

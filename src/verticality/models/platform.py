@@ -22,7 +22,6 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from verticality import so3  # noqa: F401  (enables float64)
 from verticality.models import inclinometer as incl
 from verticality.models.planar import PlanarParams
 from verticality.params import G_M_S2
