@@ -5,6 +5,8 @@ otolith–canal filter, EKF, Newton observer, 3-D tilt filter) is a frozen value
 model and its settings — with three methods in one argument order::
 
     state = est.init(x0, P0)                      # P0 may be None where there is no covariance
+    state = est.predict(state, u, dt)             # the time update alone: what step does when
+                                                  # every component of y is missing
     state, out = est.step(state, u, y, dt)        # one sample
     state, outs = est.run(state, us, ys, dts)     # the same step over a sequence (lax.scan):
                                                   # the final state and the stacked outputs
@@ -14,7 +16,9 @@ measurement at this sample, ``dt`` the time since the previous sample (a scalar,
 in ``run``). ``run`` equals ``step`` applied sample by sample.
 
 Missing data: a NaN in ``y`` means "no measurement" for that component. The estimator predicts
-without it and says so in ``out.measured`` (bool, one per component of ``y``). Nothing turns a
+without it and says so in ``out.measured`` (bool, one per component of ``y``, or one for the whole
+``y`` where the estimator uses it all or nothing); a ``y`` that is all NaN gives exactly
+``predict``. Nothing turns a
 finite estimate into a non-finite one: a non-finite candidate state is refused and the previous
 one kept (:func:`keep_finite`). The helpers below are the one implementation of these rules.
 
@@ -32,6 +36,8 @@ import jax.numpy as jnp
 @runtime_checkable
 class Estimator(Protocol):
     def init(self, x0, P0=None) -> Any: ...
+
+    def predict(self, state, u, dt) -> Any: ...
 
     def step(self, state, u, y, dt) -> tuple[Any, Any]: ...
 
