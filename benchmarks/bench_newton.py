@@ -48,7 +48,7 @@ def np_rk4(x, u0, uh, u1, p, h):
 
 
 def np_block(x, ublk, p, sub=E.OBS_SUBSTEPS):
-    """Same sub-stepped model as lissajous_plant.block_transition_flat (mean + first-moment ramp)."""
+    """Same sub-stepped model as lissajous_plant.observer_model (mean + first-moment ramp)."""
     k = ublk.shape[0] // sub
     c = (np.arange(k) + 0.5) / k - 0.5
     h = E.SUBSTEPS * E.DT_S / sub
@@ -110,8 +110,8 @@ def np_solve(xi0, U, Y, p, cfg=E.CONFIG):
 
 
 def np_simulate(fixed, level, noise, n_blocks):
-    p_true, p_obs = lp.p11_params(1.0), lp.p11_params(1.0 + level)
-    theta_dot0 = float(lp.lissajous(0.0).Theta_dot_rad_s)
+    p_true, p_obs = lp.p11_head(1.0), lp.p11_head(1.0 + level)
+    theta_dot0 = float(lp.trunk(0.0).Theta_dot_rad_s)
     x = np.array([0.0, 0.0, 0.0 if fixed else 0.1, theta_dot0 if fixed else 0.0])
     xh = np.zeros(4)
     N = E.CONFIG.window
@@ -147,7 +147,7 @@ def np_simulate(fixed, level, noise, n_blocks):
 
 # ---------------------------------------------------------------- JAX
 def jax_runner(fixed, level, noise, n_blocks):
-    p_true, p_obs = lp.p11_params(1.0), lp.p11_params(1.0 + level)
+    p_true, p_obs = lp.p11_head(1.0), lp.p11_head(1.0 + level)
     key = jax.random.PRNGKey(11)
     return lambda: jax.block_until_ready(E.simulate(
         p_true, p_obs, jnp.asarray(fixed), jnp.asarray(noise, dtype=float), key, n_blocks))

@@ -14,14 +14,15 @@ from verticality.estimators.disturbance import (
     place_gain,
 )
 from verticality.estimators.kalman import van_loan
-from verticality.models.body import linearize
+from verticality.models.body import HUMAN_TWO_SEGMENT, upright
+from verticality.models.linearize import LinearModel, linearize
 
 POLES = (-6.0, -7.0, -8.0, -9.0, -10.0, -11.0, -12.0)
 
 
 @pytest.fixture(scope="module")
 def lin():
-    return linearize()
+    return linearize(HUMAN_TWO_SEGMENT, *upright())
 
 
 def test_extended_pair_is_observable_with_and_without_a_x(lin):
@@ -56,7 +57,8 @@ def test_observer_on_true_linear_plant_converges_from_any_initial_error(lin):
     dt, n = 1e-3, 3000
     Phi, Gam, _ = van_loan(A_e, B_e, np.zeros((7, 7)), dt)
     rng = np.random.default_rng(0)
-    K = jnp.asarray(control.lqr(lin.A, lin.B, np.eye(4) * 100, np.eye(2) * 1e-3)[0])
+    K = jnp.asarray(control.lqr(np.asarray(lin.A), np.asarray(lin.B[:, :2]), np.eye(4) * 100,
+                                np.eye(2) * 1e-3)[0])
     ws = jnp.asarray(rng.normal(0, 5.0, (n, 2)))
     x0 = jnp.asarray([0.02, -0.03, 0.1, -0.05, 0.04, 0.02, 0.1])
 
@@ -81,6 +83,18 @@ def test_observer_on_true_linear_plant_converges_from_any_initial_error(lin):
     _, a = obs.run(obs.init(x0 + errs0[0]), us, ys, dt)
     _, b = obs.run(obs.init(x0 + errs0[1]), us, ys, dt)
     assert np.abs(np.asarray(a.x[-1] - b.x[-1])).max() < 1e-6 * np.abs(errs0[:2]).max()
+
+
+def test_extended_system_splits_known_inputs_from_the_disturbance(lin):
+    A_e, B_e, C_e, D = extended_system(lin)
+    B, N = np.asarray(lin.B[:, :2]), np.asarray(lin.B[:, 2:])
+    np.testing.assert_array_equal(A_e[:4, 4:], N)
+    np.testing.assert_array_equal(B_e[:4], B)
+    np.testing.assert_array_equal(B_e[4:], 0.0)
+    np.testing.assert_array_equal(C_e[:, 4:], np.asarray(lin.D[:, 2:]))
+    np.testing.assert_array_equal(D, np.asarray(lin.D[:, :2]))
+    with pytest.raises(InputError, match="F_d"):
+        extended_system(LinearModel(lin.A, lin.B[:, :3], lin.C, lin.D[:, :3]))
 
 
 def test_bad_poles_raise_input_error(lin):

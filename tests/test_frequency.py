@@ -1,17 +1,18 @@
-"""PRTS stimulus and transfer-function / coherence estimates (analysis/frequency.py)."""
+"""PRTS stimulus (trajectories.py) and transfer-function / coherence estimates (analysis/frequency.py)."""
 
 import numpy as np
 import pytest
 import scipy.signal
 
+from verticality import trajectories as tr
 from verticality.analysis import frequency
 from verticality.errors import InputError
 
 
 def test_prts_is_a_balanced_antisymmetric_m_sequence():
-    s = frequency.prts_sequence()
+    s = tr.prts_sequence()
     assert s.size == 242
-    v = frequency.prts_velocity_levels()
+    v = tr.prts_velocity_levels()
     assert (v == 1).sum() == 81 and (v == -1).sum() == 81 and (v == 0).sum() == 80
     np.testing.assert_array_equal(v[121:], -v[:121])
     # maximal period: no shorter shift reproduces the sequence
@@ -19,17 +20,29 @@ def test_prts_is_a_balanced_antisymmetric_m_sequence():
     # velocity spectrum: power on odd harmonics only
     V = np.abs(np.fft.rfft(v))
     assert V[2::2].max() < 1e-9 * V[1::2].max()
+    f = frequency.prts_frequencies()
+    np.testing.assert_allclose(f[:3], np.array([1, 3, 5]) / 60.5)
+    assert f[-1] <= 2.0
 
 
 def test_prts_stimulus_has_the_requested_peak_and_period():
-    t, pos, vel = frequency.prts_stimulus(np.radians(5.0), 100.0, 2)
+    t, pos, vel = tr.prts_stimulus(np.radians(5.0), 100.0, 2)
     per = 6050
     assert t.size == 2 * per and abs(t[per] - 60.5) < 1e-12
     np.testing.assert_allclose(pos[:per], pos[per:], atol=1e-12)
     np.testing.assert_allclose(np.abs(pos).max(), np.radians(5.0), rtol=1e-12)
+    np.testing.assert_allclose(pos.max(), -pos.min(), rtol=1e-12)  # centred on the middle
     np.testing.assert_allclose(np.diff(pos[:per]) * 100.0, vel[: per - 1], atol=1e-12)
-    with pytest.raises(InputError, match="integer"):
-        frequency.prts_stimulus(0.1, 10.0, 1, dt_s=0.33)
+    # the velocity is held at ±v or 0 for 0.25 s: three levels, 25 samples each
+    assert np.unique(np.round(vel / vel.max(), 12)).tolist() == [-1.0, 0.0, 1.0]
+    np.testing.assert_array_equal(vel[:per].reshape(242, 25), vel[:per:25, None].repeat(25, axis=1))
+    # any rate samples the same lean (the integral of the held levels, exact between the knots)
+    t3, pos3, _ = tr.prts_stimulus(np.radians(5.0), 30.0, 1)
+    np.testing.assert_allclose(pos3, np.interp(t3, t, pos), atol=1e-12)
+    with pytest.raises(InputError, match="positive"):
+        tr.prts_stimulus(0.1, 0.0, 1)
+    with pytest.raises(InputError, match="cycle"):
+        tr.prts_stimulus(0.1, 10.0, 0)
 
 
 def test_white_noise_transfer_function_of_first_order_system():
@@ -54,7 +67,7 @@ def test_white_noise_transfer_function_of_first_order_system():
 
 def test_cycle_transfer_function_on_prts_is_exact_for_a_linear_system():
     fs = 20.0
-    _, pos, _ = frequency.prts_stimulus(0.1, fs, 4)
+    _, pos, _ = tr.prts_stimulus(0.1, fs, 4)
     b, a = [0.2], [1.0, -0.8]
     y = scipy.signal.lfilter(b, a, pos)
     per = int(60.5 * fs)
@@ -63,6 +76,7 @@ def test_cycle_transfer_function_on_prts_is_exact_for_a_linear_system():
     np.testing.assert_allclose(H, H_true, rtol=1e-6)
     np.testing.assert_allclose(coh, 1.0, atol=1e-9)
     np.testing.assert_allclose(f[:3], np.array([1, 3, 5]) / 60.5)
+    np.testing.assert_allclose(f, frequency.prts_frequencies(f_max_hz=f[-1] + 1e-9))
     # End matching leaves a periodic response alone and removes a slow drift added to it.
     t = np.arange(y.size) / fs
     _, H_em, _ = frequency.cycle_transfer_function(pos, y, per, fs, end_match=True)

@@ -1,5 +1,6 @@
 """Linear Kalman filter, Van Loan discretization, steady-state gains (estimators/kalman.py)."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -7,10 +8,11 @@ import pytest
 from verticality.errors import InputError
 from verticality.estimators import otolith_canal
 from verticality.estimators.kalman import (
-    ContinuousObserver,
-    KalmanFilter,
+    continuous_observer,
     continuous_steady_gain,
     discrete_steady_gain,
+    kalman_filter,
+    steady_state_kalman_filter,
     van_loan,
 )
 
@@ -53,7 +55,7 @@ def test_discrete_gain_approaches_continuous_gain_as_sampling_gets_finer():
 def test_time_varying_filter_converges_to_dare_gain_and_stays_psd():
     F, H = otolith_canal.matrices()
     Q, R = otolith_canal.TAHBOUB_Q, otolith_canal.TAHBOUB_R
-    kf = KalmanFilter.create(F, None, H, None, Q, R)
+    kf = kalman_filter(F, None, H, None, Q, R)
     n = 20000
     ys = np.zeros((n, 2))
     _, out = kf.run(kf.init(jnp.zeros(3), jnp.eye(3)), None, ys, DT)
@@ -68,28 +70,61 @@ def test_time_varying_filter_converges_to_dare_gain_and_stays_psd():
 
 def test_nan_measurement_is_predict_only_and_flagged():
     F, H = otolith_canal.matrices()
-    kf = KalmanFilter.create(F, None, H, None, otolith_canal.TAHBOUB_Q, otolith_canal.TAHBOUB_R)
+    kf = kalman_filter(F, None, H, None, otolith_canal.TAHBOUB_Q, otolith_canal.TAHBOUB_R)
     s0 = kf.init(jnp.array([0.1, 0.2, 0.0]), jnp.eye(3) * 0.01)
     s1, out = kf.step(s0, 0.0, jnp.array([jnp.nan, jnp.nan]), DT)
     Phi, _, Qd = van_loan(F, np.zeros((3, 1)), otolith_canal.TAHBOUB_Q, DT)
     np.testing.assert_allclose(s1.x, Phi @ np.array([0.1, 0.2, 0.0]), atol=1e-14)
     np.testing.assert_allclose(s1.P, Phi @ (np.eye(3) * 0.01) @ Phi.T + Qd, atol=1e-14)
-    assert bool(out.missing.all())
+    assert not bool(out.measured.any())
     # One component missing: that gain column is zero, the other is used, all finite.
     s2, out2 = kf.step(s0, 0.0, jnp.array([0.5, jnp.nan]), DT)
     assert np.all(np.isfinite(s2.x)) and np.all(np.isfinite(s2.P))
     np.testing.assert_allclose(out2.K[:, 1], 0.0, atol=0)
     assert np.abs(out2.K[:, 0]).max() > 0
-    obs = ContinuousObserver.create(F, None, H, None, otolith_canal.steady_state_gain())
+    assert bool(out2.measured[0]) and not bool(out2.measured[1])
+    obs = continuous_observer(F, None, H, None, otolith_canal.steady_state_gain())
     o1, oo = obs.step(obs.init(jnp.array([0.1, 0.2, 0.0])), 0.0, jnp.array([jnp.nan, 1.0]), DT)
-    assert np.all(np.isfinite(o1.x)) and bool(oo.missing[0]) and not bool(oo.missing[1])
+    assert np.all(np.isfinite(o1.x)) and not bool(oo.measured[0]) and bool(oo.measured[1])
+
+
+@pytest.mark.parametrize("which", ["time-varying", "steady-state", "continuous"])
+def test_all_nan_step_is_predict_and_run_is_repeated_step(which):
+    """The estimator contract (estimators/base.py) for the three linear forms."""
+    F, H = otolith_canal.matrices()
+    Q, R = otolith_canal.TAHBOUB_Q, otolith_canal.TAHBOUB_R
+    est = {"time-varying": lambda: kalman_filter(F, None, H, None, Q, R),
+           "steady-state": lambda: steady_state_kalman_filter(F, None, H, None, Q, R, DT),
+           "continuous": lambda: continuous_observer(F, None, H, None, otolith_canal.steady_state_gain()),
+           }[which]()
+    s0 = est.init(jnp.array([0.1, 0.2, 0.01]), jnp.eye(3) * 0.01)
+    step, predict = jax.jit(est.step), jax.jit(est.predict)
+    s_nan, _ = step(s0, 0.0, jnp.full(2, jnp.nan), DT)
+    s_pred = predict(s0, 0.0, DT)
+    for a, b in zip(s_nan, s_pred, strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    rng = np.random.default_rng(4)
+    ys = rng.normal(size=(30, 2)) * np.array([0.01, 0.3])
+    ys[5] = np.nan
+    ys[9, 1] = np.nan
+    final, outs = est.run(s0, None, ys, DT)
+    s = s0
+    for k in range(30):
+        s, o = step(s, 0.0, ys[k], DT)
+        np.testing.assert_allclose(np.asarray(o.x), np.asarray(outs.x[k]), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(s.x), np.asarray(final.x), rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(np.asarray(outs.measured[5]), [False, False])
+    np.testing.assert_array_equal(np.asarray(outs.measured[9]), [True, False])
+    # a non-finite input never turns the finite estimate into NaN
+    s_bad, _ = step(s0, jnp.nan, ys[0], DT)
+    assert np.all(np.isfinite(np.asarray(s_bad.x)))
 
 
 def test_bad_inputs_raise_input_error():
     F, H = otolith_canal.matrices()
     with pytest.raises(InputError, match="positive definite"):
-        KalmanFilter.create(F, None, H, None, otolith_canal.TAHBOUB_Q, np.diag([1e-5, 0.0]))
+        kalman_filter(F, None, H, None, otolith_canal.TAHBOUB_Q, np.diag([1e-5, 0.0]))
     with pytest.raises(InputError, match="shape"):
-        KalmanFilter.create(F, None, H[:, :2], None, otolith_canal.TAHBOUB_Q, otolith_canal.TAHBOUB_R)
+        kalman_filter(F, None, H[:, :2], None, otolith_canal.TAHBOUB_Q, otolith_canal.TAHBOUB_R)
     with pytest.raises(InputError, match="NaN"):
-        ContinuousObserver.create(F, None, H, None, np.full((3, 2), np.nan))
+        continuous_observer(F, None, H, None, np.full((3, 2), np.nan))

@@ -14,6 +14,7 @@ def test_observer_based_loop_has_controller_and_observer_poles():
     m = sep.linear_model()
     A, B, C = (np.asarray(v) for v in (m.A, m.B[:, :1], m.C))
     obs = lu.design(m, sep.LUENBERGER_POLES)
+    np.testing.assert_allclose(np.sort(obs.poles().real), np.sort(sep.LUENBERGER_POLES), rtol=1e-6)
     L = np.asarray(obs.L)
     K = _pd_row()
     # [x; x̂]:  ẋ = A x − B K x̂,   dx̂ = L C x + (A − B K − L C) x̂

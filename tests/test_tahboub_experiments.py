@@ -2,8 +2,9 @@
 
 import numpy as np
 
-from verticality import experiments
-from verticality.experiments import ground
+from verticality import cli, experiments, so3
+from verticality.experiments import ground, tahboub
+from verticality.io.motion import read_motion_csv
 
 
 def test_tahboub_gains_experiment_matches_t_eq_22():
@@ -24,6 +25,19 @@ def test_tahboub_prts_quick_has_unit_gain_and_high_coherence():
     assert m["mean_abs_phase_deg"] < 15.0
     assert 4.0 < m["peak_lean_deg"] < 5.5
     assert abs(r.simulated_s - 181.5) < 0.02  # 3 cycles (+ one sample for end matching)
+
+
+def test_motion_prts_is_the_tahboub_prts_stimulus(tmp_path):
+    """One PRTS: the lean recorded by `verticality motion prts` (two cycles) is the command of
+    `tahboub-prts`, sample by sample."""
+    out = tmp_path / "prts.csv"
+    assert cli.main(["motion", "prts", "--out", str(out), "--rate", "100"]) == 0
+    rec = read_motion_csv(out)
+    lean = -np.asarray(so3.tilt_angles(so3.matrix_from_quat(rec.q_I_H_wxyz)))[:, 1]  # forward +
+    command = tahboub.prts_command(2)
+    assert lean.size == command.size == 12101  # two cycles and one sample (121 s at 100 Hz)
+    np.testing.assert_allclose(lean, command, rtol=0, atol=1e-12)
+    assert np.abs(command).max() == np.radians(5.0)
 
 
 def test_ground_edo_beats_stand_alone_filter_when_motions_superimpose():

@@ -65,6 +65,10 @@ def test_jump_free_fall_landing_and_rest():
 
 def test_lissajous_is_p11():
     traj = tr.lissajous()
+    t0 = np.array([0.3, 1.7])
+    np.testing.assert_allclose(np.asarray(tr.lissajous_trunk(t0)),
+                               0.25 * np.stack([np.sin(0.5 * np.pi * t0), np.sin(np.pi * t0),
+                                                np.pi * np.sin(2 * np.pi * t0)]), atol=1e-15)
     t = np.array([0.3, 1.7, 4.2])
     m = tr.sample(traj, t)
     p = np.asarray(tr.positions(traj, t))
@@ -79,13 +83,20 @@ def test_lissajous_is_p11():
 
 
 def test_tahboub_stimuli():
-    seq = tr.prts_sequence()
-    assert seq.size == 242 and (seq == 1).sum() == 81 and (seq == -1).sum() == 81
+    lv = tr.prts_velocity_levels()
+    assert lv.size == 242 and (lv == 1).sum() == 81 and (lv == -1).sum() == 81
     prts = tr.prts(cycles=1)
     assert prts.duration_s == 60.5
     ts = np.arange(0.0, 60.5, 0.01)
-    lean = np.asarray(so3.tilt_angles(tr.sample(prts, ts).R_I_B))[:, 1]
-    assert abs(np.degrees(np.max(np.abs(lean))) - 5.0) < 0.05
+    m = tr.sample(prts, ts)
+    lean = -np.asarray(so3.tilt_angles(m.R_I_B))[:, 1]  # Θy = −pitch (Ry(θ))
+    assert abs(np.degrees(np.max(np.abs(lean))) - 5.0) < 1e-9
+    # the lean is the sampled PRTS stimulus; its rate is held at +v, 0, −v for 0.25 s each
+    np.testing.assert_allclose(lean, tr.prts_stimulus(np.radians(5.0), 100.0, 1)[1], atol=1e-12)
+    rate = np.asarray(m.omega_B_rad_s)[:, 1]
+    v = np.abs(rate).max()
+    np.testing.assert_allclose(rate, v * np.repeat(lv, 25), atol=1e-12)
+    np.testing.assert_allclose(np.asarray(m.omegadot_B_rad_s2), 0.0, atol=1e-12)
     step = tr.step(lever_m=0.325)
     m = tr.sample(step, np.array([1.3, 9.0]))
     lean = -np.degrees(np.asarray(so3.tilt_angles(m.R_I_B))[:, 1])  # Θy = −pitch (Ry(θ))

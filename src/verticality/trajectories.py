@@ -13,8 +13,8 @@ mutually consistent (integrating ω reproduces R, integrating a twice reproduces
 
 Spikes are smooth (Gaussian pulses of a given peak and width, resolved by the 1 ms plant step)
 and "then stop" is a smooth deceleration to rest, so no model ever sees a discontinuity (except
-the `step` stimulus, whose critically damped onset has the acceleration jump of its published
-definition).
+the published stimuli that define one: the `step`, whose critically damped onset has an
+acceleration jump, and the `prts`, whose velocity steps between its levels).
 
 A :class:`Trajectory` is a NamedTuple of functions: close over it in jitted code (do not pass it
 as a traced argument). ``sample(traj, t)`` evaluates it on an array of times (vmapped).
@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.special import ndtr
 
+from verticality.errors import InputError
 from verticality.models.kinematics import RigidMotion
 from verticality.params import G_M_S2
 
@@ -184,18 +185,30 @@ def jolt_position(t, t_c, sigma, peak_m_s2):
 # --------------------------------------------------------------------------------------------
 
 
+def lissajous_trunk(t_s, amplitude: float = 0.25):
+    """P11 §VI / F §4.3.2, the one definition of the Lissajous trunk motion:
+    ``(x, z, Θ)(t) = A·(sin 0.5πt, sin πt, π sin 2πt)``, A = 0.25 — horizontal and vertical
+    position (m) and tilt (rad, about the axis normal to the plane), stacked on a leading axis of
+    3 (``t_s`` any shape). :func:`lissajous` (3-D) and
+    :func:`verticality.models.lissajous_plant.trunk` (planar, with derivatives) are views of it."""
+    A = amplitude
+    return jnp.stack([A * jnp.sin(0.5 * jnp.pi * t_s), A * jnp.sin(jnp.pi * t_s),
+                      A * jnp.pi * jnp.sin(2.0 * jnp.pi * t_s)])
+
+
 def lissajous(amplitude: float = 0.25, duration_s: float = 10.0) -> Trajectory:
-    """P11 §VI (and F §4.3): ``[x(t), y(t), Θ(t)] = 0.25 [sin 0.5πt, sin πt, π sin 2πt]``.
+    """P11 §VI (and F §4.3): :func:`lissajous_trunk` as a 3-D trajectory.
 
     P11's plane is the coronal plane (models/planar.py: the head's y–z plane, rotations about x):
     P11's horizontal ``x`` is our y, P11's vertical ``y`` is our z, Θ is a rotation about x (roll).
     """
 
     def position(t):
-        return amplitude * jnp.stack([0.0 * t, jnp.sin(0.5 * jnp.pi * t), jnp.sin(jnp.pi * t)])
+        x, z, _ = lissajous_trunk(t, amplitude)
+        return jnp.stack([0.0 * t, x, z])
 
     def rpy(t):
-        return jnp.stack([amplitude * jnp.pi * jnp.sin(2.0 * jnp.pi * t), 0.0 * t, 0.0 * t])
+        return jnp.stack([lissajous_trunk(t, amplitude)[2], 0.0 * t, 0.0 * t])
 
     return from_euler(position, rpy, duration_s, "lissajous")
 
@@ -426,76 +439,79 @@ def sine(amplitude_rad: float = math.radians(5.0), frequency_hz: float = 0.2, le
     return _lean(angle, lever_m, duration_s, "sine")
 
 
-def prts_sequence(stages: int = 5) -> np.ndarray:
-    """A pseudorandom ternary sequence of length 3^stages − 1 (242 for 5 stages), values in
-    {0, 1, −1}: the maximal-length sequence of the GF(3) shift register of a primitive polynomial
-    (Peterka 2002's stimulus, cited by T). Zero mean over a cycle."""
-    length = 3**stages - 1
-    # search the feedback taps of a primitive recurrence (deterministic, first one found)
-    for taps in _tap_candidates(stages):
-        state = [1] + [0] * (stages - 1)
-        seq, seen = [], set()
-        for _ in range(length):
-            seen.add(tuple(state))
-            seq.append(state[-1])
-            fb = sum(c * s for c, s in zip(taps, state, strict=True)) % 3
-            state = [fb] + state[:-1]
-        if len(seen) == length:  # the register visits every non-zero state: maximal length
-            s = np.asarray(seq)
-            return np.where(s == 2, -1, s).astype(float)
-    raise RuntimeError("no primitive polynomial found")  # pragma: no cover
+PRTS_LENGTH = 242
+PRTS_DT_S = 0.25
+PRTS_TAPS = (0, 0, 0, 1, 2)  # coefficients of s[k-1] ... s[k-5]
 
 
-def _tap_candidates(n):
-    import itertools
+def prts_sequence(taps=PRTS_TAPS) -> np.ndarray:
+    """One period (242 values in {0, 1, 2}) of the pseudorandom ternary sequence of Peterka 2002
+    (T §III.A): the maximal-length sequence of the 5-stage shift register over GF(3)
+    ``s[k] = s[k−4] + 2 s[k−5] (mod 3)`` (a primitive polynomial, so the period is 3⁵ − 1)."""
+    s = [0, 0, 0, 0, 1]
+    for _ in range(PRTS_LENGTH):
+        s.append(sum(c * s[-1 - i] for i, c in enumerate(taps)) % 3)
+    return np.array(s[5:5 + PRTS_LENGTH])
 
-    for taps in itertools.product(range(3), repeat=n):
-        if taps[-1] != 0:
-            yield taps
+
+def prts_velocity_levels(taps=PRTS_TAPS) -> np.ndarray:
+    """The sequence as unit velocity levels: 0 → 0, 1 → +1, 2 → −1. Zero mean over a cycle; the
+    second half is the negative of the first, so the power sits on the odd harmonics only and the
+    integral (the position) returns to its start after every cycle."""
+    return np.array([0.0, 1.0, -1.0])[prts_sequence(taps)]
 
 
-def prts(peak_rad: float = math.radians(5.0), dt_s: float = 0.25, cycles: int = 2,
-         smoothing_s: float = 0.02, lever_m: float = 0.0, stages: int = 5) -> Trajectory:
-    """T §III.A (`tahboub-prts`, after Peterka 2002): the 242-long PRTS sets the lean velocity to
-    +v, 0 or −v for Δt = 0.25 s each (cycle 60.5 s); integrated to a lean angle scaled so that its
-    peak deviation from the cycle mean is ``peak_rad`` (≈ 5°), repeated ``cycles`` times.
+def prts_knots(peak_rad: float, cycles: int, dt_s: float = PRTS_DT_S):
+    """``(t_s, angle_rad)`` at the 242·cycles + 1 level changes of the PRTS lean: the exact integral
+    of the velocity held at +v, 0 or −v for ``dt_s`` each, centred on the middle of its range
+    and scaled so that it spans ±``peak_rad``. Between the knots the lean is linear."""
+    if cycles < 1:
+        raise InputError("the PRTS needs at least 1 cycle")
+    if not dt_s > 0:
+        raise InputError(f"the PRTS level duration must be positive, got {dt_s}")
+    levels = np.tile(prts_velocity_levels(), cycles)
+    pos = np.concatenate([[0.0], np.cumsum(levels) * dt_s])
+    one = pos[: PRTS_LENGTH + 1]
+    offset = 0.5 * (one.max() + one.min())
+    scale = peak_rad / (0.5 * (one.max() - one.min()))
+    return np.arange(levels.size + 1) * dt_s, scale * (pos - offset)
 
-    Velocity changes are smoothed by a Gaussian of σ = ``smoothing_s`` (the angle is the exact
-    piecewise-linear PRTS waveform convolved with that Gaussian), so the angular acceleration is a
-    train of short Gaussian pulses instead of Dirac impulses; the spectrum is unchanged below
-    ~1/(2πσ) ≈ 8 Hz. The mean lean over a cycle is removed.
-    """
-    seq = prts_sequence(stages)
-    vel = np.tile(seq, cycles)
-    n = vel.size
-    knots_t = np.arange(n + 1) * dt_s
-    theta = np.concatenate([[0.0], np.cumsum(vel) * dt_s])
-    cyc = theta[: seq.size + 1]
-    # mean of the piecewise-linear waveform over one cycle (trapezoid rule is exact)
-    mean = np.trapezoid(cyc, dx=dt_s) / (seq.size * dt_s)
-    scale = peak_rad / np.max(np.abs(cyc - mean))
-    theta = (theta - mean) * scale
-    v = np.concatenate([[0.0], vel * scale, [0.0]])  # v[k] = velocity just before knot k
-    knots_j, theta_j = jnp.asarray(knots_t), jnp.asarray(theta)
-    v_before, dv = jnp.asarray(v[:-1]), jnp.asarray(np.diff(v))  # dv[k]: jump at knot k
-    sig = float(smoothing_s)
+
+def prts_lean_fn(peak_rad: float = math.radians(5.0), cycles: int = 2, dt_s: float = PRTS_DT_S):
+    """The PRTS lean as a function of time (rad; ``jax.numpy``, piecewise linear between the
+    :func:`prts_knots`, held at the last knot's value after the end)."""
+    knots_t, knots_a = (jnp.asarray(a) for a in prts_knots(peak_rad, cycles, dt_s))
 
     def angle(t):
-        # nearest knot k: θ_k + v_before·(t − t_k) + dv_k σ·ramp(u_k) is the Gaussian-smoothed kink
-        # (→ the left and right lines far from t_k); the neighbours' smoothing adds
-        # dv σ (ramp(u) − max(u, 0)), which is ~1e-10 beyond 6σ.
-        k = jnp.clip(jnp.round(t / dt_s).astype(int), 0, n)
-        u_k = (t - knots_j[k]) / sig
-        out = theta_j[k] + v_before[k] * (t - knots_j[k]) + dv[k] * sig * _ramp(u_k)
-        for offset in (-1, 1):
-            j = k + offset
-            valid = (j >= 0) & (j <= n)
-            jc = jnp.clip(j, 0, n)
-            u = (t - knots_j[jc]) / sig
-            out = out + jnp.where(valid, dv[jc] * sig * (_ramp(u) - jnp.maximum(u, 0.0)), 0.0)
-        return out
+        return jnp.interp(t, knots_t, knots_a)
 
-    return _lean(angle, lever_m, n * dt_s, "prts")
+    return angle
+
+
+def prts_stimulus(peak_rad: float, fs_hz: float, n_cycles: int, dt_s: float = PRTS_DT_S):
+    """The PRTS lean sampled at ``fs_hz``: ``(t_s, position_rad, velocity_rad_s)`` over
+    ``n_cycles`` cycles, the position from :func:`prts_lean_fn` (the lean of the `prts`
+    trajectory), the velocity the level held over the sample's interval."""
+    if not fs_hz > 0:
+        raise InputError(f"fs_hz must be positive, got {fs_hz}")
+    n = int(round(n_cycles * PRTS_LENGTH * dt_s * fs_hz))
+    t = np.arange(n) / fs_hz
+    pos = np.asarray(jax.jit(prts_lean_fn(peak_rad, n_cycles, dt_s))(jnp.asarray(t)))
+    knots_t, knots_a = prts_knots(peak_rad, n_cycles, dt_s)
+    k = np.minimum((t / dt_s).astype(int), knots_t.size - 2)
+    vel = (knots_a[k + 1] - knots_a[k]) / dt_s
+    return t, pos, vel
+
+
+def prts(peak_rad: float = math.radians(5.0), dt_s: float = PRTS_DT_S, cycles: int = 2,
+         lever_m: float = 0.0) -> Trajectory:
+    """T §III.A (`tahboub-prts`, after Peterka 2002): the 242-long PRTS sets the lean velocity to
+    +v, 0 or −v for Δt = 0.25 s each (cycle 60.5 s); integrated to a lean angle centred on the
+    middle of its range and spanning ±``peak_rad`` (5°), repeated ``cycles`` times
+    (:func:`prts_lean_fn`: the same lean as the `tahboub-prts` stimulus). The velocity steps
+    are the stimulus's definition: the angular velocity is piecewise constant and the angular
+    acceleration zero between the level changes (where it is a Dirac impulse)."""
+    return _lean(prts_lean_fn(peak_rad, cycles, dt_s), lever_m, cycles * PRTS_LENGTH * dt_s, "prts")
 
 
 def still(duration_s: float = 10.0, R_I_B=None) -> Trajectory:

@@ -1,13 +1,11 @@
 """Frequency-response identification: PRTS stimulus, transfer function and coherence (T §III.A,
 Peterka 2002 J Neurophysiol 88:1097).
 
-* :func:`prts_sequence` — the 242-long pseudorandom ternary sequence: a 5-stage shift register over
-  GF(3), ``s[k] = s[k−4] + 2 s[k−5] (mod 3)`` (a primitive polynomial, so the period is 3⁵ − 1).
-  Mapping 0 → 0, 1 → +v, 2 → −v gives a velocity waveform whose second half is the negative of the
-  first half; its power sits on the odd harmonics of the cycle frequency only, and its integral
-  (the position) returns to its start after every cycle.
-* :func:`prts_stimulus` — velocity held for Δt = 0.25 s per element (cycle 60.5 s), integrated to
-  a position scaled to a given peak.
+The PRTS stimulus itself (the 242-long pseudorandom ternary sequence, velocity held for
+Δt = 0.25 s per element, integrated to a lean) is a trajectory:
+:func:`verticality.trajectories.prts_stimulus` and :func:`verticality.trajectories.prts`.
+
+* :func:`prts_frequencies` — the odd harmonics of the cycle, where a PRTS has power.
 * :func:`cycle_transfer_function` — Peterka's method for a periodic stimulus: one FFT per stimulus
   cycle (rectangular window, no leakage since each cycle is periodic), cross- and auto-spectra
   averaged over cycles, ``H = G_xy / G_xx``, ``γ² = |G_xy|² / (G_xx G_yy)``, at the odd harmonics.
@@ -22,45 +20,7 @@ import numpy as np
 import scipy.signal
 
 from verticality.errors import InputError
-
-PRTS_LENGTH = 242
-PRTS_DT_S = 0.25
-PRTS_TAPS = (0, 0, 0, 1, 2)  # coefficients of s[k-1] ... s[k-5]
-
-
-def prts_sequence(taps=PRTS_TAPS) -> np.ndarray:
-    """One period (242 values in {0, 1, 2}) of the ternary m-sequence of the shift register."""
-    s = [0, 0, 0, 0, 1]
-    for _ in range(PRTS_LENGTH):
-        s.append(sum(c * s[-1 - i] for i, c in enumerate(taps)) % 3)
-    seq = np.array(s[5:5 + PRTS_LENGTH])
-    return seq
-
-
-def prts_velocity_levels(taps=PRTS_TAPS) -> np.ndarray:
-    """The sequence mapped to unit velocity levels: 0 → 0, 1 → +1, 2 → −1."""
-    return np.array([0.0, 1.0, -1.0])[prts_sequence(taps)]
-
-
-def prts_stimulus(peak_rad: float, fs_hz: float, n_cycles: int, dt_s: float = PRTS_DT_S):
-    """PRTS position stimulus ``(t_s, position_rad, velocity_rad_s)`` sampled at ``fs_hz``.
-
-    The position is the exact integral of the held velocity levels, shifted to be centred on zero
-    and scaled so that its largest excursion is ``peak_rad``. ``fs_hz · dt_s`` must be an integer.
-    """
-    per = fs_hz * dt_s
-    if abs(per - round(per)) > 1e-9 or per < 1:
-        raise InputError(f"fs_hz * dt_s must be a positive integer, got {per}")
-    if n_cycles < 1:
-        raise InputError("n_cycles must be at least 1")
-    per = int(round(per))
-    v = np.tile(np.repeat(prts_velocity_levels(), per), n_cycles)  # unit levels per sample
-    pos = np.concatenate([[0.0], np.cumsum(v) / fs_hz])[:-1]
-    one = pos[: PRTS_LENGTH * per]
-    offset = 0.5 * (one.max() + one.min())
-    scale = peak_rad / (0.5 * (one.max() - one.min()))
-    t = np.arange(v.size) / fs_hz
-    return t, scale * (pos - offset), scale * v
+from verticality.trajectories import PRTS_DT_S, PRTS_LENGTH
 
 
 def prts_frequencies(cycle_s: float = PRTS_LENGTH * PRTS_DT_S, f_max_hz: float = 2.0) -> np.ndarray:

@@ -1,7 +1,8 @@
 """Extended disturbance observer for the ground motion (T §II.B, eq. 16–19, 23).
 
-The linearized body ``ẋ = A x + B u + N F_d`` (T eq. 16, from :func:`verticality.models.body.linearize`)
-is extended with the disturbance ``F_d = (θ1, θ̇1, θ̈1)`` modelled as a chain of integrators with a
+The linearized body ``ẋ = A x + B u + N F_d`` (T eq. 16: :func:`verticality.models.linearize.linearize`
+of :class:`verticality.models.body.TwoSegmentBody` at upright, whose input is ``(u, F_d)``, so that
+the last three columns of its B and D are T's N and E) is extended with the disturbance ``F_d = (θ1, θ̇1, θ̈1)`` modelled as a chain of integrators with a
 piecewise-constant θ̈1 (T eq. 17, Friedland's disturbance model):
 
     A_e = [[A, N], [0, A_d]],  A_d = [[0, 1, 0], [0, 0, 1], [0, 0, 0]],  B_e = [[B], [0]]   (T eq. 18)
@@ -26,8 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators.kalman import ContinuousObserver
-from verticality.models.body import LinearBody
+from verticality.estimators.kalman import ContinuousObserver, continuous_observer
+from verticality.models.linearize import LinearModel
 
 A_D = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])  # T eq. 17
 
@@ -35,13 +36,20 @@ STATE_NAMES = ("theta2_rad", "theta3_rad", "theta2_dot_rad_s", "theta3_dot_rad_s
                "theta1_rad", "theta1_dot_rad_s", "theta1_ddot_rad_s2")
 
 
-def extended_system(lin: LinearBody):
-    """``(A_e, B_e, C_e, D)`` of T eq. 18 and 23."""
-    n, k = lin.A.shape[0], A_D.shape[0]
-    A_e = np.block([[lin.A, lin.N], [np.zeros((k, n)), A_D]])
-    B_e = np.vstack([lin.B, np.zeros((k, lin.B.shape[1]))])
-    C_e = np.hstack([lin.C, lin.E])
-    return A_e, B_e, C_e, np.asarray(lin.D)
+def extended_system(lin: LinearModel):
+    """``(A_e, B_e, C_e, D)`` of T eq. 18 and 23 from the body linearized with the input
+    ``(u, F_d)``: the last three input columns (of B: T's N; of D: T's E) are the disturbance."""
+    k = A_D.shape[0]
+    A, B_all, C, D_all = (np.asarray(m, dtype=float) for m in lin)
+    n, m = A.shape[0], B_all.shape[1] - k
+    if m < 1:
+        raise InputError(f"the linear model has {B_all.shape[1]} inputs; it needs the known inputs "
+                         f"followed by the {k} of F_d")
+    B, N, D, E = B_all[:, :m], B_all[:, m:], D_all[:, :m], D_all[:, m:]
+    A_e = np.block([[A, N], [np.zeros((k, n)), A_D]])
+    B_e = np.vstack([B, np.zeros((k, m))])
+    C_e = np.hstack([C, E])
+    return A_e, B_e, C_e, D
 
 
 def observability_rank(A_e, C_e) -> int:
@@ -78,11 +86,11 @@ def place_gain(A_e, C_e, poles, outputs=None) -> np.ndarray:
     return L
 
 
-def extended_disturbance_observer(lin: LinearBody, poles, outputs=None) -> ContinuousObserver:
+def extended_disturbance_observer(lin: LinearModel, poles, outputs=None) -> ContinuousObserver:
     """T eq. 19 with the pole-placement gain; states ordered as :data:`STATE_NAMES`.
 
     ``outputs`` selects the measurements the gain uses (see :func:`place_gain`); the observer always
     takes the full y_e of T eq. 23.
     """
     A_e, B_e, C_e, D = extended_system(lin)
-    return ContinuousObserver.create(A_e, B_e, C_e, D, place_gain(A_e, C_e, poles, outputs))
+    return continuous_observer(A_e, B_e, C_e, D, place_gain(A_e, C_e, poles, outputs))

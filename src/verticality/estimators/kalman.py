@@ -11,20 +11,25 @@ same plant and, as ``dt → 0``, the discrete steady-state gain ``K_d`` tends to
 * :func:`van_loan` — exact zero-order-hold discretization of (A, B) and of the process noise Q.
 * :func:`continuous_steady_gain` — ``L = P Cᵀ R⁻¹`` with P from the CARE (T eq. 10–11), SciPy.
 * :func:`discrete_steady_gain` — the steady-state gain of the sampled filter from the DARE, SciPy.
-* :class:`KalmanFilter` — time-varying discrete filter (predict with Van Loan, Joseph update).
-* :class:`SteadyStateKalmanFilter` — the same filter with its converged (DARE) gain, for one dt.
-* :class:`ContinuousObserver` — ``x̂' = A x̂ + B u + L (y − C x̂ − D u)`` (T eq. 9 and 19) with a
-  fixed gain L (steady-state Kalman gain, or a pole-placement gain), discretized exactly with the
-  measurement held over the sample (zero-order hold).
+* :class:`KalmanFilter` (:func:`kalman_filter`) — time-varying discrete filter (predict with Van
+  Loan, Joseph update).
+* :class:`SteadyStateKalmanFilter` (:func:`steady_state_kalman_filter`) — the same filter with its
+  converged (DARE) gain, for one dt.
+* :class:`ContinuousObserver` (:func:`continuous_observer`) — ``x̂' = A x̂ + B u + L (y − C x̂ − D u)``
+  (T eq. 9 and 19, F eq. 4.10) with a fixed gain L (steady-state Kalman gain, or a pole-placement
+  gain: :mod:`verticality.estimators.luenberger`, :mod:`verticality.estimators.disturbance`),
+  integrated exactly over each sample with u and y held (zero-order hold).
 
-Both estimators follow the project API ``init(x0, P0)``, ``step(state, u, y, dt)``,
-``run(state, us, ys, dts)`` (``jax.lax.scan``). A NaN in a component of ``y`` means that component
-was not measured: its innovation is dropped (predict only for it) and ``out.missing`` flags it.
+The estimators are frozen values with the interface of :mod:`verticality.estimators.base`
+(``init``, ``predict``, ``step``, ``run``); the functions above validate and build them. A NaN in a
+component of ``y`` means that component was not measured: its innovation is dropped (its gain
+column is zero) and ``out.measured`` says so, per component; with no component measured the step
+is ``predict``.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -32,6 +37,9 @@ import numpy as np
 import scipy.linalg
 
 from verticality.errors import InputError
+from verticality.estimators.base import keep_finite, scan_steps, split_measurement
+from verticality.integrate import zoh
+from verticality.models.base import model_dataclass
 
 
 def _as2d(name: str, M, rows: int | None = None, cols: int | None = None) -> np.ndarray:
@@ -64,6 +72,8 @@ def check_system(A, B=None, C=None, D=None, Q=None, R=None):
     if A.shape != (n, n):
         raise InputError(f"A must be square, got shape {A.shape}")
     B = np.zeros((n, 1)) if B is None else _as2d("B", B, rows=n)
+    if C is None:
+        raise InputError("the measurement matrix C is required")
     C = _as2d("C", C, cols=n)
     p, m = C.shape[0], B.shape[1]
     D = np.zeros((p, m)) if D is None else _as2d("D", D, rows=p, cols=m)
@@ -81,30 +91,19 @@ def check_system(A, B=None, C=None, D=None, Q=None, R=None):
 
 
 def van_loan(A, B, Q, dt):
-    """Exact discretization over ``dt`` (JAX; C. F. Van Loan 1978).
+    """Exact discretization over ``dt`` (JAX; Van Loan 1978).
 
-    Returns ``(Phi, Gamma, Qd)``: ``Phi = e^{A dt}``, ``Gamma = ∫₀^dt e^{A s} ds B`` (input held),
-    ``Qd = ∫₀^dt e^{A s} Q e^{Aᵀ s} ds`` — from one matrix exponential each of the block matrices
-    ``[[A, B], [0, 0]]`` and ``[[−A, Q], [0, Aᵀ]]``.
+    Returns ``(Phi, Gamma, Qd)``: ``Phi = e^{A dt}``, ``Gamma = ∫₀^dt e^{A s} ds B`` (input held,
+    :func:`verticality.integrate.zoh`), ``Qd = ∫₀^dt e^{A s} Q e^{Aᵀ s} ds`` — from one matrix
+    exponential of the block matrix ``[[−A, Q], [0, Aᵀ]]``.
     """
     A = jnp.asarray(A)
-    n, m = A.shape[0], B.shape[1]
-    top = jnp.concatenate([A, B], axis=1)
-    M = jnp.concatenate([top, jnp.zeros((m, n + m))], axis=0)
-    E = jax.scipy.linalg.expm(M * dt)
-    Phi, Gamma = E[:n, :n], E[:n, n:]
+    n = A.shape[0]
+    Phi, Gamma = zoh(A, jnp.asarray(B), dt)
     V = jnp.block([[-A, Q], [jnp.zeros((n, n)), A.T]])
     F = jax.scipy.linalg.expm(V * dt)
     Qd = Phi @ F[:n, n:]
     return Phi, Gamma, 0.5 * (Qd + Qd.T)
-
-
-def zoh(M, N, dt):
-    """``(e^{M dt}, ∫₀^dt e^{M s} ds N)`` for ``ẋ = M x + N v`` with v held over the step."""
-    n, m = M.shape[0], N.shape[1]
-    top = jnp.concatenate([M, N], axis=1)
-    E = jax.scipy.linalg.expm(jnp.concatenate([top, jnp.zeros((m, n + m))], axis=0) * dt)
-    return E[:n, :n], E[:n, n:]
 
 
 # --------------------------------------------------------------------------- steady-state gains
@@ -142,16 +141,7 @@ def discrete_steady_gain(Phi, C, Qd, Rd):
     return K, P, 0.5 * (P_post + P_post.T)
 
 
-# --------------------------------------------------------------------------- helpers for missing y
-
-
-def _mask(y):
-    y = jnp.asarray(y, dtype=float)
-    ok = jnp.isfinite(y)
-    return jnp.where(ok, y, 0.0), ok
-
-
-# --------------------------------------------------------------------------- time-varying filter
+# --------------------------------------------------------------------------- shared pieces
 
 
 class KFState(NamedTuple):
@@ -165,117 +155,7 @@ class KFOut(NamedTuple):
     P: jnp.ndarray  # posterior covariance
     K: jnp.ndarray  # gain used (zero columns for missing measurements)
     innovation: jnp.ndarray  # y − ŷ⁻ (0 where missing)
-    missing: jnp.ndarray  # bool per measurement component
-
-
-class KalmanFilter(NamedTuple):
-    """Time-varying discrete Kalman filter on a continuous plant (see the module docstring).
-
-    Build with :meth:`create` (validates). ``step`` predicts over ``dt`` with the input held
-    (Van Loan), then updates with ``y`` (Joseph form, symmetrized).
-    """
-
-    A: jnp.ndarray
-    B: jnp.ndarray
-    C: jnp.ndarray
-    D: jnp.ndarray
-    Q: jnp.ndarray  # process-noise intensity
-    R: jnp.ndarray  # measurement-noise intensity (per-sample covariance R / dt)
-
-    @classmethod
-    def create(cls, A, B=None, C=None, D=None, Q=None, R=None) -> KalmanFilter:
-        if Q is None or R is None or C is None:
-            raise InputError("KalmanFilter needs C, Q and R")
-        A, B, C, D, Q, R = check_system(A, B, C, D, Q, R)
-        return cls(*(jnp.asarray(M) for M in (A, B, C, D, Q, R)))
-
-    def init(self, x0, P0) -> KFState:
-        return KFState(jnp.asarray(x0, float), jnp.asarray(P0, float), jnp.asarray(0))
-
-    def discretize(self, dt):
-        """Sample-time matrices ``(Φ, Γ, Q_d, dt)`` (Van Loan); reused by :meth:`step_discrete`."""
-        return (*van_loan(self.A, self.B, self.Q, dt), dt)
-
-    def step(self, state: KFState, u, y, dt):
-        return self.step_discrete(state, u, y, self.discretize(dt))
-
-    def step_discrete(self, state: KFState, u, y, disc):
-        Phi, Gamma, Qd, dt = disc
-        u = jnp.atleast_1d(jnp.asarray(u, float))
-        x = Phi @ state.x + Gamma @ u
-        P = Phi @ state.P @ Phi.T + Qd
-        y0, ok = _mask(y)
-        okf = ok.astype(float)
-        Cm = self.C * okf[:, None]
-        Rd = self.R / dt
-        # Missing components: zero row of C, unit variance, no correlation -> zero gain column.
-        Rm = Rd * jnp.outer(okf, okf) + jnp.diag(1.0 - okf)
-        innov = okf * (y0 - self.C @ x - self.D @ u)
-        S = Cm @ P @ Cm.T + Rm
-        S = 0.5 * (S + S.T)
-        cho = jax.scipy.linalg.cho_factor(S)
-        K = jax.scipy.linalg.cho_solve(cho, Cm @ P).T
-        x = x + K @ innov
-        I_KC = jnp.eye(P.shape[0]) - K @ Cm
-        P = I_KC @ P @ I_KC.T + K @ Rm @ K.T
-        P = 0.5 * (P + P.T)
-        return KFState(x, P, state.k + 1), KFOut(x, P, K, innov, ~ok)
-
-    def run(self, state: KFState, us, ys, dts):
-        return _scan(self, state, us, ys, dts)
-
-
-# --------------------------------------------------------------------------- steady-state discrete
-
-
-class SteadyStateKalmanFilter(NamedTuple):
-    """The discrete filter with its converged gain ``K`` (from the DARE) and no covariance.
-
-    Valid for the sample time it was built for (:meth:`create` takes ``dt``); ``step`` predicts
-    with Van Loan over the given dt and updates with K — equal to :class:`KalmanFilter` once that
-    has converged at the same dt. ``P`` is the (constant) steady-state posterior covariance.
-    """
-
-    A: jnp.ndarray
-    B: jnp.ndarray
-    C: jnp.ndarray
-    D: jnp.ndarray
-    K: jnp.ndarray
-    P: jnp.ndarray
-
-    @classmethod
-    def create(cls, A, B=None, C=None, D=None, Q=None, R=None, dt=None) -> SteadyStateKalmanFilter:
-        if Q is None or R is None or C is None or dt is None or not dt > 0:
-            raise InputError("SteadyStateKalmanFilter needs C, Q, R and a positive dt")
-        A, B, C, D, Q, R = check_system(A, B, C, D, Q, R)
-        Phi, _, Qd = van_loan(jnp.asarray(A), jnp.asarray(B), jnp.asarray(Q), float(dt))
-        K, _, P = discrete_steady_gain(np.asarray(Phi), C, np.asarray(Qd), R / dt)
-        return cls(*(jnp.asarray(M) for M in (A, B, C, D, K, P)))
-
-    def init(self, x0, P0=None) -> KFState:
-        return KFState(jnp.asarray(x0, float), self.P, jnp.asarray(0))
-
-    def discretize(self, dt):
-        return zoh(self.A, self.B, dt)
-
-    def step(self, state: KFState, u, y, dt):
-        return self.step_discrete(state, u, y, self.discretize(dt))
-
-    def step_discrete(self, state: KFState, u, y, disc):
-        Phi, Gamma = disc
-        u = jnp.atleast_1d(jnp.asarray(u, float))
-        x = Phi @ state.x + Gamma @ u
-        y0, ok = _mask(y)
-        K = self.K * ok.astype(float)[None, :]
-        innov = ok * (y0 - self.C @ x - self.D @ u)
-        x = x + K @ innov
-        return KFState(x, self.P, state.k + 1), KFOut(x, self.P, K, innov, ~ok)
-
-    def run(self, state: KFState, us, ys, dts):
-        return _scan(self, state, us, ys, dts)
-
-
-# --------------------------------------------------------------------------- fixed-gain observer
+    measured: jnp.ndarray  # bool per measurement component
 
 
 class ObsState(NamedTuple):
@@ -285,75 +165,27 @@ class ObsState(NamedTuple):
 
 class ObsOut(NamedTuple):
     x: jnp.ndarray
-    innovation: jnp.ndarray
-    missing: jnp.ndarray
+    innovation: jnp.ndarray  # y − C x̂ − D u at the start of the sample (0 where missing)
+    measured: jnp.ndarray  # bool per measurement component
 
 
-class ContinuousObserver(NamedTuple):
-    """``x̂' = A x̂ + B u + L (y − C x̂ − D u)`` (T eq. 9 with the Kalman gain, T eq. 19 with a
-    pole-placement gain), integrated exactly over each sample with u and y held (zero-order hold).
-    """
-
-    A: jnp.ndarray
-    B: jnp.ndarray
-    C: jnp.ndarray
-    D: jnp.ndarray
-    L: jnp.ndarray
-
-    @classmethod
-    def create(cls, A, B=None, C=None, D=None, L=None) -> ContinuousObserver:
-        if C is None or L is None:
-            raise InputError("ContinuousObserver needs C and L")
-        A, B, C, D, _, _ = check_system(A, B, C, D)
-        L = _as2d("L", L, rows=A.shape[0], cols=C.shape[0])
-        return cls(*(jnp.asarray(M) for M in (A, B, C, D, L)))
-
-    def poles(self) -> np.ndarray:
-        """Eigenvalues of the error dynamics ``A − L C``."""
-        return np.linalg.eigvals(np.asarray(self.A - self.L @ self.C))
-
-    def init(self, x0, P0=None) -> ObsState:
-        return ObsState(jnp.asarray(x0, float), jnp.asarray(0))
-
-    def _zoh(self, ok, dt):
-        Lm = self.L * ok.astype(float)[None, :]
-        M = self.A - Lm @ self.C
-        N = jnp.concatenate([self.B - Lm @ self.D, Lm], axis=1)
-        return zoh(M, N, dt)
-
-    def discretize(self, dt):
-        """``(Φ, Γ, dt)`` with every measurement present; recomputed for a sample with NaNs."""
-        return (*self._zoh(jnp.ones(self.C.shape[0], bool), dt), dt)
-
-    def step(self, state: ObsState, u, y, dt):
-        return self.step_discrete(state, u, y, self.discretize(dt))
-
-    def step_discrete(self, state: ObsState, u, y, disc):
-        Phi_full, Gamma_full, dt = disc
-        u = jnp.atleast_1d(jnp.asarray(u, float))
-        y0, ok = _mask(y)
-        Phi, Gamma = jax.lax.cond(jnp.all(ok), lambda: (Phi_full, Gamma_full),
-                                  lambda: self._zoh(ok, dt))
-        x = Phi @ state.x + Gamma @ jnp.concatenate([u, y0])
-        innov = ok * (y0 - self.C @ state.x - self.D @ u)
-        return ObsState(x, state.k + 1), ObsOut(x, innov, ~ok)
-
-    def run(self, state: ObsState, us, ys, dts):
-        return _scan(self, state, us, ys, dts)
+def _input(u, m):
+    return jnp.reshape(jnp.asarray(u, dtype=jnp.float64), (m,))
 
 
-def _scan(est, state, us, ys, dts):
-    """``lax.scan`` of ``est.step``; with one scalar dt the discretization is computed once."""
-    ys = jnp.asarray(ys, float)
-    if ys.ndim != 2:
-        raise InputError(f"ys must be (samples, measurements), got shape {ys.shape}")
-    n = ys.shape[0]
-    us = jnp.zeros((n, est.B.shape[1])) if us is None else jnp.asarray(us, float).reshape(n, -1)
+def _run(est, state, us, ys, dts):
+    """``run`` of the linear estimators: with one scalar dt the discretization is computed once
+    (``est.discretize``, then ``est.step_discrete`` per sample), else per sample (``est.step``)."""
+    ys = jnp.asarray(ys, dtype=jnp.float64)
+    if ys.ndim != 2 or ys.shape[1] != est.C.shape[0]:
+        raise InputError(f"ys must be (samples, {est.C.shape[0]}), got shape {ys.shape}")
+    n, m = ys.shape[0], est.B.shape[1]
+    us = jnp.zeros((n, m)) if us is None else jnp.asarray(us, dtype=jnp.float64).reshape(n, m)
     if np.ndim(dts) == 0:
         if not float(dts) > 0:
             raise InputError(f"dt must be positive, got {dts}")
-        return _run_fixed(est, state, us, ys, jnp.asarray(dts, float))
-    dts = jnp.asarray(dts, float)
+        return _run_fixed(est, state, us, ys, jnp.asarray(dts, dtype=jnp.float64))
+    dts = jnp.asarray(dts, dtype=jnp.float64)
     if dts.shape != (n,):
         raise InputError(f"dts must be a scalar or have {n} entries, got shape {dts.shape}")
     return _run_varying(est, state, us, ys, dts)
@@ -362,18 +194,217 @@ def _scan(est, state, us, ys, dts):
 @jax.jit
 def _run_fixed(est, state, us, ys, dt):
     disc = est.discretize(dt)
-
-    def body(s, inp):
-        u, y = inp
-        return est.step_discrete(s, u, y, disc)
-
-    return jax.lax.scan(body, state, (us, ys))
+    return scan_steps(lambda s, u, y, _: est.step_discrete(s, u, y, disc), state, us, ys, dt)
 
 
 @jax.jit
 def _run_varying(est, state, us, ys, dts):
-    def body(s, inp):
-        u, y, dt = inp
-        return est.step(s, u, y, dt)
+    return scan_steps(est.step, state, us, ys, dts)
 
-    return jax.lax.scan(body, state, (us, ys, dts))
+
+# --------------------------------------------------------------------------- time-varying filter
+
+
+@model_dataclass
+class KalmanFilter:
+    """Time-varying discrete Kalman filter on a continuous plant (see the module docstring).
+
+    Build with :func:`kalman_filter` (validates). ``step`` predicts over ``dt`` with the input held
+    (Van Loan), then updates with ``y`` (Joseph form, symmetrized).
+    """
+
+    A: Any
+    B: Any
+    C: Any
+    D: Any
+    Q: Any  # process-noise intensity
+    R: Any  # measurement-noise intensity (per-sample covariance R / dt)
+
+    def init(self, x0, P0) -> KFState:
+        return KFState(jnp.asarray(x0, dtype=jnp.float64), jnp.asarray(P0, dtype=jnp.float64),
+                       jnp.asarray(0))
+
+    def discretize(self, dt):
+        """Sample-time matrices ``(Φ, Γ, Q_d, dt)`` (Van Loan); reused by :meth:`step_discrete`."""
+        return (*van_loan(self.A, self.B, self.Q, dt), dt)
+
+    def _predict(self, state: KFState, u, disc) -> KFState:
+        Phi, Gamma, Qd, _ = disc
+        u = _input(u, self.B.shape[1])
+        return KFState(Phi @ state.x + Gamma @ u, Phi @ state.P @ Phi.T + Qd, state.k + 1)
+
+    def predict(self, state: KFState, u, dt) -> KFState:
+        return self._predict(state, u, self.discretize(dt))
+
+    def step(self, state: KFState, u, y, dt):
+        return self.step_discrete(state, u, y, self.discretize(dt))
+
+    def step_discrete(self, state: KFState, u, y, disc):
+        dt = disc[3]
+        pred = self._predict(state, u, disc)
+        u = _input(u, self.B.shape[1])
+        y0, ok = split_measurement(y)
+        okf = ok.astype(jnp.float64)
+        Cm = self.C * okf[:, None]
+        Rd = self.R / dt
+        # Missing components: zero row of C, unit variance, no correlation -> zero gain column.
+        Rm = Rd * jnp.outer(okf, okf) + jnp.diag(1.0 - okf)
+        innov = okf * (y0 - self.C @ pred.x - self.D @ u)
+        S = Cm @ pred.P @ Cm.T + Rm
+        S = 0.5 * (S + S.T)
+        cho = jax.scipy.linalg.cho_factor(S)
+        K = jax.scipy.linalg.cho_solve(cho, Cm @ pred.P).T
+        x = pred.x + K @ innov
+        I_KC = jnp.eye(pred.P.shape[0]) - K @ Cm
+        P = I_KC @ pred.P @ I_KC.T + K @ Rm @ K.T
+        P = 0.5 * (P + P.T)
+        any_ok = jnp.any(ok)
+        x, P = jnp.where(any_ok, x, pred.x), jnp.where(any_ok, P, pred.P)
+        (x, P), _ = keep_finite((x, P), (state.x, state.P))
+        return KFState(x, P, pred.k), KFOut(x, P, K, innov, ok)
+
+    def run(self, state: KFState, us, ys, dts):
+        return _run(self, state, us, ys, dts)
+
+
+def kalman_filter(A, B=None, C=None, D=None, Q=None, R=None) -> KalmanFilter:
+    """A :class:`KalmanFilter` for the continuous plant (A, B, C, D) with noise intensities Q, R."""
+    if Q is None or R is None or C is None:
+        raise InputError("a Kalman filter needs C, Q and R")
+    A, B, C, D, Q, R = check_system(A, B, C, D, Q, R)
+    return KalmanFilter(*(jnp.asarray(M) for M in (A, B, C, D, Q, R)))
+
+
+# --------------------------------------------------------------------------- steady-state discrete
+
+
+@model_dataclass
+class SteadyStateKalmanFilter:
+    """The discrete filter with its converged gain ``K`` (from the DARE) and no covariance.
+
+    Valid for the sample time it was built for (:func:`steady_state_kalman_filter` takes ``dt``);
+    ``step`` predicts with the zero-order hold over the given dt and updates with K — equal to
+    :class:`KalmanFilter` once that has converged at the same dt. ``P`` is the (constant)
+    steady-state posterior covariance.
+    """
+
+    A: Any
+    B: Any
+    C: Any
+    D: Any
+    K: Any
+    P: Any
+
+    def init(self, x0, P0=None) -> KFState:
+        return KFState(jnp.asarray(x0, dtype=jnp.float64), self.P, jnp.asarray(0))
+
+    def discretize(self, dt):
+        return zoh(self.A, self.B, dt)
+
+    def _predict(self, state: KFState, u, disc) -> KFState:
+        Phi, Gamma = disc
+        return KFState(Phi @ state.x + Gamma @ _input(u, self.B.shape[1]), self.P, state.k + 1)
+
+    def predict(self, state: KFState, u, dt) -> KFState:
+        return self._predict(state, u, self.discretize(dt))
+
+    def step(self, state: KFState, u, y, dt):
+        return self.step_discrete(state, u, y, self.discretize(dt))
+
+    def step_discrete(self, state: KFState, u, y, disc):
+        pred = self._predict(state, u, disc)
+        u = _input(u, self.B.shape[1])
+        y0, ok = split_measurement(y)
+        K = self.K * ok.astype(jnp.float64)[None, :]
+        innov = ok * (y0 - self.C @ pred.x - self.D @ u)
+        x = jnp.where(jnp.any(ok), pred.x + K @ innov, pred.x)
+        x, _ = keep_finite(x, state.x)
+        return KFState(x, self.P, pred.k), KFOut(x, self.P, K, innov, ok)
+
+    def run(self, state: KFState, us, ys, dts):
+        return _run(self, state, us, ys, dts)
+
+
+def steady_state_kalman_filter(A, B=None, C=None, D=None, Q=None, R=None,
+                               dt=None) -> SteadyStateKalmanFilter:
+    """The :class:`SteadyStateKalmanFilter` of the plant for the sample time ``dt``."""
+    if Q is None or R is None or C is None or dt is None or not dt > 0:
+        raise InputError("a steady-state Kalman filter needs C, Q, R and a positive dt")
+    A, B, C, D, Q, R = check_system(A, B, C, D, Q, R)
+    Phi, _, Qd = van_loan(jnp.asarray(A), jnp.asarray(B), jnp.asarray(Q), float(dt))
+    K, _, P = discrete_steady_gain(np.asarray(Phi), C, np.asarray(Qd), R / dt)
+    return SteadyStateKalmanFilter(*(jnp.asarray(M) for M in (A, B, C, D, K, P)))
+
+
+# --------------------------------------------------------------------------- fixed-gain observer
+
+
+@model_dataclass
+class ContinuousObserver:
+    """``x̂' = A x̂ + B u + L (y − C x̂ − D u)`` (T eq. 9 with the Kalman gain, T eq. 19 and F eq.
+    4.10 with a pole-placement gain), integrated exactly over each sample with u and y held
+    (zero-order hold): the estimate after the step is x̂ at the end of the sample. A missing
+    component of y has its column of L zeroed for that sample; ``predict`` is the observer with
+    every column zeroed (``ẋ̂ = A x̂ + B u``).
+    """
+
+    A: Any
+    B: Any
+    C: Any
+    D: Any
+    L: Any
+
+    def poles(self) -> np.ndarray:
+        """Eigenvalues of the error dynamics ``A − L C``."""
+        return np.linalg.eigvals(np.asarray(self.A - self.L @ self.C))
+
+    def init(self, x0, P0=None) -> ObsState:
+        x0 = jnp.asarray(x0, dtype=jnp.float64)
+        if x0.shape != (self.A.shape[0],):
+            raise InputError(f"x0 must be a vector of {self.A.shape[0]} states, got shape {x0.shape}")
+        return ObsState(x0, jnp.asarray(0))
+
+    def _zoh(self, ok, dt):
+        # ẋ̂ = (A − L C) x̂ + (B − L D) u + L y, inputs held: one expm of the augmented matrix
+        Lm = self.L * ok.astype(jnp.float64)[None, :]
+        M = self.A - Lm @ self.C
+        N = jnp.concatenate([self.B - Lm @ self.D, Lm], axis=1)
+        return zoh(M, N, dt)
+
+    def discretize(self, dt):
+        """``(Φ, Γ, dt)`` with every measurement present; recomputed for a sample with NaNs."""
+        return (*self._zoh(jnp.ones(self.C.shape[0], bool), dt), dt)
+
+    def _advance(self, state: ObsState, u, y0, ok, Phi, Gamma):
+        u = _input(u, self.B.shape[1])
+        x = Phi @ state.x + Gamma @ jnp.concatenate([u, y0])
+        x, _ = keep_finite(x, state.x)
+        innov = ok * (y0 - self.C @ state.x - self.D @ u)
+        return ObsState(x, state.k + 1), ObsOut(x, innov, ok)
+
+    def predict(self, state: ObsState, u, dt) -> ObsState:
+        ok = jnp.zeros(self.C.shape[0], bool)
+        return self._advance(state, u, jnp.zeros(self.C.shape[0]), ok, *self._zoh(ok, dt))[0]
+
+    def step(self, state: ObsState, u, y, dt):
+        y0, ok = split_measurement(y)
+        return self._advance(state, u, y0, ok, *self._zoh(ok, dt))
+
+    def step_discrete(self, state: ObsState, u, y, disc):
+        Phi_full, Gamma_full, dt = disc
+        y0, ok = split_measurement(y)
+        Phi, Gamma = jax.lax.cond(jnp.all(ok), lambda: (Phi_full, Gamma_full),
+                                  lambda: self._zoh(ok, dt))
+        return self._advance(state, u, y0, ok, Phi, Gamma)
+
+    def run(self, state: ObsState, us, ys, dts):
+        return _run(self, state, us, ys, dts)
+
+
+def continuous_observer(A, B=None, C=None, D=None, L=None) -> ContinuousObserver:
+    """A :class:`ContinuousObserver` with the gain ``L`` (validated shapes, finite entries)."""
+    if C is None or L is None:
+        raise InputError("a continuous observer needs C and L")
+    A, B, C, D, _, _ = check_system(A, B, C, D)
+    L = _as2d("L", L, rows=A.shape[0], cols=C.shape[0])
+    return ContinuousObserver(*(jnp.asarray(M) for M in (A, B, C, D, L)))

@@ -1,20 +1,26 @@
 """Moving-window Newton observer of Moraal & Grizzle (1995), generic over any discrete model.
 
-F §4.3.1 eq. 4.1–4.5, P11 §V.B. For a discrete system (F 4.1–4.2)
+F §4.3.1 eq. 4.1–4.5, P11 §V.B. For a discrete model (F 4.1–4.2; a
+:class:`~verticality.models.base.DiscreteModel` value)
 
-    x_{k+1} = F(x_k, u_{k+1}),        y_k = H(x_k, u_k),
+    x_{k+1} = F(x_k, u_{k+1}, dt),        y_k = H(x_k, u_k),
 
 the observer keeps the last N samples (y, u), and solves the observability equations (F 4.3)
 
     Y_k − H_T(ξ, U_k) = 0,   H_T(ξ, U) = (H(ξ), H(F(ξ)), …, H(F∘…∘F(ξ)))   (N blocks)
 
 for the state ξ at the start of the window by d Newton iterations (F 4.4), then carries the solution
-forward through the window to the present sample (F 4.5). Done better than the papers did it:
+forward through the window to the present sample (F 4.5). The unknown is a state on the model's
+manifold: the Newton step δ lives in the model's tangent coordinates, ``ξ ← ξ ⊞ δ``
+(``model.retract``), and every Jacobian is taken with respect to such a δ (through
+``model.retract`` and ``model.difference``); on a vector space this is the usual arithmetic
+(``ξ + δ``, the plain Jacobian), on SO(3) it is the right perturbation ``R exp([δ]×)``. Done better
+than the papers did it:
 
-- **Exact Jacobian** ∂H_T/∂ξ by forward-mode autodiff (the papers used finite differences): the
-  per-sample Jacobians ∂F/∂x, ∂H/∂x by ``jax.jacfwd`` at every sample of the window at once
-  (``vmap``), chained along the window (Φ_k = ∂F/∂x_k·Φ_{k−1}, rows ∂H/∂x_k·Φ_k); equal to
-  ``jacfwd`` through the whole window to rounding, at about half its cost on CPU.
+- **Exact Jacobian** ∂H_T/∂δ by forward-mode autodiff (the papers used finite differences): the
+  per-sample Jacobians ∂(F(x ⊞ δ) ⊟ F(x))/∂δ and ∂H(x ⊞ δ)/∂δ by ``jax.jacfwd`` at every sample of
+  the window at once (``vmap``), chained along the window (Φ_k = A_k·Φ_{k−1}, rows C_k·Φ_k); equal
+  to ``jacfwd`` through the whole window to rounding, at about half its cost on CPU.
 - **Damped least squares** (Levenberg–Marquardt) instead of the inverse in F 4.4: the map may be
   non-square (N·p ≠ n) or ill-conditioned. Columns of the Jacobian are scaled to unit norm (states of
   different units), the step is ``δ = V diag(s/(s²+μ²)) Uᵀ r`` from a thin SVD, and the damping μ² is
@@ -29,33 +35,35 @@ forward through the window to the present sample (F 4.5). Done better than the p
   unobservable directions it keeps the warm start), ``converged`` (an accepted step changed the
   predicted outputs by less than ``step_tol`` within d iterations, and the window is not
   rank-deficient), ``iterations`` used (d is a maximum: iterations stop once converged),
-  ``residual_rms`` of the window at the solution, ``measured`` (y had no NaN).
-- A NaN in y means "no measurement": that sample's rows get zero weight; a window with too few
-  measurements is rank-deficient and flagged; nothing turns a finite estimate into NaN (a non-finite
-  candidate is rejected, a non-finite prediction keeps the previous estimate).
+  ``residual_rms`` of the window at the solution, ``measured`` (per component of y).
+- A NaN in y means "no measurement": that component's rows get zero weight; a y with no finite
+  component is not solved on (the step is :meth:`NewtonObserver.predict`); a window with too few
+  measurements is rank-deficient and flagged; nothing turns a finite estimate into NaN (a
+  non-finite candidate is rejected, a non-finite prediction keeps the previous estimate).
 
-Sample semantics (``step(state, u, y, dt)``): ``u`` is the input that drove the system from the
-previous sample to this one (for a sampled continuous plant: the block of fast-rate inputs over the
-interval), and ``y`` the measurement at this sample; the model's ``transition(x, u)`` maps the state
-at the previous sample to the state at this one, and ``output(x, u)`` gives y. ``dt`` is accepted
-for the common estimator API but the sample spacing belongs to the discrete model. State and
-input may be any pytrees (flattened with ``ravel_pytree``); y is flattened to a vector.
+Sample semantics (``step(state, u, y, dt)``, :mod:`verticality.estimators.base`): ``u`` is the input
+that drove the system from the previous sample to this one (for a sampled continuous plant: the
+block of fast-rate inputs over the interval), ``dt`` the time since the previous sample (handed to
+``model.transition``) and ``y`` the measurement at this sample; ``model.output(x, u)`` gives y.
+State and input may be any pytrees; y is flattened to a vector.
 
-API (estimators/base.py): ``obs = make(transition, output, u_template, NewtonConfig(...))``, then
-``obs.init(x0, P0=None)``, ``obs.step(state, u, y, dt)``, ``obs.run(state, us, ys, dts)`` (lax.scan),
-and ``obs.solve(xi0, us, ys, mask)`` for one window.
+    obs = NewtonObserver(model, u_template, NewtonConfig(window=24, iterations=5))
+    state = obs.init(x0)
+    state, out = obs.step(state, u, y, dt)
+    state, outs = obs.run(state, us, ys, dts)
+    sol = obs.solve(xi0, us_window, ys_window, mask_window, dt)      # one window
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-from jax.flatten_util import ravel_pytree
 
 from verticality.errors import InputError
+from verticality.estimators.base import scan_steps
+from verticality.models.base import model_dataclass, static_field
 
 
 class NewtonConfig(NamedTuple):
@@ -69,31 +77,31 @@ class NewtonConfig(NamedTuple):
 
 
 class NewtonState(NamedTuple):
-    x_hat: jnp.ndarray  # (n,) flat estimate at the present sample
-    xs_window: jnp.ndarray  # (N, n) estimated trajectory over the window (warm start)
+    x_hat: Any  # estimate at the present sample (a model state)
+    xs_window: Any  # estimated trajectory over the window (model states, leading axis N; warm start)
     ys: jnp.ndarray  # (N, p) measurements, NaN replaced by 0
     mask: jnp.ndarray  # (N, p) 1 where measured
     us: Any  # input pytree with leading axis N
     count: jnp.ndarray  # samples received
     since_solve: jnp.ndarray
     last: Any  # NewtonOutput of the last solve (diagnostics carried between solves)
-    rollout: Any = None  # trailing entries of xs_window that are the model's rollout (N: all)
+    rollout: jnp.ndarray  # trailing entries of xs_window that are the model's rollout (N: all)
 
 
 class NewtonOutput(NamedTuple):
-    x_hat: jnp.ndarray  # (n,) flat estimate at the present sample
+    x_hat: Any  # estimate at the present sample (a model state)
     solved: jnp.ndarray  # a window was solved at this sample
     converged: jnp.ndarray
     rank_deficient: jnp.ndarray
     residual_rms: jnp.ndarray  # RMS of the measured residuals of the last solved window
     cond: jnp.ndarray  # scaled condition number s_max/s_min of the last solved window
     iterations: jnp.ndarray  # Newton iterations used by the last solve
-    measured: jnp.ndarray  # this sample's y was finite
+    measured: jnp.ndarray  # (p,) bool: this sample's y components that were finite
 
 
 class WindowSolution(NamedTuple):
-    xi: jnp.ndarray  # (n,) state at the window start
-    xs: jnp.ndarray  # (N, n) trajectory through the window; xs[-1] is the present
+    xi: Any  # state at the window start
+    xs: Any  # trajectory through the window (leading axis N); its last entry is the present
     residual_rms: jnp.ndarray
     cond: jnp.ndarray
     rank_deficient: jnp.ndarray
@@ -101,95 +109,122 @@ class WindowSolution(NamedTuple):
     iterations: jnp.ndarray  # Newton iterations (Jacobian passes after the first) used
 
 
-class NewtonObserver(NamedTuple):
-    init: Callable
-    step: Callable
-    run: Callable
-    solve: Callable  # solve(xi0, us_window, ys_window, mask_window) -> WindowSolution
-    observability_map: Callable  # (xi, us_window) -> (Y_pred (N·p,), xs (N, n))
-    unravel: Callable  # flat state -> state pytree
+def _tmap(f, *trees):
+    return jax.tree_util.tree_map(f, *trees)
 
 
-def _check_config(cfg: NewtonConfig) -> None:
-    if int(cfg.window) < 1:
-        raise InputError(f"Newton observer: window must be >= 1, got {cfg.window}")
-    if int(cfg.iterations) < 1:
-        raise InputError(f"Newton observer: iterations must be >= 1, got {cfg.iterations}")
-    if int(cfg.every) < 1:
-        raise InputError(f"Newton observer: every must be >= 1, got {cfg.every}")
-    if not cfg.damping > 0 or not cfg.damping_min > 0:
-        raise InputError("Newton observer: damping and damping_min must be > 0")
+def _select(pred, a, b):
+    return _tmap(lambda u, v: jnp.where(pred, u, v), a, b)
 
 
-def make(transition: Callable, output: Callable, u_template: Any, x_template: Any,
-         config: NewtonConfig | None = None) -> NewtonObserver:
-    """Build the observer for ``x_{k+1} = transition(x_k, u_{k+1})``, ``y_k = output(x_k, u_k)``.
+def _index(tree, i):
+    return _tmap(lambda a: a[i], tree)
 
-    ``x_template`` and ``u_template`` fix the pytree structure and shapes of state and input.
-    """
-    config = NewtonConfig() if config is None else config
-    _check_config(config)
-    N, d = int(config.window), int(config.iterations)
-    x_flat0, unravel = ravel_pytree(x_template)
-    n = x_flat0.shape[0]
 
-    def f_flat(xf, u):
-        return ravel_pytree(transition(unravel(xf), u))[0]
+def _finite(tree):
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in jax.tree_util.tree_leaves(tree)]))
 
-    def h_flat(xf, u):
-        return jnp.ravel(jnp.asarray(output(unravel(xf), u), dtype=float))
 
-    p = jax.eval_shape(h_flat, x_flat0, u_template).shape[0]
+def _push(buf, new):
+    return _tmap(lambda b, n: jnp.concatenate([b[1:], jnp.asarray(n, b.dtype)[None]], axis=0),
+                 buf, new)
 
-    def observability_map(xi, us):
-        """H_T of F §4.3.1: predicted outputs over the window from ξ, and the trajectory."""
-        u0 = jax.tree_util.tree_map(lambda a: a[0], us)
-        rest = jax.tree_util.tree_map(lambda a: a[1:], us)
+
+@model_dataclass
+class NewtonObserver:
+    """The observer on the discrete model ``model`` (``transition``, ``output``, ``retract``,
+    ``difference``); ``u_template`` fixes the structure and shapes of one sample's input (the
+    window buffer of inputs starts as zeros like it); ``config`` the window and the solver
+    settings (validated on construction)."""
+
+    model: Any
+    u_template: Any
+    config: NewtonConfig = static_field(NewtonConfig())
+
+    def __post_init__(self):
+        cfg = self.config
+        if int(cfg.window) < 1:
+            raise InputError(f"Newton observer: window must be >= 1, got {cfg.window}")
+        if int(cfg.iterations) < 1:
+            raise InputError(f"Newton observer: iterations must be >= 1, got {cfg.iterations}")
+        if int(cfg.every) < 1:
+            raise InputError(f"Newton observer: every must be >= 1, got {cfg.every}")
+        if not cfg.damping > 0 or not cfg.damping_min > 0:
+            raise InputError("Newton observer: damping and damping_min must be > 0")
+
+    # ------------------------------------------------------------------ model in flat form
+
+    def _h(self, x, u):
+        return jnp.ravel(jnp.asarray(self.model.output(x, u), dtype=jnp.float64))
+
+    def _n_outputs(self, x) -> int:
+        return jax.eval_shape(self._h, x, self.u_template).shape[0]
+
+    def _jac_f(self, x, u, x_next, dt):
+        """∂(F(x ⊞ δ) ⊟ x_next)/∂δ at δ = 0 (x_next = F(x): the tangent transition matrix)."""
+        zero = jnp.zeros_like(self.model.difference(x, x))
+        return jax.jacfwd(lambda d: self.model.difference(
+            self.model.transition(self.model.retract(x, d), u, dt), x_next))(zero)
+
+    def _jac_h(self, x, u):
+        zero = jnp.zeros_like(self.model.difference(x, x))
+        return jax.jacfwd(lambda d: self._h(self.model.retract(x, d), u))(zero)
+
+    # ------------------------------------------------------------------ one window
+
+    def observability_map(self, xi, us, dt):
+        """H_T of F §4.3.1: the predicted outputs over the window from ξ (flat, (N·p,)), and the
+        trajectory (model states with a leading axis N)."""
+        u0 = _index(us, 0)
+        rest = _tmap(lambda a: a[1:], us)
 
         def body(x, u):
-            x1 = f_flat(x, u)
-            return x1, (h_flat(x1, u), x1)
+            x1 = self.model.transition(x, u, dt)
+            return x1, (self._h(x1, u), x1)
 
         _, (ys_rest, xs_rest) = jax.lax.scan(body, xi, rest)
-        Y = jnp.concatenate([h_flat(xi, u0)[None], ys_rest], axis=0).reshape(-1)
-        xs = jnp.concatenate([xi[None], xs_rest], axis=0)
+        Y = jnp.concatenate([self._h(xi, u0)[None], ys_rest], axis=0).reshape(-1)
+        xs = _tmap(lambda a, b: jnp.concatenate([a[None], b], axis=0), xi, xs_rest)
         return Y, xs
 
-    jac_f = jax.jacfwd(f_flat)
-    jac_h = jax.jacfwd(h_flat)
-
-    def solve(xi0, us, ys, mask, xs0=None):
+    def solve(self, xi0, us, ys, mask, dt, xs0=None) -> WindowSolution:
         """Up to d damped Gauss–Newton (Levenberg–Marquardt) iterations on one window (F 4.3–4.4).
 
         ``xs0``, if given, must be the model's trajectory from ``xi0`` through the window
-        (``observability_map(xi0, us)[1]``, e.g. the observer's carried warm start): the first
+        (``observability_map(xi0, us, dt)[1]``, e.g. the observer's carried warm start): the first
         linearization then reuses it instead of rolling the window out again.
 
         Each iteration costs one pass through the window for the outputs and the trajectory at the
-        candidate, then the exact Jacobian by the chain rule: the per-sample transition Jacobians
-        (``jax.jacfwd`` of the model, all samples at once under ``vmap``) multiplied along the
-        window (the same exact derivative as ``jacfwd`` through the whole window, to rounding, at
-        about half the cost on CPU). A candidate that does not lower the cost is rejected (the
-        damping grows, the stored Jacobian is reused). Iterations stop
-        early once the next proposed step would change the predicted outputs by less than
-        ``step_tol`` (RMS, relative to 1 + RMS of the measurements): that is the convergence flag;
-        d is the maximum number of iterations, as in F 4.4.
+        candidate, then the exact Jacobian by the chain rule: the per-sample tangent transition
+        Jacobians (``jax.jacfwd`` of the model, all samples at once under ``vmap``) multiplied
+        along the window (the same exact derivative as ``jacfwd`` through the whole window, to
+        rounding, at about half the cost on CPU). A candidate that does not lower the cost is
+        rejected (the damping grows, the stored Jacobian is reused). Iterations stop early once
+        the next proposed step would change the predicted outputs by less than ``step_tol`` (RMS,
+        relative to 1 + RMS of the measurements): that is the convergence flag; d is the maximum
+        number of iterations, as in F 4.4.
         """
+        cfg = self.config
+        N, d = int(cfg.window), int(cfg.iterations)
+        n = int(jnp.size(self.model.difference(xi0, xi0)))
+        p = self._n_outputs(xi0)
         ys_flat = jnp.reshape(ys, -1)
         w = jnp.reshape(mask, -1).astype(float)
         m = jnp.maximum(jnp.sum(w), 1.0)
         y_scale = 1.0 + jnp.sqrt(jnp.sum((w * ys_flat) ** 2) / m)
 
-        rest = jax.tree_util.tree_map(lambda a: a[1:], us)
+        rest = _tmap(lambda a: a[1:], us)
+        x_next = lambda xs: _tmap(lambda a: a[1:], xs)  # noqa: E731
+        x_prev = lambda xs: _tmap(lambda a: a[:-1], xs)  # noqa: E731
 
         def evaluate(xi, xs_known=None):
             if xs_known is None:
-                Y, xs = observability_map(xi, us)
+                Y, xs = self.observability_map(xi, us, dt)
             else:
                 xs = xs_known
-                Y = jax.vmap(h_flat)(xs, us).reshape(-1)
-            A = jax.vmap(jac_f)(xs[:-1], rest)
-            C = jax.vmap(jac_h)(xs, us)
+                Y = jax.vmap(self._h)(xs, us).reshape(-1)
+            A = jax.vmap(lambda x, u, x1: self._jac_f(x, u, x1, dt))(x_prev(xs), rest, x_next(xs))
+            C = jax.vmap(self._jac_h)(xs, us)
 
             def chain(P, a):
                 P1 = jnp.sum(a[:, :, None] * P[None, :, :], axis=1)
@@ -201,28 +236,28 @@ def make(transition: Callable, output: Callable, u_template: Any, x_template: An
             J = jnp.sum(C[:, :, :, None] * Phi[:, None, :, :], axis=2).reshape(N * p, n)
             r = w * (ys_flat - Y)
             cost = jnp.sum(r * r)
-            ok = jnp.isfinite(cost) & jnp.all(jnp.isfinite(xs)) & jnp.all(jnp.isfinite(J))
+            ok = jnp.isfinite(cost) & _finite(xs) & jnp.all(jnp.isfinite(J))
             Jw = jnp.where(jnp.isfinite(J), w[:, None] * J, 0.0)
             col = jnp.linalg.norm(Jw, axis=0)
             # tiny floors stay well above the denormals (XLA flushes those to zero)
             scale = jnp.maximum(col, 1e-12 * jnp.maximum(jnp.max(col), 1e-100))
             Us, s, Vt = jnp.linalg.svd(Jw / scale, full_matrices=False)
             smax = jnp.maximum(jnp.max(s), 1e-100)
-            deficient = (s.shape[0] < n) | (jnp.min(s) <= config.rcond * smax)
+            deficient = (s.shape[0] < n) | (jnp.min(s) <= cfg.rcond * smax)
             cond = smax / jnp.maximum(jnp.min(s), 1e-100)
             lin = (Us, s, Vt, scale, jnp.where(jnp.isfinite(r), r, 0.0))
             return ok, jnp.where(ok, cost, jnp.inf), xs, lin, deficient, cond
 
-        ok0, cost0, xs0, lin0, def0, cond0 = evaluate(xi0, xs0)
+        ok0, cost0, xs_0, lin0, def0, cond0 = evaluate(xi0, xs0)
 
         def proposal(lin, mu2):
             Us, s, Vt, scale, r = lin
             smax = jnp.maximum(jnp.max(s), 1e-100)
-            gain = s / (s * s + jnp.maximum(mu2, config.damping_min) * smax * smax)
-            gain = jnp.where(s > config.rcond * smax, gain, 0.0)  # truncate unobservable directions
+            gain = s / (s * s + jnp.maximum(mu2, cfg.damping_min) * smax * smax)
+            gain = jnp.where(s > cfg.rcond * smax, gain, 0.0)  # truncate unobservable directions
             coef = gain * (Us.T @ r)
             dy_rms = jnp.sqrt(jnp.sum((s * coef) ** 2) / m)  # predicted change of the outputs
-            return (Vt.T @ coef) / scale, (dy_rms <= config.step_tol * y_scale) | ~jnp.isfinite(dy_rms)
+            return (Vt.T @ coef) / scale, (dy_rms <= cfg.step_tol * y_scale) | ~jnp.isfinite(dy_rms)
 
         class Carry(NamedTuple):
             i: Any
@@ -240,100 +275,108 @@ def make(transition: Callable, output: Callable, u_template: Any, x_template: An
             return (c.i < d) & ~c.small
 
         def body(c):
-            cand = c.xi + c.delta
+            cand = self.model.retract(c.xi, c.delta)
             okc, costc, xsc, linc, defc, condc = evaluate(cand)
             acc = okc & (costc <= c.cost)
-            sel = lambda a, b: jax.tree_util.tree_map(lambda u, v: jnp.where(acc, u, v), a, b)  # noqa: E731
-            lin = sel(linc, c.lin)
-            mu2 = jnp.where(acc, jnp.maximum(c.mu2 / 3.0, config.damping_min), c.mu2 * 8.0)
+            lin = _select(acc, linc, c.lin)
+            mu2 = jnp.where(acc, jnp.maximum(c.mu2 / 3.0, cfg.damping_min), c.mu2 * 8.0)
             delta, small = proposal(lin, mu2)
-            return Carry(i=c.i + 1, xi=jnp.where(acc, cand, c.xi), xs=jnp.where(acc, xsc, c.xs),
+            return Carry(i=c.i + 1, xi=_select(acc, cand, c.xi), xs=_select(acc, xsc, c.xs),
                          cost=jnp.where(acc, costc, c.cost), lin=lin, mu2=mu2, delta=delta,
                          small=small, deficient=jnp.where(acc, defc, c.deficient),
                          cond=jnp.where(acc, condc, c.cond))
 
-        mu2_0 = jnp.asarray(config.damping, dtype=float)
+        mu2_0 = jnp.asarray(cfg.damping, dtype=float)
         delta0, small0 = proposal(lin0, mu2_0)
         c = jax.lax.while_loop(cond_fun, body, Carry(
-            i=jnp.asarray(0), xi=xi0, xs=xs0, cost=cost0, lin=lin0, mu2=mu2_0, delta=delta0,
+            i=jnp.asarray(0), xi=xi0, xs=xs_0, cost=cost0, lin=lin0, mu2=mu2_0, delta=delta0,
             small=small0 & ok0, deficient=def0, cond=cond0))
         rms = jnp.sqrt(jnp.where(jnp.isfinite(c.cost), c.cost, 0.0) / m)
-        finite = jnp.all(jnp.isfinite(c.xs)) & jnp.all(jnp.isfinite(c.xi))
-        xi = jnp.where(finite, c.xi, xi0)
-        xs = jnp.where(finite, c.xs, jnp.where(jnp.all(jnp.isfinite(xs0)), xs0, jnp.tile(xi0, (N, 1))))
+        finite = _finite(c.xs) & _finite(c.xi)
+        xi = _select(finite, c.xi, xi0)
+        constant = _tmap(lambda a: jnp.broadcast_to(a, (N,) + jnp.shape(a)), xi0)
+        xs = _select(finite, c.xs, _select(_finite(xs_0), xs_0, constant))
         return WindowSolution(xi=xi, xs=xs, residual_rms=rms, cond=c.cond,
                               rank_deficient=c.deficient, converged=c.small & ~c.deficient & finite,
                               iterations=c.i)
 
-    def init(x0, P0=None):
-        """Observer state with estimate ``x0`` (pytree like ``x_template``); ``P0`` is unused."""
-        del P0
-        xf = ravel_pytree(x0)[0].astype(float)
-        if xf.shape != (n,):
-            raise InputError(f"Newton observer: x0 has {xf.shape[0]} components, model has {n}")
-        us = jax.tree_util.tree_map(
-            lambda a: jnp.zeros((N,) + jnp.shape(a), dtype=jnp.result_type(a, float)), u_template)
-        last = NewtonOutput(x_hat=xf, solved=jnp.asarray(False), converged=jnp.asarray(False),
-                            rank_deficient=jnp.asarray(False), residual_rms=jnp.asarray(0.0),
-                            cond=jnp.asarray(1.0), iterations=jnp.asarray(0), measured=jnp.asarray(False))
-        return NewtonState(x_hat=xf, xs_window=jnp.tile(xf, (N, 1)), ys=jnp.zeros((N, p)),
-                           mask=jnp.zeros((N, p)), us=us, count=jnp.asarray(0),
-                           since_solve=jnp.asarray(0), last=last, rollout=jnp.asarray(1))
+    # ------------------------------------------------------------------ estimator interface
 
-    def step(state: NewtonState, u, y, dt=None):
-        """One sample: predict (F 4.1), push (u, y), every `every` samples solve and carry forward."""
-        del dt
-        y = jnp.reshape(jnp.asarray(y, dtype=float), (p,))
+    def init(self, x0, P0=None) -> NewtonState:
+        """Observer state with estimate ``x0`` (a model state); ``P0`` is unused."""
+        del P0
+        N = int(self.config.window)
+        x0 = _tmap(lambda a: jnp.asarray(a, dtype=jnp.result_type(a, float)), x0)
+        try:
+            x1 = jax.eval_shape(lambda x, u: self.model.transition(x, u, 1.0), x0, self.u_template)
+            p = self._n_outputs(x0)
+        except (AttributeError, TypeError, ValueError, IndexError) as exc:
+            raise InputError(f"Newton observer: x0 does not fit the model ({exc})") from None
+        shapes = lambda t: [(jnp.shape(a)) for a in jax.tree_util.tree_leaves(t)]  # noqa: E731
+        if (jax.tree_util.tree_structure(x1) != jax.tree_util.tree_structure(x0)
+                or shapes(x1) != shapes(x0)):
+            raise InputError(f"Newton observer: x0 {shapes(x0)} is not a state of the model, "
+                             f"whose transition returns {shapes(x1)}")
+        us = _tmap(lambda a: jnp.zeros((N,) + jnp.shape(a), dtype=jnp.result_type(a, float)),
+                   self.u_template)
+        last = NewtonOutput(x_hat=x0, solved=jnp.asarray(False), converged=jnp.asarray(False),
+                            rank_deficient=jnp.asarray(False), residual_rms=jnp.asarray(0.0),
+                            cond=jnp.asarray(1.0), iterations=jnp.asarray(0),
+                            measured=jnp.zeros(p, dtype=bool))
+        xs = _tmap(lambda a: jnp.broadcast_to(a, (N,) + jnp.shape(a)), x0)
+        return NewtonState(x_hat=x0, xs_window=xs, ys=jnp.zeros((N, p)), mask=jnp.zeros((N, p)),
+                           us=us, count=jnp.asarray(0), since_solve=jnp.asarray(0), last=last,
+                           rollout=jnp.asarray(1))
+
+    def _predicted(self, state: NewtonState, u, y, dt):
+        """Predict (F 4.1) and push (u, y) into the window: the step without a solve."""
+        N = int(self.config.window)
+        y = jnp.reshape(jnp.asarray(y, dtype=float), state.ys.shape[1:])
         finite_y = jnp.isfinite(y)
-        x_pred = f_flat(state.x_hat, u)
-        pred_ok = jnp.all(jnp.isfinite(x_pred))
-        x_pred = jnp.where(pred_ok, x_pred, state.x_hat)
+        x_pred = self.model.transition(state.x_hat, u, dt)
+        pred_ok = _finite(x_pred)
+        x_pred = _select(pred_ok, x_pred, state.x_hat)
         # the window stays the model's rollout from its first entry while predictions are pushed
         # (x_hat is always the window's last entry); a replaced non-finite prediction breaks it
-        prev = jnp.asarray(1) if state.rollout is None else state.rollout
-        rollout = jnp.where(pred_ok, jnp.minimum(prev + 1, N), 1)
-        push = lambda buf, new: jnp.concatenate([buf[1:], jnp.asarray(new, buf.dtype)[None]], axis=0)  # noqa: E731
-        us = jax.tree_util.tree_map(push, state.us, u)
-        ys = push(state.ys, jnp.where(finite_y, y, 0.0))
-        mask = push(state.mask, finite_y.astype(float))
-        xs_window = push(state.xs_window, x_pred)
-        count = state.count + 1
-        since = state.since_solve + 1
-        do_solve = (count >= N) & (since >= int(config.every))
+        rollout = jnp.where(pred_ok, jnp.minimum(state.rollout + 1, N), 1)
+        out = state.last._replace(x_hat=x_pred, solved=jnp.asarray(False), measured=finite_y)
+        return NewtonState(x_hat=x_pred, xs_window=_push(state.xs_window, x_pred),
+                           ys=_push(state.ys, jnp.where(finite_y, y, 0.0)),
+                           mask=_push(state.mask, finite_y.astype(float)), us=_push(state.us, u),
+                           count=state.count + 1, since_solve=state.since_solve + 1, last=out,
+                           rollout=rollout)
+
+    def predict(self, state: NewtonState, u, dt) -> NewtonState:
+        """The time update alone: the model's prediction, (u, no measurement) pushed, no solve."""
+        return self._predicted(state, u, jnp.full(state.ys.shape[1:], jnp.nan), dt)
+
+    def step(self, state: NewtonState, u, y, dt):
+        """One sample: predict (F 4.1), push (u, y), every `every` samples (with some component
+        of y measured) solve the window and carry its solution forward (F 4.3–4.5)."""
+        N = int(self.config.window)
+        pred = self._predicted(state, u, y, dt)
+        do_solve = ((pred.count >= N) & (pred.since_solve >= int(self.config.every))
+                    & jnp.any(pred.last.measured))
 
         def solved(_):
             # warm start: the carried window is already the rollout from its first entry (reuse
             # it), unless a non-finite prediction broke it (roll the window out again)
-            xs_start = jax.lax.cond(rollout >= N, lambda: xs_window,
-                                    lambda: observability_map(xs_window[0], us)[1])
-            sol = solve(xs_window[0], us, ys, mask, xs_start)
-            out = NewtonOutput(x_hat=sol.xs[-1], solved=jnp.asarray(True),
+            xs_start = jax.lax.cond(
+                pred.rollout >= N, lambda: pred.xs_window,
+                lambda: self.observability_map(_index(pred.xs_window, 0), pred.us, dt)[1])
+            sol = self.solve(_index(pred.xs_window, 0), pred.us, pred.ys, pred.mask, dt, xs_start)
+            out = NewtonOutput(x_hat=_index(sol.xs, -1), solved=jnp.asarray(True),
                                converged=sol.converged, rank_deficient=sol.rank_deficient,
                                residual_rms=sol.residual_rms, cond=sol.cond,
-                               iterations=sol.iterations, measured=jnp.all(finite_y))
+                               iterations=sol.iterations, measured=pred.last.measured)
             # the solution is a rollout (of the accepted ξ, or of the warm start) unless the solve
             # fell back to a constant window, which needs a non-finite warm-start rollout
-            return sol.xs, out, jnp.where(jnp.all(jnp.isfinite(xs_start)), N, 1)
+            return pred._replace(x_hat=out.x_hat, xs_window=sol.xs, since_solve=jnp.asarray(0),
+                                 last=out, rollout=jnp.where(_finite(xs_start), N, 1))
 
-        def predicted(_):
-            return xs_window, state.last._replace(x_hat=x_pred, solved=jnp.asarray(False),
-                                                  measured=jnp.all(finite_y)), rollout
+        new_state = jax.lax.cond(do_solve, solved, lambda _: pred, None)
+        return new_state, new_state.last
 
-        xs_new, out, rollout_new = jax.lax.cond(do_solve, solved, predicted, None)
-        new_state = NewtonState(x_hat=out.x_hat, xs_window=xs_new, ys=ys, mask=mask, us=us,
-                                count=count, since_solve=jnp.where(do_solve, 0, since),
-                                last=out, rollout=rollout_new)
-        return new_state, out
-
-    def run(state: NewtonState, us, ys, dts=None):
-        """``step`` over a sequence under ``lax.scan``; returns (states, outputs) stacked."""
-
-        def body(s, uy):
-            s2, out = step(s, uy[0], uy[1])
-            return s2, (s2, out)
-
-        _, (states, outs) = jax.lax.scan(body, state, (us, ys))
-        return states, outs
-
-    return NewtonObserver(init=init, step=step, run=run, solve=solve,
-                          observability_map=observability_map, unravel=unravel)
+    def run(self, state: NewtonState, us, ys, dts):
+        """:meth:`step` over a sequence (``lax.scan``): ``(final_state, stacked outputs)``."""
+        return scan_steps(self.step, state, us, ys, dts)

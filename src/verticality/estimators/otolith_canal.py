@@ -10,7 +10,7 @@ T eq. 4 is left to the measurement noise, as the paper does).
     H_v = [[0, 1, 1], [g, 0, 0]]                       (T eq. 8, rows ordered as y_v)
     Q = diag(0, δ_ω, δ_drift),  R = diag(δ_c, δ_a)     (T eq. 12–13; published values eq. 20–21)
 
-Two forms share these matrices:
+Three forms share these matrices (estimators of :mod:`verticality.estimators.kalman`):
 
 * :func:`steady_state_filter` — T eq. 9: the continuous filter with the static gain of the CARE
   (T eq. 10–11; for eq. 20–21 it reproduces eq. 22), discretized exactly per sample;
@@ -30,7 +30,10 @@ from verticality.estimators.kalman import (
     ContinuousObserver,
     KalmanFilter,
     SteadyStateKalmanFilter,
+    continuous_observer,
     continuous_steady_gain,
+    kalman_filter,
+    steady_state_kalman_filter,
 )
 from verticality.params import G_M_S2
 
@@ -61,17 +64,17 @@ def steady_state_gain(Q=TAHBOUB_Q, R=TAHBOUB_R, g_m_s2: float = G_M_S2) -> np.nd
 def steady_state_filter(Q=TAHBOUB_Q, R=TAHBOUB_R, g_m_s2: float = G_M_S2) -> ContinuousObserver:
     """T eq. 9 with the static gain: ``x̂' = F x̂ + L (y − H x̂)``; input u is unused (1-D zero)."""
     F, H = matrices(g_m_s2)
-    return ContinuousObserver.create(F, np.zeros((3, 1)), H, None, steady_state_gain(Q, R, g_m_s2))
+    return continuous_observer(F, np.zeros((3, 1)), H, None, steady_state_gain(Q, R, g_m_s2))
 
 
 def time_varying_filter(Q=TAHBOUB_Q, R=TAHBOUB_R, g_m_s2: float = G_M_S2) -> KalmanFilter:
     """The same plant as a time-varying discrete Kalman filter (covariance propagated)."""
     F, H = matrices(g_m_s2)
-    return KalmanFilter.create(F, np.zeros((3, 1)), H, None, Q, R)
+    return kalman_filter(F, np.zeros((3, 1)), H, None, Q, R)
 
 
 def discrete_steady_state_filter(dt_s: float, Q=TAHBOUB_Q, R=TAHBOUB_R,
                                  g_m_s2: float = G_M_S2) -> SteadyStateKalmanFilter:
     """The sampled filter with its steady-state (DARE) gain for sample time ``dt_s``."""
     F, H = matrices(g_m_s2)
-    return SteadyStateKalmanFilter.create(F, np.zeros((3, 1)), H, None, Q, R, dt_s)
+    return steady_state_kalman_filter(F, np.zeros((3, 1)), H, None, Q, R, dt_s)

@@ -5,7 +5,7 @@ and ``ground-edo`` (extended disturbance observer, T eq. 16–19, 23).
 Both run on the same simulated trial, the case T §IV singles out: self-motion and ground motion
 superimposed. Readings and choices (the paper leaves them open):
 
-* Body: :class:`verticality.models.body.TwoSegmentParams` (75 kg adult: legs 24 kg, ankle–hip
+* Body: :class:`verticality.models.body.TwoSegmentBody` (75 kg adult: legs 24 kg, ankle–hip
   0.88 m, CoM 0.50 m; trunk-head-arms 51 kg, CoM 0.32 m above the hip; vestibular sensors 0.70 m
   above the hip), simulated nonlinearly with RK4 at 1 ms. The platform rotates about the ankle axis.
 * Ground: ``θ1(t) = 1.8° sin(2π 0.1 t) + 1.2° sin(2π 0.35 t + 1)`` (|θ1| ≤ 3°, 0.1–0.35 Hz).
@@ -52,14 +52,9 @@ from verticality.experiments.tahboub import (
     GYRO_SIGMA_RAD_S,
     estimate_lean,
 )
-from verticality.integrate import rk4_step
-from verticality.models.body import (
-    HUMAN_TWO_SEGMENT,
-    TwoSegmentParams,
-    linearize,
-    two_segment_dynamics,
-    two_segment_outputs,
-)
+from verticality.integrate import rk4_step_staged
+from verticality.models.body import HUMAN_TWO_SEGMENT, GroundInput, TwoSegmentBody, upright
+from verticality.models.linearize import LinearModel, linearize, select_inputs
 
 FS_HZ = 100.0
 SUBSTEPS = 10
@@ -92,30 +87,39 @@ def joint_reference(t):
                       a2 * w2 * jnp.cos(w2 * t), a3 * w3 * jnp.cos(w3 * t + 0.5)])
 
 
-def lqr_gain(p: TwoSegmentParams = HUMAN_TWO_SEGMENT) -> np.ndarray:
+def linear_body(body: TwoSegmentBody = HUMAN_TWO_SEGMENT) -> LinearModel:
+    """T eq. 16: the body linearized at upright, inputs ``(τ2, τ3, θ1, θ̇1, θ̈1)``."""
+    return linearize(body, *upright())
+
+
+def lqr_gain(body: TwoSegmentBody = HUMAN_TWO_SEGMENT) -> np.ndarray:
     import control
 
-    lin = linearize(p)
-    K, _, _ = control.lqr(lin.A, lin.B, np.diag([1e4, 1e4, 1e2, 1e2]), np.eye(2) * 1e-2)
+    lin = select_inputs(linear_body(body), [0, 1])  # the joint torques
+    K, _, _ = control.lqr(np.asarray(lin.A), np.asarray(lin.B), np.diag([1e4, 1e4, 1e2, 1e2]),
+                          np.eye(2) * 1e-2)
     return np.asarray(K)
 
 
-def simulate_truth(n: int, p: TwoSegmentParams = HUMAN_TWO_SEGMENT):
-    """Nonlinear trial: per 100 Hz sample, ``(t, x, u, F_d, y_e)`` (torque held over the sample)."""
-    K = jnp.asarray(lqr_gain(p))
+def simulate_truth(n: int, body: TwoSegmentBody = HUMAN_TWO_SEGMENT):
+    """Nonlinear trial: per 100 Hz sample, ``(t, x, u, F_d, y_e)`` (torque held over the sample,
+    the ground motion evaluated at every RK4 stage)."""
+    K = jnp.asarray(lqr_gain(body))
     h = 1.0 / (FS_HZ * SUBSTEPS)
 
-    def f(t, x, u):
-        return two_segment_dynamics(t, x, u, ground_motion(t), p)
+    def f(w, x):
+        return body.dynamics(x, w), None
 
     def sample(x, k):
         t = k / FS_HZ
         u = -K @ (x - joint_reference(t))
         d = ground_motion(t)
-        y = two_segment_outputs(t, x, u, d, p)
+        y = body.output(x, GroundInput(u, d))
 
         def sub(x, i):
-            return rk4_step(f, t + i * h, x, h, u), None
+            ts = t + i * h
+            stages = jnp.stack([ground_motion(ts), ground_motion(ts + 0.5 * h), ground_motion(ts + h)])
+            return rk4_step_staged(f, GroundInput(jnp.broadcast_to(u, (3, 2)), stages), x, h)[0], None
 
         x_next, _ = jax.lax.scan(sub, x, jnp.arange(SUBSTEPS))
         return x_next, (x, u, d, y)
@@ -145,9 +149,9 @@ def _rms(err, t, settle=SETTLE_S):
 @functools.lru_cache(maxsize=2)
 def trial(quick: bool = False, poles: tuple = EDO_POLES, seed: int = 11):
     """Simulate the superimposed case once and run both estimators on the same samples."""
-    p = TwoSegmentParams()
+    body = TwoSegmentBody()
     n = int((20.0 if quick else 60.0) * FS_HZ)
-    t, xs, us, ds, y_true = simulate_truth(n, p)
+    t, xs, us, ds, y_true = simulate_truth(n, body)
     y, drift = add_noise(jax.random.PRNGKey(seed), y_true)
     # Stand-alone filter on (ω_g, a_xa), then T eq. 14–15 with the measured joints.
     phi0 = float(ds[0][0] + xs[0][0] + xs[0][1])  # both estimators start at the true state
@@ -155,11 +159,12 @@ def trial(quick: bool = False, poles: tuple = EDO_POLES, seed: int = 11):
     x_kf = estimate_lean(y[:, 4:6], FS_HZ, phi0_rad=phi0, omega0_rad_s=omega0)
     g_kf = ground_from_states(x_kf, y[:, :4])
     # Extended disturbance observer; output k is the estimate at t_{k+1}.
-    obs = extended_disturbance_observer(linearize(p), poles, EDO_OUTPUTS)
+    lin = linear_body(body)
+    obs = extended_disturbance_observer(lin, poles, EDO_OUTPUTS)
     xe0 = jnp.concatenate([xs[0], ds[0]])
     _, out = obs.run(obs.init(xe0), us, y, 1.0 / FS_HZ)
     x_edo = jnp.concatenate([xe0[None, :], out.x[:-1]], axis=0)
-    obs6 = extended_disturbance_observer(linearize(p), poles, None)
+    obs6 = extended_disturbance_observer(lin, poles, None)
     _, out6 = obs6.run(obs6.init(xe0), us, y, 1.0 / FS_HZ)
     x_edo6 = jnp.concatenate([xe0[None, :], out6.x[:-1]], axis=0)
     ds = np.asarray(ds)

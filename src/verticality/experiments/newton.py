@@ -4,9 +4,10 @@ P11 §V–VI (Figs. 3–7), §VII; F §4.3 (eq. 4.1–4.5, Figs. 4.4–4.8). doc
 parameters; the readings and choices the papers leave open are these:
 
 Plant (models/lissajous_plant.py): the planar head + pendulum of models/planar.py with P11's
-parameters (m = 50 g, l = 0.1 m, J = m l², b = 0.005 N·m·s, K = 100 J), integrated by RK4 at
-1 ms with the inputs held over each step. The pivot is the head's origin and moves with the trunk's
-(x, z)(t); the trunk's Θ(t) is a rotation in the same (coronal) plane.
+parameters (m = 50 g, l = 0.1 m, J = m l², b = 0.005 N·m·s, K = 100 J), driven by the torque and
+the head-frame pivot acceleration, integrated by RK4 at 1 ms with the inputs held over each step.
+The pivot is the head's origin and moves with the trunk's (x, z)(t); the trunk's Θ(t) is a rotation
+in the same (coronal) plane (trajectories.lissajous_trunk).
 
 - **fixed**: the head is rigid on the trunk, θ_H(t) = Θ(t). It is simulated as the same head driven
   by the torque the rigid neck must exert, τ = K·Θ̈(t) (with θ_H(0) = 0, ω_H(0) = Θ̇(0)), so that
@@ -31,7 +32,7 @@ forward to the present. **Between window samples** the observer's discrete model
 T = 25 ms) integrates the 1 ms model by 5 RK4 sub-steps of 5 ms; the known inputs are recorded at
 1 kHz (the torque the controller applied, the IMU's acceleration), and each sub-step sees its five
 1 ms inputs as a ramp with the same mean and first moment — exact for the head's double
-integrator, second order for the pendulum (models/lissajous_plant.py, ``block_transition_flat``).
+integrator, second order for the pendulum (models/ramp_discretized.py of the same model value).
 Only the reading is sampled every 25 ms. Between solves the estimate is propagated at 1 ms by the
 observer's model, and that 1 ms estimate feeds the PD and is scored. Exact Jacobians by
 jax.jacfwd; damped least squares. (25 sub-steps of 1 ms would make the observer's model the
@@ -73,7 +74,14 @@ import numpy as np
 from verticality.estimators import newton
 from verticality.experiments import Result, check, register
 from verticality.models import lissajous_plant as lp
-from verticality.models.planar import PlanarParams, PlanarState
+from verticality.models.base import step_rk4
+from verticality.models.planar import (
+    HeadInput,
+    PlanarHead,
+    PlanarState,
+    head_frame_to_inertial,
+    inclinometer_reading,
+)
 
 DT_S = 1e-3
 SUBSTEPS = 25  # 1 ms plant steps per observer sample (25 ms spacing)
@@ -103,54 +111,50 @@ class RunSeries(NamedTuple):
     iterations: jnp.ndarray
 
 
-def _u_template():
+def make_observer(p_obs: PlanarHead, config: newton.NewtonConfig = CONFIG,
+                  substeps: int = OBS_SUBSTEPS) -> newton.NewtonObserver:
+    """The Newton observer on the P11 plant: F_T = ``substeps`` RK4 steps over 25 ms fed the 1 ms
+    inputs as ramps (:func:`lissajous_plant.observer_model`); state (θ_S, ω_S, θ_H, ω_H);
+    y = θ_S − θ_H."""
     z = jnp.zeros(SUBSTEPS)
-    return lp.HeadInput(z, z, z)
-
-
-def make_observer(p_obs: PlanarParams, config: newton.NewtonConfig = CONFIG,
-                  substeps: int = OBS_SUBSTEPS):
-    """The Newton observer on the P11 plant: F_T = ``substeps`` RK4 steps over 25 ms fed the
-    sub-interval means of the 1 ms inputs; flat state (θ_S, ω_S, θ_H, ω_H); y = θ_S − θ_H."""
-    return newton.make(
-        lambda x, u: lp.block_transition_flat(x, u, p_obs, SUBSTEPS * DT_S, substeps),
-        lambda x, u: x[0] - x[2], _u_template(), jnp.zeros(4), config)
+    return newton.NewtonObserver(lp.observer_model(p_obs, substeps), HeadInput(z, z, z), config)
 
 
 @partial(jax.jit, static_argnames=("n_blocks", "config"))
-def simulate(p_true: PlanarParams, p_obs: PlanarParams, fixed, noise_rad, key, n_blocks: int,
+def simulate(p_true: PlanarHead, p_obs: PlanarHead, fixed, noise_rad, key, n_blocks: int,
              config: newton.NewtonConfig = CONFIG) -> RunSeries:
     """Closed loop of plant, 1 ms estimate propagation, PD (stabilized) and the Newton observer."""
     obs = make_observer(p_obs, config)
-    theta_dot0 = lp.lissajous(0.0).Theta_dot_rad_s
+    plant, model = lp.plant(p_true), lp.plant(p_obs)
+    theta_dot0 = lp.trunk(0.0).Theta_dot_rad_s
     x0 = PlanarState(jnp.asarray(0.0), jnp.asarray(0.0), jnp.where(fixed, 0.0, 0.1),
                      jnp.where(fixed, theta_dot0, 0.0))
-    xh0 = jnp.zeros(4)
+    xh0 = PlanarState(*(jnp.zeros(()) for _ in range(4)))
     noise = noise_rad * jax.random.normal(key, (n_blocks,))
     # the trunk's motion at the middle of every 1 ms step, for the whole run at once (vectorized)
     t_mid = jnp.arange(n_blocks * SUBSTEPS) * DT_S + 0.5 * DT_S
-    trunk = jax.tree_util.tree_map(lambda a: a.reshape(n_blocks, SUBSTEPS), lp.lissajous(t_mid))
+    trunk = jax.tree_util.tree_map(lambda a: a.reshape(n_blocks, SUBSTEPS), lp.trunk(t_mid))
 
     def fast(carry, tr):
         x, xh = carry
-        c, s = jnp.cos(x.theta_H_rad), jnp.sin(x.theta_H_rad)
-        a_h_H = c * tr.a_h_I_m_s2 + s * tr.a_z_I_m_s2
-        a_z_H = -s * tr.a_h_I_m_s2 + c * tr.a_z_I_m_s2
-        tau = jnp.where(fixed, p_true.K_kg_m2 * tr.Theta_ddot_rad_s2, -KP * xh[2] - KD * xh[3])
-        u = lp.HeadInput(tau, a_h_H, a_z_H)
-        x1 = lp.step(x, u, p_true, DT_S)
-        xh1 = lp.step_flat(xh, u, p_obs, DT_S)
-        return (x1, xh1), (u, x1.theta_H_rad, xh1[2], lp.reading(x1))
+        # the trunk's acceleration in head-frame components (what the head's IMU reads)
+        a_h_H, a_z_H = head_frame_to_inertial(tr.a_h_I_m_s2, tr.a_z_I_m_s2, -x.theta_H_rad)
+        tau = jnp.where(fixed, p_true.K_kg_m2 * tr.Theta_ddot_rad_s2,
+                        -KP * xh.theta_H_rad - KD * xh.omega_H_rad_s)
+        u = HeadInput(tau, a_h_H, a_z_H)
+        x1 = step_rk4(plant, x, u, DT_S)
+        xh1 = step_rk4(model, xh, u, DT_S)
+        return (x1, xh1), (u, x1.theta_H_rad, xh1.theta_H_rad, inclinometer_reading(x1))
 
     def block(carry, b_trunk):
         b, trunk_blk = b_trunk
         x, ost = carry
         xh = ost.x_hat
         (x, _), (u_blk, th, thh, rd) = jax.lax.scan(fast, (x, xh), trunk_blk)
-        y = lp.reading(x) + noise[b]
-        ost, out = obs.step(ost, u_blk, y)
+        y = inclinometer_reading(x) + noise[b]
+        ost, out = obs.step(ost, u_blk, y, SUBSTEPS * DT_S)
         # the last fast sample's estimate is the observer's (solved) estimate at this sample
-        thh = thh.at[-1].set(out.x_hat[2])
+        thh = thh.at[-1].set(out.x_hat.theta_H_rad)
         return (x, ost), (th, thh, rd, u_blk.tau_Nm, out.converged & out.solved,
                           out.rank_deficient & out.solved, out.residual_rms,
                           jnp.where(out.solved, out.iterations, 0))
@@ -184,10 +188,10 @@ def run_batch(fixed, level, noise_rad, seed: int, duration_s: float,
     noise = jnp.asarray(noise_rad, dtype=float)
     n_blocks = int(round(duration_s / (SUBSTEPS * DT_S)))
     key = jax.random.PRNGKey(seed)
-    p_true = lp.p11_params(1.0)
+    p_true = lp.p11_head(1.0)
 
     def one(f, lv, sg):
-        return simulate(p_true, lp.p11_params(1.0 + lv), f, sg, key, n_blocks, config)
+        return simulate(p_true, lp.p11_head(1.0 + lv), f, sg, key, n_blocks, config)
 
     return jax.vmap(one)(fixed, level, noise)
 

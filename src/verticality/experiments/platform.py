@@ -1,6 +1,6 @@
 """`platform` — F ch. 5: simulated copy of the gimbal platform, inclinometer-fed vs observer-fed PD.
 
-Each gimbal axis is its identified model (F §5.2; :mod:`verticality.models.platform`): pitch
+Each gimbal axis is its identified model (F §5.2; :class:`verticality.models.platform.PlatformAxis`): pitch
 J1 = 0.008, b1 = 1.35; roll J2 = 0.0006, b2 = 0.137 (``J θ̈ + b (θ̇ − θ̇_base) = u``), with the
 identified inclinometer ``J_s ÿ + b_s ẏ + k_s y = k_s ψ`` (J_s = 0.0015, b_s = 0.3776, k_s = 5.629),
 ψ = θ + atan2(a_h, g). The axes are decoupled (F §5.1.1) and simulated side by side (``vmap``).
@@ -8,7 +8,7 @@ The controller runs every 3 ms (F §5.1.4) with the command held; the plant is i
 1 ms. Two feeds of a PD ``u = k_p (0 − θ̃) − k_d ω̃`` that keeps the platform horizontal:
 
 - ``sensor_feedback``: θ̃ the inclinometer reading, ω̃ its backward difference over 3 ms (F §5.2);
-- ``observer_feedback``: θ̃, ω̃ from :mod:`verticality.estimators.luenberger` on the model
+- ``observer_feedback``: θ̃, ω̃ from :mod:`verticality.estimators.luenberger` on the same model value
   linearized at upright by autodiff (states θ, ω, y, ẏ; inputs u and a_h; output y).
 
 Readings the thesis leaves open, fixed here:
@@ -42,10 +42,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.estimators import luenberger as lu
+from verticality.estimators.kalman import ContinuousObserver
 from verticality.experiments import Result, check, register
 from verticality.integrate import rk4_step
 from verticality.models import platform as pf
-from verticality.models.linearize import linearize
+from verticality.models.linearize import linearize, select_inputs
 
 LOOP_DT_S = 3e-3
 SUBSTEPS = 3
@@ -62,21 +63,16 @@ SIGMA_Y_RAD = 1e-3
 SETTLE_S = 1.0
 
 
-def _f(x, u, p):
-    return jnp.stack(pf.axis_dynamics(pf.AxisState(*x), pf.AxisInput(u[0], u[1], 0.0), p))
-
-
-def _h(x, u, p):
-    return jnp.atleast_1d(x[2])
-
-
-def observer_for(p: pf.AxisParams) -> lu.Luenberger:
-    """Luenberger observer on the axis model linearized at upright (F 4.10)."""
-    return lu.design(linearize(_f, _h, jnp.zeros(4), jnp.zeros(2), p), OBSERVER_POLES)
+def observer_for(axis: pf.PlatformAxis) -> ContinuousObserver:
+    """Luenberger observer on the axis model linearized at upright (F 4.10), with the inputs it
+    knows: the command u and the acceleration a_h (not the base's rate)."""
+    z = jnp.asarray(0.0)
+    lin = linearize(axis, pf.AxisState(z, z, z, z), pf.AxisInput(z, z, z))
+    return lu.design(select_inputs(lin, [0, 1]), OBSERVER_POLES)
 
 
 class AxisCfg(NamedTuple):
-    p: pf.AxisParams
+    p: pf.PlatformAxis
     kp: jnp.ndarray
     kd: jnp.ndarray
     u_max: jnp.ndarray
@@ -84,7 +80,7 @@ class AxisCfg(NamedTuple):
     base_w: jnp.ndarray
     acc_w: jnp.ndarray
     acc_phase: jnp.ndarray
-    obs: lu.Luenberger
+    obs: ContinuousObserver
     use_observer: jnp.ndarray  # 0.0 sensor, 1.0 observer
     key: jnp.ndarray
 
@@ -110,18 +106,18 @@ def _simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
 
     def f_plant(t, x, u):
         omega_base, a = _drive(cfg, t, swing_s)
-        return jnp.stack(pf.axis_dynamics(pf.AxisState(*x), pf.AxisInput(u, a, omega_base), cfg.p))
+        return cfg.p.dynamics(x, pf.AxisInput(u, a, omega_base))
 
     def body(carry, k):
         x, base, ls, y_prev = carry
         t = k * LOOP_DT_S
-        y = x[2] + noise[k]
+        y = x.y_rad + noise[k]
         _, a_now = _drive(cfg, t, swing_s)
         rate = jnp.where(k > 0, (y - y_prev) / LOOP_DT_S, 0.0)
-        th = jnp.where(cfg.use_observer > 0, ls.x_hat[0], y)
-        om = jnp.where(cfg.use_observer > 0, ls.x_hat[1], rate)
+        th = jnp.where(cfg.use_observer > 0, ls.x[0], y)
+        om = jnp.where(cfg.use_observer > 0, ls.x[1], rate)
         u = jnp.clip(-cfg.kp * th - cfg.kd * om, -cfg.u_max, cfg.u_max)
-        ls_new, _ = lu.step(cfg.obs, ls, jnp.array([u, a_now]), jnp.atleast_1d(y), LOOP_DT_S)
+        ls_new, _ = cfg.obs.step(ls, jnp.array([u, a_now]), jnp.atleast_1d(y), LOOP_DT_S)
 
         def sub(i, xb):
             xx, bb = xb
@@ -130,10 +126,11 @@ def _simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
             return rk4_step(f_plant, ts, xx, h, u), bb + h * om_b
 
         x_new, base_new = jax.lax.fori_loop(0, SUBSTEPS, sub, (x, base))
-        out = (x[0], y, ls.x_hat[0], base, u, a_now)
+        out = (x.theta_rad, y, ls.x[0], base, u, a_now)
         return (x_new, base_new, ls_new, y), out
 
-    carry0 = (jnp.zeros(4), 0.0, lu.init(jnp.zeros(4)), 0.0)
+    z = jnp.asarray(0.0)
+    carry0 = (pf.AxisState(z, z, z, z), 0.0, cfg.obs.init(jnp.zeros(4)), 0.0)
     _, outs = jax.lax.scan(body, carry0, jnp.arange(n_loops))
     return outs
 

@@ -1,16 +1,18 @@
 """`separation` — F §4.4: linear observer + linear PD on the nonlinear platform (separation principle).
 
 Plant (truth): the planar sagittal platform with the 10 Hz critically damped liquid inclinometer,
-:func:`verticality.models.platform.f44_params` on :mod:`verticality.models.planar` (nonlinear, RK4,
-1 ms). The pivot is accelerated along the platform's own forward axis, ``ᴴa = 3 sin(10 t) m/s²``
-(converted to the world with the true platform tilt). Platform J_h = 1e-4 kg·m², PD k_p = 1,
+:func:`verticality.models.platform.f44_platform` driven through the head-frame input adapter of
+:mod:`verticality.models.planar` (nonlinear, RK4, 1 ms). The pivot is accelerated along the
+platform's own forward axis, ``ᴴa = 3 sin(10 t) m/s²`` (converted to the world with the true
+platform tilt). Platform J_h = 1e-4 kg·m², PD k_p = 1,
 k_d = 0.1, initial tilt 0.4 rad, references 1 rad and 0 rad. Four feeds of the same PD:
 
 (i)   ``sensor``: the tilt read by the inclinometer (``−(θ_S − θ_H)``, the reading is the pendulum
       angle relative to the platform, φ = −Θ for a still platform) and its backward difference;
 (ii)  ``state``: the true tilt and rate (F 4.6 is exact in the plane: arctan(R32/R33) = θ_H);
-(iii) ``luenberger``: :mod:`verticality.estimators.luenberger` on the model linearized at upright
-      by autodiff (F 4.10; inputs: torque and the known head-frame acceleration; output: the reading),
+(iii) ``luenberger``: :mod:`verticality.estimators.luenberger` on the same model value linearized at
+      upright by autodiff (F 4.10; inputs: torque and the known head-frame acceleration; output: the
+      reading),
       poles at −100, −110, −120, −130 s⁻¹ (≈ 2× the sensor's 62.8 rad/s; the thesis gives none);
 (iv)  ``kalman``: the time-varying discrete Kalman filter of :mod:`verticality.estimators.kalman`
       on the same linearized model, Q = B_τ σ_τ² dt B_τᵀ + 1e-2·I, R = σ_y² dt (intensities).
@@ -42,10 +44,11 @@ import numpy as np
 from verticality.estimators import kalman as kf
 from verticality.estimators import luenberger as lu
 from verticality.experiments import Result, check, register
-from verticality.integrate import rk4_step
-from verticality.models import planar
-from verticality.models.linearize import LinearModel, linearize
-from verticality.models.platform import f44_params
+from verticality.integrate import rk4_step_staged
+from verticality.models.inclinometer import F44_BETA_OVER_ML2_S, F44_G_OVER_L_S2
+from verticality.models.linearize import LinearModel, linearize, select_inputs
+from verticality.models.planar import HeadInput, PlanarState, WithHeadFrameInput
+from verticality.models.platform import f44_platform
 
 KP, KD = 1.0, 0.1
 THETA0_RAD = 0.4
@@ -64,67 +67,68 @@ def head_accel_m_s2(t):
     return A_AMP_M_S2 * jnp.sin(A_FREQ_RAD_S * t)
 
 
-def f_model(x, u, p):
-    """Nonlinear plant as ``f(x, u, p)``; x = (θ_S, ω_S, θ_H, ω_H), u = (τ, ᴴa_h)."""
-    a_h, a_z = planar.head_frame_to_inertial(u[1], 0.0, x[2])
-    d = planar.dynamics(planar.PlanarState(*x), planar.PlanarInput(u[0], a_h, a_z), p)
-    return jnp.stack(d)
-
-
-def h_model(x, u, p):
-    """The inclinometer reading θ_S − θ_H."""
-    return jnp.atleast_1d(x[0] - x[2])
+def plant(scale: float = 1.0) -> WithHeadFrameInput:
+    """The platform driven by torque and head-frame acceleration, for a model whose g/l, β/(ml²)
+    and J_h are multiplied by ``scale`` (1: the truth)."""
+    return WithHeadFrameInput(f44_platform(g_over_l_s2=F44_G_OVER_L_S2 * scale,
+                                           beta_over_ml2_s=F44_BETA_OVER_ML2_S * scale,
+                                           J_h_kg_m2=1e-4 * scale))
 
 
 def linear_model(scale: float = 1.0) -> LinearModel:
-    """F 4.10 at upright, for a model whose g/l, β/(ml²) and J_h are multiplied by ``scale``."""
-    p = f44_params(g_over_l_s2=3943.8 * scale, beta_over_ml2_s=125.6 * scale, J_h_kg_m2=1e-4 * scale)
-    return linearize(f_model, h_model, jnp.zeros(4), jnp.zeros(2), p)
+    """F 4.10: :func:`plant` linearized at upright; inputs (τ, ᴴa_h) (ᴴa_z is zero here),
+    output the reading."""
+    z = jnp.asarray(0.0)
+    lin = linearize(plant(scale), PlanarState(z, z, z, z), HeadInput(z, z, z))
+    return select_inputs(lin, [0, 1])
 
 
 def kalman_design(model: LinearModel) -> kf.KalmanFilter:
     Bt = model.B[:, :1]
     Q = Bt @ Bt.T * SIGMA_TAU_NM**2 * DT_S + 1e-2 * jnp.eye(4)
     R = jnp.array([[SIGMA_Y_RAD**2 * DT_S]])
-    return kf.KalmanFilter.create(model.A, model.B, model.C, model.D, Q, R)
+    return kf.kalman_filter(model.A, model.B, model.C, model.D, Q, R)
 
 
 class Config(NamedTuple):
     ref_rad: jnp.ndarray
     feed: jnp.ndarray  # index into FEEDS
     noise: jnp.ndarray  # 0 or 1
-    obs: lu.Luenberger
+    obs: kf.ContinuousObserver
     kfilt: kf.KalmanFilter
     key: jnp.ndarray
 
 
-def _simulate(cfg: Config, n_steps: int, p):
+def _simulate(cfg: Config, n_steps: int, truth: WithHeadFrameInput):
     """One closed-loop run; returns time series (θ_H, θ̂_H of the fed estimator, all estimates, y)."""
-    x0 = jnp.array([0.0, 0.0, THETA0_RAD, 0.0])
-    l_state = lu.init(jnp.zeros(4))
+    x0 = PlanarState(jnp.asarray(0.0), jnp.asarray(0.0), jnp.asarray(THETA0_RAD), jnp.asarray(0.0))
+    l_state = cfg.obs.init(jnp.zeros(4))
     P0 = jnp.diag(jnp.array([0.1, 10.0, 0.5, 10.0])) ** 2
     k_state = cfg.kfilt.init(jnp.zeros(4), P0)
     noise = jax.random.normal(cfg.key, (n_steps, 2)) * cfg.noise
 
-    def f_plant(t, x, tau):
-        return f_model(x, jnp.array([tau, head_accel_m_s2(t)]), p)
+    def f_plant(w, x):
+        return truth.dynamics(x, w), None
 
     def body(carry, k):
         x, ls, ks, tilt_meas_prev, u_prev = carry
         t = k * DT_S
-        y = h_model(x, None, p) + SIGMA_Y_RAD * noise[k, 0]
+        y = truth.output(x) + SIGMA_Y_RAD * noise[k, 0]
         a_now = head_accel_m_s2(t)
         ks, kout = cfg.kfilt.step(ks, u_prev, y, DT_S)
         tilt_meas = -y[0]
         rate_meas = jnp.where(k > 0, (tilt_meas - tilt_meas_prev) / DT_S, 0.0)
-        th = jnp.stack([tilt_meas, x[2], ls.x_hat[2], ks.x[2]])
-        om = jnp.stack([rate_meas, x[3], ls.x_hat[3], ks.x[3]])
+        th = jnp.stack([tilt_meas, x.theta_H_rad, ls.x[2], ks.x[2]])
+        om = jnp.stack([rate_meas, x.omega_H_rad_s, ls.x[3], ks.x[3]])
         tau = KP * (cfg.ref_rad - th[cfg.feed]) - KD * om[cfg.feed]
         u = jnp.array([tau, a_now])
-        ls_new, _ = lu.step(cfg.obs, ls, u, y, DT_S)
+        ls_new, _ = cfg.obs.step(ls, u, y, DT_S)
         tau_true = tau + SIGMA_TAU_NM * noise[k, 1]
-        x_new = rk4_step(f_plant, t, x, DT_S, tau_true)
-        out = (x[2], ls.x_hat[2], ks.x[2], tilt_meas, tau)
+        # the acceleration at the RK4 stages (t, t + h/2, t + h), the torque held
+        ts = jnp.stack([t, t + 0.5 * DT_S, t + DT_S])
+        stages = HeadInput(jnp.broadcast_to(tau_true, (3,)), head_accel_m_s2(ts), jnp.zeros(3))
+        x_new = rk4_step_staged(f_plant, stages, x, DT_S)[0]
+        out = (x.theta_H_rad, ls.x[2], ks.x[2], tilt_meas, tau)
         return (x_new, ls_new, ks, tilt_meas, u), out
 
     carry0 = (x0, l_state, k_state, 0.0, jnp.zeros(2))
@@ -174,7 +178,7 @@ def simulate_all(quick: bool = False):
     duration = 4.0 if quick else 10.0
     n = int(round(duration / DT_S))
     rows, cfg = _configs(quick)
-    th, th_l, th_k, meas, tau = (np.asarray(a) for a in _simulate_batch(cfg, n, f44_params()))
+    th, th_l, th_k, meas, tau = (np.asarray(a) for a in _simulate_batch(cfg, n, plant()))
     t = np.arange(n) * DT_S
     return rows, t, th, th_l, th_k, meas, tau, duration
 

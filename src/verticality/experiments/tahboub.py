@@ -18,8 +18,9 @@ Readings and choices (the paper leaves them open; docs/reproduction.md fixes the
   walk of intensity 1e-6 rad²/s³ starting at 0; accelerometer white σ = 0.05 m/s². Seeded with
   ``jax.random`` keys (one fixed seed per experiment).
 * Step: 5° step commanded at t = 2 s, 20 s run (quick 8 s). Sine: 5°, 0.2 Hz, 60 s (quick 20 s).
-* PRTS: the 242-long ternary m-sequence (:mod:`verticality.analysis.frequency`), Δt = 0.25 s,
-  cycle 60.5 s, velocity levels ±v scaled so the lean peaks at 5°; 6 cycles (quick 3), the first
+* PRTS: the 242-long ternary m-sequence, Δt = 0.25 s, cycle 60.5 s, velocity levels ±v scaled so
+  the lean spans ±5° (:func:`prts_command`: the lean of `verticality motion prts`, sampled at
+  100 Hz, :func:`verticality.trajectories.prts_stimulus`); 6 cycles (quick 3), the first
   discarded as a transient; transfer function actual → estimated lean and coherence from
   cross-spectra averaged over cycles at the odd harmonics (Peterka 2002). Each cycle is
   end-matched before its FFT (``cycle_transfer_function(end_match=True)``): the gyro drift makes
@@ -40,10 +41,11 @@ import numpy as np
 
 from verticality.analysis import frequency
 from verticality.estimators import otolith_canal
-from verticality.estimators.kalman import zoh
 from verticality.experiments import Result, check, register
-from verticality.models.body import POSTUROB, SingleSegmentParams, single_sensors
+from verticality.integrate import zoh
+from verticality.models.body import POSTUROB, SingleSegmentBody
 from verticality.params import G_M_S2
+from verticality.trajectories import PRTS_DT_S, PRTS_LENGTH, prts_stimulus
 
 FS_HZ = 100.0
 SERVO_WN_RAD_S = 11.2
@@ -73,14 +75,14 @@ def servo_response(command_rad, fs_hz: float = FS_HZ, wn: float = SERVO_WN_RAD_S
 
 
 def sensor_readings(key, phi, phi_dot, phi_ddot, fs_hz: float = FS_HZ,
-                    p: SingleSegmentParams = POSTUROB):
+                    body: SingleSegmentBody = POSTUROB):
     """Noisy ``(ω_g, a_xa)`` samples (n, 2) and the true drift (n,)."""
     n = phi.shape[0]
     k1, k2, k3 = jax.random.split(key, 3)
     dt = 1.0 / fs_hz
     steps = jnp.sqrt(DRIFT_INTENSITY * dt) * jax.random.normal(k1, (n,))
     drift = jnp.cumsum(steps.at[0].set(0.0))  # random walk starting at 0
-    omega, a_x = single_sensors(phi, phi_dot, phi_ddot, p)
+    omega, a_x = body.sensors(phi, phi_dot, phi_ddot)
     gyro = omega + drift + GYRO_SIGMA_RAD_S * jax.random.normal(k2, (n,))
     acc = a_x + ACC_SIGMA_M_S2 * jax.random.normal(k3, (n,))
     return jnp.stack([gyro, acc], axis=1), drift
@@ -230,13 +232,19 @@ def _prts_figures(result: Result, out_dir: Path):
     return paths
 
 
+def prts_command(n_cycles: int, fs_hz: float = FS_HZ, peak_rad: float = np.radians(5.0)):
+    """The lean commanded in `tahboub-prts`: ``n_cycles`` PRTS cycles sampled at ``fs_hz``, plus
+    one sample past the last cycle (for end matching)."""
+    _, command, _ = prts_stimulus(peak_rad, fs_hz, n_cycles + 1)
+    return command[: n_cycles * int(round(PRTS_LENGTH * PRTS_DT_S * fs_hz)) + 1]
+
+
 @register("tahboub-prts", "Otolith–canal filter, PRTS frequency response (T Fig. 7–8)",
           source=SOURCE, figures=_prts_figures)
 def run_prts(quick: bool = False) -> Result:
     n_cycles = 3 if quick else 6
-    per = int(frequency.PRTS_LENGTH * frequency.PRTS_DT_S * FS_HZ)
-    _, command, _ = frequency.prts_stimulus(np.radians(5.0), FS_HZ, n_cycles + 1)
-    command = command[: n_cycles * per + 1]  # one sample past the last cycle, for end matching
+    per = int(PRTS_LENGTH * PRTS_DT_S * FS_HZ)
+    command = prts_command(n_cycles)
     metrics, series, sim = _lean_experiment(command, seed=7)
     f, H, coh = frequency.cycle_transfer_function(series["phi_rad"], series["phi_hat_rad"], per, FS_HZ,
                                                   end_match=True)

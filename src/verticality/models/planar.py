@@ -15,24 +15,41 @@ plane, and the otolith angle φ_x of F 2.8 is ``θ_S − θ_H`` (the inclinomete
 
 with (a_h, a_z) the pivot's acceleration in frame I (gravity excluded). In head-frame components
 the acceleration term is ``−m l (a_h^H cos(θ_S − θ_H) + a_z^H sin(θ_S − θ_H))``, F p. 36's form.
+
+Three model values (:mod:`verticality.models.base`), one pendulum equation
+(:func:`pendulum_angular_acceleration`):
+
+* :class:`PlanarPendulum` — the pendulum alone in a frame whose motion is given
+  (:class:`FrameMotion`); the liquid inclinometer of F 5.1–5.3 (:mod:`verticality.models.inclinometer`);
+* :class:`PlanarHead` — the head driven by a torque, carrying that pendulum (F p. 36, P11 §V.A,
+  F §4.4); its pendulum is :attr:`PlanarHead.pendulum`;
+* :class:`WithHeadFrameInput` — a model driven by the pivot acceleration in **head-frame**
+  components (what an IMU on the head provides, F's ``ᴴa``), rotated into frame I with the head
+  angle of the state: an input adapter, not a new model (P11's plant, F §4.4's platform).
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
+from verticality.models.base import EuclideanState, model_dataclass
 from verticality.params import G_M_S2
 
 
-class PlanarParams(NamedTuple):
-    m_kg: float = 0.05
-    l_m: float = 0.1
-    J_kg_m2: float = 0.05 * 0.1**2  # pendulum inertia about the pivot
-    beta_Nms: float = 0.005
-    K_kg_m2: float = 100 * 0.05 * 0.1**2  # head (platform) inertia
-    g_m_s2: float = G_M_S2
+class PendulumState(NamedTuple):
+    theta_rad: jnp.ndarray  # pendulum angle from the world vertical (0 hanging straight down)
+    omega_rad_s: jnp.ndarray
+
+
+class FrameMotion(NamedTuple):
+    """The motion of the frame that carries a pendulum (the head, a platform, a sensor's case)."""
+
+    theta_rad: jnp.ndarray  # frame tilt from the world vertical
+    omega_rad_s: jnp.ndarray  # Ω of F 5.2: the frame's angular velocity (drags the damping)
+    a_h_I_m_s2: jnp.ndarray  # pivot acceleration, horizontal (frame I)
+    a_z_I_m_s2: jnp.ndarray  # pivot acceleration, vertical (frame I), gravity excluded
 
 
 class PlanarState(NamedTuple):
@@ -48,25 +65,19 @@ class PlanarInput(NamedTuple):
     a_z_I_m_s2: jnp.ndarray  # pivot acceleration, vertical (frame I), gravity excluded
 
 
-def pendulum_angular_acceleration(theta_S, omega_S, omega_H, a_h_I, a_z_I, p: PlanarParams):
+class HeadInput(NamedTuple):
+    """Head torque and the pivot acceleration in head-frame components (:class:`WithHeadFrameInput`)."""
+
+    tau_Nm: jnp.ndarray
+    a_h_H_m_s2: jnp.ndarray  # horizontal head axis (y of the coronal plane)
+    a_z_H_m_s2: jnp.ndarray  # head z axis; gravity excluded
+
+
+def pendulum_angular_acceleration(theta_S, omega_S, omega_H, a_h_I, a_z_I, p):
+    """θ̈_S of the damped pendulum (the one equation of this module); ``p`` has ``m_kg``, ``l_m``,
+    ``J_kg_m2``, ``beta_Nms``, ``g_m_s2`` (a :class:`PlanarPendulum` or a :class:`PlanarHead`)."""
     gravito = -p.m_kg * p.l_m * ((p.g_m_s2 + a_z_I) * jnp.sin(theta_S) + a_h_I * jnp.cos(theta_S))
     return (gravito - p.beta_Nms * (omega_S - omega_H)) / p.J_kg_m2
-
-
-def dynamics(x: PlanarState, u: PlanarInput, p: PlanarParams) -> PlanarState:
-    """Head driven by torque (the actuated platform)."""
-    return PlanarState(
-        theta_S_rad=x.omega_S_rad_s,
-        omega_S_rad_s=pendulum_angular_acceleration(
-            x.theta_S_rad, x.omega_S_rad_s, x.omega_H_rad_s, u.a_h_I_m_s2, u.a_z_I_m_s2, p),
-        theta_H_rad=x.omega_H_rad_s,
-        omega_H_rad_s=u.tau_Nm / p.K_kg_m2,
-    )
-
-
-def inclinometer_reading(x: PlanarState):
-    """Pendulum angle relative to the head (F 2.8 in the plane; P11's measured tilt)."""
-    return x.theta_S_rad - x.theta_H_rad
 
 
 def head_frame_to_inertial(a_h_H, a_z_H, theta_H):
@@ -78,3 +89,83 @@ def head_frame_to_inertial(a_h_H, a_z_H, theta_H):
 def rest_angle(a_h_I, a_z_I, g_m_s2: float = G_M_S2):
     """Pendulum angle at rest under a constant pivot acceleration: atan2(−a_h, g + a_z)."""
     return jnp.arctan2(-a_h_I, g_m_s2 + a_z_I)
+
+
+@model_dataclass
+class PlanarPendulum(EuclideanState):
+    """The damped pendulum in a moving frame: state :class:`PendulumState`, input
+    :class:`FrameMotion`, output the reading relative to the frame ``θ − θ_frame`` (F 5.3)."""
+
+    m_kg: Any = 0.05
+    l_m: Any = 0.1
+    J_kg_m2: Any = 0.05 * 0.1**2  # about the pivot
+    beta_Nms: Any = 0.005
+    g_m_s2: Any = G_M_S2
+
+    def dynamics(self, x: PendulumState, u: FrameMotion) -> PendulumState:
+        return PendulumState(x.omega_rad_s, pendulum_angular_acceleration(
+            x.theta_rad, x.omega_rad_s, u.omega_rad_s, u.a_h_I_m_s2, u.a_z_I_m_s2, self))
+
+    def output(self, x: PendulumState, u: FrameMotion):
+        return jnp.atleast_1d(x.theta_rad - u.theta_rad)
+
+
+@model_dataclass
+class PlanarHead(EuclideanState):
+    """Head (platform) of inertia ``K`` driven by a torque, carrying a :class:`PlanarPendulum`.
+
+    State :class:`PlanarState`, input :class:`PlanarInput`, output the reading ``θ_S − θ_H``
+    (shape (1,)). The pendulum's parameters are fields of the head, so that a parameter is one
+    leaf; :attr:`pendulum` is the pendulum model they make."""
+
+    m_kg: Any = 0.05
+    l_m: Any = 0.1
+    J_kg_m2: Any = 0.05 * 0.1**2  # pendulum inertia about the pivot
+    beta_Nms: Any = 0.005
+    K_kg_m2: Any = 100 * 0.05 * 0.1**2  # head (platform) inertia
+    g_m_s2: Any = G_M_S2
+
+    @property
+    def pendulum(self) -> PlanarPendulum:
+        return PlanarPendulum(self.m_kg, self.l_m, self.J_kg_m2, self.beta_Nms, self.g_m_s2)
+
+    def dynamics(self, x: PlanarState, u: PlanarInput) -> PlanarState:
+        pend = self.pendulum.dynamics(
+            PendulumState(x.theta_S_rad, x.omega_S_rad_s),
+            FrameMotion(x.theta_H_rad, x.omega_H_rad_s, u.a_h_I_m_s2, u.a_z_I_m_s2))
+        return PlanarState(theta_S_rad=pend.theta_rad, omega_S_rad_s=pend.omega_rad_s,
+                           theta_H_rad=x.omega_H_rad_s, omega_H_rad_s=u.tau_Nm / self.K_kg_m2)
+
+    def output(self, x: PlanarState, u=None):
+        return jnp.atleast_1d(inclinometer_reading(x))
+
+
+@model_dataclass
+class WithHeadFrameInput(EuclideanState):
+    """``head`` (a :class:`PlanarHead`) driven by :class:`HeadInput`: the pivot acceleration in
+    head-frame components, rotated into frame I with the state's head angle. Everything else —
+    state, output, parameters — is the head's."""
+
+    head: PlanarHead
+
+    def dynamics(self, x: PlanarState, u: HeadInput) -> PlanarState:
+        a_h_I, a_z_I = head_frame_to_inertial(u.a_h_H_m_s2, u.a_z_H_m_s2, x.theta_H_rad)
+        return self.head.dynamics(x, PlanarInput(u.tau_Nm, a_h_I, a_z_I))
+
+    def output(self, x: PlanarState, u=None):
+        return self.head.output(x, u)
+
+
+def inclinometer_reading(x: PlanarState):
+    """Pendulum angle relative to the head (F 2.8 in the plane; P11's measured tilt)."""
+    return x.theta_S_rad - x.theta_H_rad
+
+
+PlanarParams = PlanarHead
+"""Former name of :class:`PlanarHead` (its fields were the parameters of :func:`dynamics`)."""
+
+
+def dynamics(x: PlanarState, u: PlanarInput, p: PlanarHead) -> PlanarState:
+    """``p.dynamics(x, u)``, in the argument order of the functions that take a model's
+    parameters last."""
+    return p.dynamics(x, u)

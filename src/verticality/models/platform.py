@@ -1,58 +1,48 @@
 """The experimental platforms of F: the §4.4 sagittal platform and the ch. 5 gimbal (per axis).
 
-**F §4.4.3 sagittal platform.** One tilt of a platform (inertia ``J_h = 1e-4 kg·m²``) carrying the
-10 Hz critically damped liquid inclinometer; this is :mod:`verticality.models.planar` with
-``g/l = 3943.8 s⁻²``, ``β/(m l²) = 125.6 s⁻¹``. Only these ratios matter for the pendulum, so the
-mass is set to 10 g (``l = g/3943.8 = 2.49 mm``, ``J = m l²``); :func:`f44_params` builds them.
+**F §4.4.3 sagittal platform** (:func:`f44_platform`). One tilt of a platform (inertia
+``J_h = 1e-4 kg·m²``) carrying the 10 Hz critically damped liquid inclinometer: the
+:class:`~verticality.models.planar.PlanarHead` whose pendulum is
+:func:`~verticality.models.inclinometer.pendulum_from_ratios` (``g/l = 3943.8 s⁻²``,
+``β/(m l²) = 125.6 s⁻¹``; only these ratios matter, the mass is set to 10 g, ``l = 2.49 mm``).
 
-**F ch. 5 gimbal.** Each of the two decoupled axes was identified as ``J θ̈ + b θ̇ = u`` (F §5.2:
-pitch J1 = 0.008 kg·m², b1 = 1.35 N·m·s; roll J2 = 0.0006 kg·m², b2 = 0.137 N·m·s; u the amplifier
-reference, in N·m-equivalent units). On a moving base the damping (motor back-EMF, cable and bearing
-friction) acts on the joint velocity, so a swinging base drags the platform (our reading)::
+**F ch. 5 gimbal** (:class:`PlatformAxis`). Each of the two decoupled axes was identified as
+``J θ̈ + b θ̇ = u`` (F §5.2: pitch J1 = 0.008 kg·m², b1 = 1.35 N·m·s; roll J2 = 0.0006 kg·m²,
+b2 = 0.137 N·m·s; u the amplifier reference, in N·m-equivalent units). On a moving base the damping
+(motor back-EMF, cable and bearing friction) acts on the joint velocity, so a swinging base drags
+the platform (our reading)::
 
     J ω̇ = u − b (ω − ω_base),   θ̇ = ω                      (θ, ω: platform tilt/rate in the world)
 
-The inclinometer on it is the identified 2nd-order model of
-:mod:`verticality.models.inclinometer`, driven by the apparent tilt ``θ + atan2(a_h, g)``.
+The inclinometer on it is the identified 2nd-order model
+(:class:`~verticality.models.inclinometer.IdentifiedInclinometer`), a component of the axis, driven
+by the platform's motion (apparent tilt ``θ + atan2(a_h, g)``).
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
-from verticality.models import inclinometer as incl
-from verticality.models.planar import PlanarParams
+from verticality.models.base import EuclideanState, model_dataclass
+from verticality.models.inclinometer import (
+    F44_BETA_OVER_ML2_S,
+    F44_G_OVER_L_S2,
+    IdentifiedInclinometer,
+    IdentifiedInclinometerState,
+    pendulum_from_ratios,
+)
+from verticality.models.planar import FrameMotion, PlanarHead
 from verticality.params import G_M_S2
 
 
-def f44_params(g_over_l_s2: float = 3943.8, beta_over_ml2_s: float = 125.6,
-               J_h_kg_m2: float = 1e-4, m_kg: float = 0.01, g_m_s2: float = G_M_S2) -> PlanarParams:
-    """:class:`PlanarParams` of F §4.4.3 (sagittal platform + liquid inclinometer)."""
-    l_m = g_m_s2 / g_over_l_s2
-    J = m_kg * l_m**2
-    return PlanarParams(m_kg=m_kg, l_m=l_m, J_kg_m2=J, beta_Nms=beta_over_ml2_s * J,
-                        K_kg_m2=J_h_kg_m2, g_m_s2=g_m_s2)
-
-
-class AxisParams(NamedTuple):
-    """One identified gimbal axis, ``J θ̈ + b θ̇ = u`` (F §5.2), with its inclinometer axis."""
-
-    J_kg_m2: float
-    b_Nms: float
-    J_s: float = 0.0015
-    b_s: float = 0.3776
-    k_s: float = 5.629
-    g_m_s2: float = G_M_S2
-
-    @property
-    def inclinometer(self) -> incl.IdentifiedInclinometerParams:
-        return incl.IdentifiedInclinometerParams(self.J_s, self.b_s, self.k_s, self.g_m_s2)
-
-
-PITCH = AxisParams(J_kg_m2=0.008, b_Nms=1.35)
-ROLL = AxisParams(J_kg_m2=0.0006, b_Nms=0.137)
+def f44_platform(g_over_l_s2: float = F44_G_OVER_L_S2, beta_over_ml2_s: float = F44_BETA_OVER_ML2_S,
+                 J_h_kg_m2: float = 1e-4, m_kg: float = 0.01, g_m_s2: float = G_M_S2) -> PlanarHead:
+    """F §4.4.3's sagittal platform + liquid inclinometer as a :class:`PlanarHead`."""
+    pend = pendulum_from_ratios(g_over_l_s2, beta_over_ml2_s, m_kg, g_m_s2)
+    return PlanarHead(m_kg=pend.m_kg, l_m=pend.l_m, J_kg_m2=pend.J_kg_m2, beta_Nms=pend.beta_Nms,
+                      K_kg_m2=J_h_kg_m2, g_m_s2=g_m_s2)
 
 
 class AxisState(NamedTuple):
@@ -68,15 +58,24 @@ class AxisInput(NamedTuple):
     omega_base_rad_s: jnp.ndarray = 0.0  # base-link angular velocity about this axis (unknown to the observer)
 
 
-def axis_dynamics(x: AxisState, u: AxisInput, p: AxisParams) -> AxisState:
-    """Platform axis plus its inclinometer (module docstring)."""
-    omega_dot = (u.u - p.b_Nms * (x.omega_rad_s - u.omega_base_rad_s)) / p.J_kg_m2
-    psi = incl.apparent_tilt(x.theta_rad, u.a_h_I_m_s2, 0.0, p.g_m_s2)
-    s = incl.identified_dynamics(incl.IdentifiedInclinometerState(x.y_rad, x.ydot_rad_s), psi,
-                                 p.inclinometer)
-    return AxisState(x.omega_rad_s, omega_dot, s.y_rad, s.ydot_rad_s)
+@model_dataclass
+class PlatformAxis(EuclideanState):
+    """One identified gimbal axis, ``J θ̈ + b (θ̇ − θ̇_base) = u`` (F §5.2), carrying its
+    inclinometer: state :class:`AxisState`, input :class:`AxisInput`, output the reading ``y``."""
+
+    J_kg_m2: Any
+    b_Nms: Any
+    inclinometer: IdentifiedInclinometer = IdentifiedInclinometer()
+
+    def dynamics(self, x: AxisState, u: AxisInput) -> AxisState:
+        omega_dot = (u.u - self.b_Nms * (x.omega_rad_s - u.omega_base_rad_s)) / self.J_kg_m2
+        s = self.inclinometer.dynamics(IdentifiedInclinometerState(x.y_rad, x.ydot_rad_s),
+                                       FrameMotion(x.theta_rad, x.omega_rad_s, u.a_h_I_m_s2, 0.0))
+        return AxisState(x.omega_rad_s, omega_dot, s.y_rad, s.ydot_rad_s)
+
+    def output(self, x: AxisState, u=None):
+        return jnp.atleast_1d(x.y_rad)
 
 
-def axis_reading(x: AxisState, u: AxisInput, p: AxisParams):
-    """The inclinometer's output ``y``."""
-    return x.y_rad
+PITCH = PlatformAxis(J_kg_m2=0.008, b_Nms=1.35)
+ROLL = PlatformAxis(J_kg_m2=0.0006, b_Nms=0.137)
