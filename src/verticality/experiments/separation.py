@@ -101,34 +101,37 @@ class Config(NamedTuple):
 
 def _simulate(cfg: Config, n_steps: int, truth: WithHeadFrameInput):
     """One closed-loop run; returns time series (θ_H, θ̂_H of the fed estimator, all estimates, y)."""
-    x0 = PlanarState(jnp.asarray(0.0), jnp.asarray(0.0), jnp.asarray(THETA0_RAD), jnp.asarray(0.0))
+    x0 = jnp.array([0.0, 0.0, THETA0_RAD, 0.0])  # (θ_S, ω_S, θ_H, ω_H) stacked (see f_plant)
     l_state = cfg.obs.init(jnp.zeros(4))
     P0 = jnp.diag(jnp.array([0.1, 10.0, 0.5, 10.0])) ** 2
     k_state = cfg.kfilt.init(jnp.zeros(4), P0)
     noise = jax.random.normal(cfg.key, (n_steps, 2)) * cfg.noise
 
     def f_plant(w, x):
-        return truth.dynamics(x, w), None
+        # the model on the stacked state vector: XLA rounds a 4-vector's RK4 the same way from
+        # one compilation to the next, four separate scalars not necessarily
+        return jnp.stack(truth.dynamics(PlanarState(*x), w)), None
 
     def body(carry, k):
         x, ls, ks, tilt_meas_prev, u_prev = carry
         t = k * DT_S
-        y = truth.output(x) + SIGMA_Y_RAD * noise[k, 0]
+        y = truth.output(PlanarState(*x)) + SIGMA_Y_RAD * noise[k, 0]
         a_now = head_accel_m_s2(t)
         ks, kout = cfg.kfilt.step(ks, u_prev, y, DT_S)
         tilt_meas = -y[0]
         rate_meas = jnp.where(k > 0, (tilt_meas - tilt_meas_prev) / DT_S, 0.0)
-        th = jnp.stack([tilt_meas, x.theta_H_rad, ls.x[2], ks.x[2]])
-        om = jnp.stack([rate_meas, x.omega_H_rad_s, ls.x[3], ks.x[3]])
+        th = jnp.stack([tilt_meas, x[2], ls.x[2], ks.x[2]])
+        om = jnp.stack([rate_meas, x[3], ls.x[3], ks.x[3]])
         tau = KP * (cfg.ref_rad - th[cfg.feed]) - KD * om[cfg.feed]
         u = jnp.array([tau, a_now])
         ls_new, _ = cfg.obs.step(ls, u, y, DT_S)
         tau_true = tau + SIGMA_TAU_NM * noise[k, 1]
         # the acceleration at the RK4 stages (t, t + h/2, t + h), the torque held
-        ts = jnp.stack([t, t + 0.5 * DT_S, t + DT_S])
-        stages = HeadInput(jnp.broadcast_to(tau_true, (3,)), head_accel_m_s2(ts), jnp.zeros(3))
+        a_stages = jnp.stack([head_accel_m_s2(t), head_accel_m_s2(t + 0.5 * DT_S),
+                              head_accel_m_s2(t + DT_S)])
+        stages = HeadInput(jnp.broadcast_to(tau_true, (3,)), a_stages, jnp.zeros(3))
         x_new = rk4_step_staged(f_plant, stages, x, DT_S)[0]
-        out = (x.theta_H_rad, ls.x[2], ks.x[2], tilt_meas, tau)
+        out = (x[2], ls.x[2], ks.x[2], tilt_meas, tau)
         return (x_new, ls_new, ks, tilt_meas, u), out
 
     carry0 = (x0, l_state, k_state, 0.0, jnp.zeros(2))
