@@ -1,6 +1,5 @@
 """Linear Kalman filter, Van Loan discretization, steady-state gains (estimators/kalman.py)."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -12,7 +11,6 @@ from verticality.estimators.kalman import (
     continuous_steady_gain,
     discrete_steady_gain,
     kalman_filter,
-    steady_state_kalman_filter,
     van_loan,
 )
 
@@ -86,38 +84,6 @@ def test_nan_measurement_is_predict_only_and_flagged():
     obs = continuous_observer(F, None, H, None, otolith_canal.steady_state_gain())
     o1, oo = obs.step(obs.init(jnp.array([0.1, 0.2, 0.0])), 0.0, jnp.array([jnp.nan, 1.0]), DT)
     assert np.all(np.isfinite(o1.x)) and not bool(oo.measured[0]) and bool(oo.measured[1])
-
-
-@pytest.mark.parametrize("which", ["time-varying", "steady-state", "continuous"])
-def test_all_nan_step_is_predict_and_run_is_repeated_step(which):
-    """The estimator contract (estimators/base.py) for the three linear forms."""
-    F, H = otolith_canal.matrices()
-    Q, R = otolith_canal.TAHBOUB_Q, otolith_canal.TAHBOUB_R
-    est = {"time-varying": lambda: kalman_filter(F, None, H, None, Q, R),
-           "steady-state": lambda: steady_state_kalman_filter(F, None, H, None, Q, R, DT),
-           "continuous": lambda: continuous_observer(F, None, H, None, otolith_canal.steady_state_gain()),
-           }[which]()
-    s0 = est.init(jnp.array([0.1, 0.2, 0.01]), jnp.eye(3) * 0.01)
-    step, predict = jax.jit(est.step), jax.jit(est.predict)
-    s_nan, _ = step(s0, 0.0, jnp.full(2, jnp.nan), DT)
-    s_pred = predict(s0, 0.0, DT)
-    for a, b in zip(s_nan, s_pred, strict=True):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    rng = np.random.default_rng(4)
-    ys = rng.normal(size=(30, 2)) * np.array([0.01, 0.3])
-    ys[5] = np.nan
-    ys[9, 1] = np.nan
-    final, outs = est.run(s0, None, ys, DT)
-    s = s0
-    for k in range(30):
-        s, o = step(s, 0.0, ys[k], DT)
-        np.testing.assert_allclose(np.asarray(o.x), np.asarray(outs.x[k]), rtol=1e-12, atol=1e-15)
-    np.testing.assert_allclose(np.asarray(s.x), np.asarray(final.x), rtol=1e-12, atol=1e-15)
-    np.testing.assert_array_equal(np.asarray(outs.measured[5]), [False, False])
-    np.testing.assert_array_equal(np.asarray(outs.measured[9]), [True, False])
-    # a non-finite input never turns the finite estimate into NaN
-    s_bad, _ = step(s0, jnp.nan, ys[0], DT)
-    assert np.all(np.isfinite(np.asarray(s_bad.x)))
 
 
 def test_bad_inputs_raise_input_error():

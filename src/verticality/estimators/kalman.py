@@ -182,7 +182,7 @@ def _run(est, state, us, ys, dts):
     n, m = ys.shape[0], est.B.shape[1]
     us = jnp.zeros((n, m)) if us is None else jnp.asarray(us, dtype=jnp.float64).reshape(n, m)
     if np.ndim(dts) == 0:
-        if not float(dts) > 0:
+        if not isinstance(dts, jax.core.Tracer) and not float(dts) > 0:
             raise InputError(f"dt must be positive, got {dts}")
         return _run_fixed(est, state, us, ys, jnp.asarray(dts, dtype=jnp.float64))
     dts = jnp.asarray(dts, dtype=jnp.float64)

@@ -1,0 +1,110 @@
+"""The estimator contract (estimators/base.py) for the linear estimators and the Newton observer:
+``run`` equals ``step`` sample by sample, a measurement with no finite component gives exactly
+``predict`` and is flagged per component, a non-finite input never makes a finite estimate
+non-finite, and partial measurements are flagged per component."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from verticality.estimators import disturbance, luenberger, newton, otolith_canal
+from verticality.estimators.kalman import continuous_observer, kalman_filter, steady_state_kalman_filter
+from verticality.experiments.separation import linear_model
+from verticality.models import lissajous_plant as lp
+from verticality.models.body import HUMAN_TWO_SEGMENT, upright
+from verticality.models.linearize import linearize
+from verticality.models.planar import HeadInput, PlanarState
+
+DT = 0.01
+N = 30
+
+
+def _otolith(form):
+    F, H = otolith_canal.matrices()
+    Q, R = otolith_canal.TAHBOUB_Q, otolith_canal.TAHBOUB_R
+    return {"time-varying": lambda: kalman_filter(F, None, H, None, Q, R),
+            "steady-state": lambda: steady_state_kalman_filter(F, None, H, None, Q, R, DT),
+            "continuous": lambda: continuous_observer(F, None, H, None,
+                                                      otolith_canal.steady_state_gain())}[form]()
+
+
+def _case(name):
+    """(estimator, x0, P0, us (N, ...), ys (N, p), dt) for each estimator of this half."""
+    rng = np.random.default_rng(4)
+    if name in ("time-varying", "steady-state", "continuous"):
+        ys = rng.normal(size=(N, 2)) * np.array([0.01, 0.3])
+        return _otolith(name), jnp.array([0.1, 0.2, 0.01]), jnp.eye(3) * 0.01, None, ys, DT
+    if name == "luenberger":
+        est = luenberger.design(linear_model(), (-100.0, -110.0, -120.0, -130.0))
+        us = rng.normal(size=(N, 2)) * np.array([1e-4, 1.0])
+        return est, jnp.array([0.0, 0.0, 0.3, 0.0]), None, us, rng.normal(size=(N, 1)) * 0.1, 1e-3
+    if name == "disturbance":
+        lin = linearize(HUMAN_TWO_SEGMENT, *upright())
+        est = disturbance.extended_disturbance_observer(lin, (-6.0, -7.0, -8.0, -9.0, -10.0, -11.0, -12.0))
+        us = rng.normal(size=(N, 2))
+        return est, jnp.zeros(7), None, us, rng.normal(size=(N, 6)) * 0.01, DT
+    # the Newton observer on the P11 plant, window 4 so that it solves within the sequence
+    z = jnp.zeros(25)
+    est = newton.NewtonObserver(lp.observer_model(lp.p11_head(), 5), HeadInput(z, z, z),
+                                newton.NewtonConfig(window=4, iterations=3))
+    t = (np.arange(N * 25) + 0.5) * 1e-3
+    tr = lp.trunk(t)
+    blk = lambda a: jnp.asarray(np.asarray(a).reshape(N, 25))  # noqa: E731
+    us = HeadInput(blk(0.5 * np.asarray(tr.Theta_ddot_rad_s2) * lp.p11_head().K_kg_m2),
+                   blk(tr.a_h_I_m_s2), blk(tr.a_z_I_m_s2))
+    ys = 0.02 * np.sin(np.arange(N) * 0.3)[:, None]
+    x0 = PlanarState(*(jnp.asarray(v) for v in (0.01, 0.0, 0.02, 0.1)))
+    return est, x0, None, us, ys, 0.025
+
+
+NAMES = ["time-varying", "steady-state", "continuous", "luenberger", "disturbance", "newton"]
+
+
+def _at(us, k):
+    return None if us is None else jax.tree_util.tree_map(lambda a: jnp.asarray(a)[k], us)
+
+
+def _u(us, k):
+    return 0.0 if us is None else _at(us, k)
+
+
+def _estimate(state):
+    return np.concatenate([np.ravel(np.asarray(a)) for a in
+                           jax.tree_util.tree_leaves(state.x_hat if hasattr(state, "x_hat") else state.x)])
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_run_is_repeated_step(name):
+    est, x0, P0, us, ys, dt = _case(name)
+    ys = np.array(ys)
+    ys[5] = np.nan  # a sample with nothing measured
+    ys[9, -1] = np.nan  # and one with a component missing
+    s0 = est.init(x0, P0)
+    final, outs = jax.jit(est.run)(s0, us, ys, dt)
+    step = jax.jit(est.step)
+    s = s0
+    for k in range(N):
+        s, o = step(s, _u(us, k), ys[k], dt)
+    np.testing.assert_allclose(_estimate(s), _estimate(final), rtol=1e-10, atol=1e-12)
+    assert not np.any(np.asarray(outs.measured)[5])
+    assert np.asarray(outs.measured)[9].tolist() == [True] * (ys.shape[1] - 1) + [False]
+    assert np.all(np.isfinite(_estimate(final)))
+    if name == "newton":
+        assert bool(np.any(np.asarray(outs.solved)))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_no_measurement_is_predict_and_finite_stays_finite(name):
+    est, x0, P0, us, ys, dt = _case(name)
+    s0 = est.init(x0, P0)
+    s_nan, out = jax.jit(est.step)(s0, _u(us, 0), jnp.full(np.shape(ys)[1], jnp.nan), dt)
+    s_pred = jax.jit(est.predict)(s0, _u(us, 0), dt)
+    for a, b in zip(jax.tree_util.tree_leaves(s_nan), jax.tree_util.tree_leaves(s_pred), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert not np.any(np.asarray(out.measured))
+    # a non-finite input: the estimate stays finite (the previous one is kept)
+    u_bad = jax.tree_util.tree_map(lambda a: jnp.full_like(jnp.asarray(a, dtype=float), jnp.nan),
+                                   _u(us, 0))
+    s_bad, _ = jax.jit(est.step)(s0, u_bad, jnp.asarray(ys[0]), dt)
+    assert np.all(np.isfinite(_estimate(s_bad)))
