@@ -9,7 +9,11 @@ import numpy as np
 import pytest
 
 from verticality.estimators import disturbance, luenberger, newton, otolith_canal
-from verticality.estimators.kalman import continuous_observer, kalman_filter, steady_state_kalman_filter
+from verticality.estimators.kalman import (
+    continuous_observer,
+    kalman_filter,
+    steady_state_kalman_filter,
+)
 from verticality.experiments.separation import linear_model
 from verticality.models import lissajous_plant as lp
 from verticality.models.body import HUMAN_TWO_SEGMENT, upright

@@ -62,7 +62,7 @@ import jax
 import jax.numpy as jnp
 
 from verticality.errors import InputError
-from verticality.estimators.base import scan_steps
+from verticality.estimators.base import all_finite, keep_finite, scan_steps
 from verticality.models.base import model_dataclass, static_field
 
 
@@ -119,10 +119,6 @@ def _select(pred, a, b):
 
 def _index(tree, i):
     return _tmap(lambda a: a[i], tree)
-
-
-def _finite(tree):
-    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in jax.tree_util.tree_leaves(tree)]))
 
 
 def _push(buf, new):
@@ -236,7 +232,7 @@ class NewtonObserver:
             J = jnp.sum(C[:, :, :, None] * Phi[:, None, :, :], axis=2).reshape(N * p, n)
             r = w * (ys_flat - Y)
             cost = jnp.sum(r * r)
-            ok = jnp.isfinite(cost) & _finite(xs) & jnp.all(jnp.isfinite(J))
+            ok = jnp.isfinite(cost) & all_finite(xs) & jnp.all(jnp.isfinite(J))
             Jw = jnp.where(jnp.isfinite(J), w[:, None] * J, 0.0)
             col = jnp.linalg.norm(Jw, axis=0)
             # tiny floors stay well above the denormals (XLA flushes those to zero)
@@ -292,10 +288,10 @@ class NewtonObserver:
             i=jnp.asarray(0), xi=xi0, xs=xs_0, cost=cost0, lin=lin0, mu2=mu2_0, delta=delta0,
             small=small0 & ok0, deficient=def0, cond=cond0))
         rms = jnp.sqrt(jnp.where(jnp.isfinite(c.cost), c.cost, 0.0) / m)
-        finite = _finite(c.xs) & _finite(c.xi)
+        finite = all_finite(c.xs) & all_finite(c.xi)
         xi = _select(finite, c.xi, xi0)
         constant = _tmap(lambda a: jnp.broadcast_to(a, (N,) + jnp.shape(a)), xi0)
-        xs = _select(finite, c.xs, _select(_finite(xs_0), xs_0, constant))
+        xs = _select(finite, c.xs, _select(all_finite(xs_0), xs_0, constant))
         return WindowSolution(xi=xi, xs=xs, residual_rms=rms, cond=c.cond,
                               rank_deficient=c.deficient, converged=c.small & ~c.deficient & finite,
                               iterations=c.i)
@@ -333,9 +329,7 @@ class NewtonObserver:
         N = int(self.config.window)
         y = jnp.reshape(jnp.asarray(y, dtype=float), state.ys.shape[1:])
         finite_y = jnp.isfinite(y)
-        x_pred = self.model.transition(state.x_hat, u, dt)
-        pred_ok = _finite(x_pred)
-        x_pred = _select(pred_ok, x_pred, state.x_hat)
+        x_pred, pred_ok = keep_finite(self.model.transition(state.x_hat, u, dt), state.x_hat)
         # the window stays the model's rollout from its first entry while predictions are pushed
         # (x_hat is always the window's last entry); a replaced non-finite prediction breaks it
         rollout = jnp.where(pred_ok, jnp.minimum(state.rollout + 1, N), 1)
@@ -372,7 +366,7 @@ class NewtonObserver:
             # the solution is a rollout (of the accepted ξ, or of the warm start) unless the solve
             # fell back to a constant window, which needs a non-finite warm-start rollout
             return pred._replace(x_hat=out.x_hat, xs_window=sol.xs, since_solve=jnp.asarray(0),
-                                 last=out, rollout=jnp.where(_finite(xs_start), N, 1))
+                                 last=out, rollout=jnp.where(all_finite(xs_start), N, 1))
 
         new_state = jax.lax.cond(do_solve, solved, lambda _: pred, None)
         return new_state, new_state.last
