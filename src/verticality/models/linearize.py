@@ -56,12 +56,12 @@ def linearize(model, x0, u0) -> LinearModel:
     if n == 0:
         raise InputError("linearize: the state x0 is empty")
     u0_flat, unravel_u = ravel_pytree(u0)
-    fx = ravel_pytree(model.dynamics(x0, u0))[0]
-    if fx.size != ravel_pytree(x0)[0].size:
-        raise InputError(f"linearize: the model's dynamics returns {fx.size} derivatives for "
-                         f"a state of {ravel_pytree(x0)[0].size} components")
-    zero = jnp.zeros(n, dtype=jnp.result_type(dx0, float))
     xdot0 = model.dynamics(x0, u0)
+    n_x, n_f = ravel_pytree(x0)[0].size, ravel_pytree(xdot0)[0].size
+    if n_f != n_x:
+        raise InputError(f"linearize: the model's dynamics returns {n_f} derivatives for a state "
+                         f"of {n_x} components")
+    zero = jnp.zeros(n, dtype=jnp.result_type(dx0, float))
 
     def tangent_rate(d, uf):
         x = model.retract(x0, d)
