@@ -14,9 +14,9 @@ import json
 from pathlib import Path
 
 from verticality.errors import InputError
+from verticality.reporting import RESULTS_NAME
 
 REPORT_NAME = "report.html"
-RESULTS_NAME = "results.json"
 
 
 def load_results(results_dir: Path) -> dict:
