@@ -59,11 +59,11 @@ def run(args) -> int:
         json.dump(results, sys.stdout, indent=2)
         sys.stdout.write("\n")
         if page is not None:
-            err.print(f"report: {page}")
+            print(f"report: {page}", file=sys.stderr)
     else:
         _print_tables(results, out_dir)
         if page is not None:
-            Console().print(f"report: {page}")
+            print(f"report: {page}")  # one line, never wrapped
     failed = failed_checks(results)
     if failed:
         err.print("[red]failed checks:[/red] " + "; ".join(failed))

@@ -138,9 +138,9 @@ CLAIMS: dict[str, Claim] = {
         readings=("cycles end-matched before the FFT (the gyro drift otherwise leaks into every "
                   "harmonic)", "band means over 0.05–1 Hz; ≈ 1 read as within 10 %, ≈ 0 as "
                   "within 5°"),
-        published=(Published("mean gain, 0.05–1 Hz", "T Fig. 7", "≈ 1", ("mean_gain",), "within",
-                             1.0, rel=0.10, headline=True),
-                   Published("mean |phase|, 0.05–1 Hz", "T Fig. 7", "≈ 0°",
+        published=(Published("mean gain, 0.05–1 Hz", "T Fig. 7", "≈ 1 (read as ± 10 %)",
+                             ("mean_gain",), "within", 1.0, rel=0.10, headline=True),
+                   Published("mean |phase|, 0.05–1 Hz", "T Fig. 7", "≈ 0° (read as ≤ 5°)",
                              ("mean_abs_phase_deg",), "at_most", 5.0, unit="°", headline=True),
                    Published("mean coherence, 0.05–1 Hz", "T Fig. 8", "high (no number)",
                              ("mean_coherence",)),),
