@@ -226,7 +226,7 @@ def test_page_has_every_section_status_and_figure_and_needs_no_network(tmp_path)
             assert pub.text in section, (name, pub.text)
     # differences show this run's numbers as evidence; a metric the run lacks says so
     differ = parsed.text_by_section["differ"]
-    assert "14 of 16" in differ and "not run" in differ and "not measured" in differ
+    assert "14 of 16" in differ and "not run" in differ and "not measured in this run" in differ
     assert "Quick mode" in page  # the run's mode is stated
 
 

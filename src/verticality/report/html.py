@@ -331,6 +331,7 @@ def _evidence_row(ev: Evidence, experiments: dict) -> str:
     entry = experiments.get(ev.experiment)
     value = compare.lookup(entry.get("metrics", {}), ev.metric) if entry else None
     shown = ("not run" if entry is None else ev.none_text if value is None
+             else "not measured in this run" if compare.is_missing(value)
              else fmt(value, ev.unit))
     return (f"<tr><td><a href='#{anchor(ev.experiment)}'>{escape(ev.experiment)}</a></td>"
             f"<td>{escape(ev.label)}</td><td class='num wrap'>{escape(shown)}</td></tr>")
@@ -424,8 +425,10 @@ def render(results: dict, results_dir: Path, built: dict) -> str:
     legend = ("<p class='muted'>Status: " + " ".join(badge(s) for s in compare.STATUSES[:4]) +
               " — <em>better</em>: ours beats an approximate published figure by more than a "
               "quarter; <em>meets</em>: at or within the published figure or bound; "
-              "<em>differs</em>: outside it (see “Where we differ”); checks are the project's "
-              "own pass/fail tests.</p>")
+              "<em>differs</em>: outside it (see “Where we differ”); <em>not measured</em>: "
+              "this run lacks the metric (a quick run skips some); <em>not run</em>: the "
+              "experiment is not in this results folder. Checks are the project's own pass/fail "
+              "tests.</p>")
     summary_table = ("<table class='summary'><thead><tr><th>experiment</th><th>seed claim</th>"
                      "<th>what is compared</th><th>published</th><th>ours</th><th>status</th>"
                      "<th>checks</th></tr></thead><tbody>"
