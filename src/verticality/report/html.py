@@ -436,6 +436,7 @@ def render(results: dict, results_dir: Path, built: dict) -> str:
     sections = "".join(experiment_section(n, registry, experiments, results_dir) for n in names)
     differences = "".join(difference_section(d, experiments) for d in DIFFERENCES)
     pending = pending_section(registry, experiments)
+    differ_links = "; ".join(f'<a href="#{d.anchor}">{escape(d.title)}</a>' for d in DIFFERENCES)
     title = "verticality — reproduction report"
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
@@ -452,7 +453,8 @@ def render(results: dict, results_dir: Path, built: dict) -> str:
 we measured, and where we agree and differ. The protocol of every experiment is
 <code>docs/reproduction.md</code>; published figures are a floor, not a target.</p>
 {quick_note}{failed_note}
-<section id="summary"><h2>Summary</h2><p>{escape(counts)}.</p>{legend}{summary_table}</section>
+<section id="summary"><h2>Summary</h2><p>{escape(counts)}.</p>{legend}{summary_table}
+<p><strong>Where we differ from the seeds:</strong> {differ_links}.</p></section>
 <div id="experiments">{sections}</div>
 <section id="differ"><h2>Where we differ from the seeds</h2>
 <p>Each difference with the seeds' statement, ours, the reason, and the numbers of this run that
