@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-Path = tuple[str | int, ...]
+MetricPath = tuple[str | int, ...]  # keys and list indices into an experiment's metrics
 
 #: How ours is judged against a published figure.
 #: ``approx_error``: published "≈ X" for an error (lower is better): ours below (1 − rel)·X is
@@ -34,13 +34,13 @@ class Published:
     label: str  # what is compared, in words
     source: str  # where it is printed, e.g. "P11 §VI, Fig. 6"
     text: str  # the published figure as a person reads it, e.g. "≈ 6°"
-    metric: Path | None  # into the experiment's metrics; None: no metric measures it yet
+    metric: MetricPath | None  # into the experiment's metrics; None: no metric measures it yet
     kind: Kind = "context"
     value: Any = None  # the number (or bool, or matrix) that ``kind`` compares with
     rel: float = 0.25  # relative band of ``approx_error`` and ``within``
     unit: str = ""  # unit of ours as displayed ("°", "rad", "")
     reduce: Literal["max", "min"] | None = None  # over a list-valued metric (nulls skipped)
-    ratio_to: Path | None = None  # ours = metric / this metric
+    ratio_to: MetricPath | None = None  # ours = metric / this metric
     none_text: str = "—"  # how a null of ours reads (e.g. "no divergence")
     headline: bool = False  # shown in the summary table
 
@@ -63,7 +63,7 @@ class Evidence:
     """A metric of one experiment shown as evidence of a difference."""
 
     experiment: str
-    metric: Path
+    metric: MetricPath
     label: str
     unit: str = ""
     none_text: str = "null"  # how a null reads

@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from verticality.report.claims import Claim, Path, Published
+from verticality.report.claims import Claim, MetricPath, Published
 
 BETTER, MEETS, DIFFERS = "better", "meets", "differs"
 NO_NUMBER, NOT_MEASURED, NOT_RUN = "no published number", "not measured", "not run"
@@ -20,7 +20,7 @@ STATUSES = (BETTER, MEETS, DIFFERS, NO_NUMBER, NOT_MEASURED, NOT_RUN)
 _MISSING = object()
 
 
-def lookup(metrics: Any, path: Path) -> Any:
+def lookup(metrics: Any, path: MetricPath) -> Any:
     """The value at ``path`` (keys and list indices); a check dict gives its ``value``.
     Returns the module's ``_MISSING`` sentinel (test with :func:`is_missing`) when absent."""
     node = metrics
