@@ -25,7 +25,7 @@ from typing import Any
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
          "--disable-extensions", "--disable-default-apps", "--hide-scrollbars", "--mute-audio",
-         "--no-default-browser-check", "--remote-debugging-pipe")
+         "--no-default-browser-check", "--disable-dev-shm-usage", "--remote-debugging-pipe")
 
 
 def find_chromium() -> str | None:
