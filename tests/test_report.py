@@ -310,3 +310,16 @@ def test_provenance_outside_a_work_tree_and_without_a_library(tmp_path):
     assert provenance.git_commit(tmp_path) is None
     assert provenance.library_versions(("no-such-distribution-x",)) == {
         "no-such-distribution-x": None}
+
+
+def test_docs_hook_lets_a_list_follow_a_paragraph_line():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("lists_hook", DOCS / "hooks" / "lists.py")
+    hook = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hook)
+    text = "Consequences:\n- one\n- two\nthat wraps\n- three\n\nAfter.\n1. first"
+    assert hook.breakless_lists(text) == ("Consequences:\n\n- one\n- two\nthat wraps\n- three\n\n"
+                                          "After.\n\n1. first")
+    untouched = "```\ncode line\n- not a list\n```\n| a |\n- x\n# T\n- y\n\n- z"
+    assert hook.breakless_lists(untouched) == untouched
