@@ -192,6 +192,8 @@ def test_lookup_reduce_ratio_and_missing():
     assert compare.ours(metrics, ratio) == pytest.approx(0.4)
     gone = Published("x", "s", "t", ("renamed",), "at_most", 1.0)
     assert compare.verdict(compare.ours(metrics, gone), gone) == "not measured"
+    shown = Published("x", "s", "t", ("renamed",))  # nothing to judge: no verdict either way
+    assert compare.verdict(compare.ours(metrics, shown), shown) == "no published number"
     assert compare.overall(["meets", "better", "no published number"]) == "better"
     assert compare.overall(["better", "differs"]) == "differs"
     assert compare.overall([]) == "no published number"

@@ -229,11 +229,15 @@ CLAIMS: dict[str, Claim] = {
         claim="Not a published result: what the fixed/stabilized ratio of the two EKF scenarios "
               "depends on, one setting at a time around the ekf-* setting — the fixed head's "
               "head-rate process noise, the jump's trunk pitch and the sensor noise.",
-        published=(Published("RMS ratio at P13's σ_w, impact", "—", "no published number",
-                             ("fixed_head_rate_sigma", "impact", "sigma_0.001", "rms_ratio"),
+        published=(Published("jump: RMS ratio at P13's σ_w = 0.001", "—", "no published number",
+                             ("fixed_head_rate_sigma", "jump", "sigma_0.001", "rms_ratio"),
                              headline=True),
-                   Published("RMS ratio at σ_ωH = 0.01, impact", "—", "no published number",
-                             ("fixed_head_rate_sigma", "impact", "sigma_0.01", "rms_ratio")),),
+                   Published("jump: RMS ratio at σ_ωH = 0.03", "—", "no published number",
+                             ("fixed_head_rate_sigma", "jump", "sigma_0.03", "rms_ratio")),
+                   Published("impact: RMS ratio at P13's σ_w = 0.001", "—", "no published number",
+                             ("fixed_head_rate_sigma", "impact", "sigma_0.001", "rms_ratio")),
+                   Published("impact: RMS ratio at σ_ωH = 0.03", "—", "no published number",
+                             ("fixed_head_rate_sigma", "impact", "sigma_0.03", "rms_ratio")),),
         pages=("ekf.md",),
     ),
     "newton-lissajous": Claim(

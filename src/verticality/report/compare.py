@@ -100,12 +100,10 @@ def _within(value: Any, target: Any, rel: float) -> bool | None:
 
 def verdict(value: Any, pub: Published) -> str:
     """The status of ``value`` (ours) against one published figure."""
-    if pub.metric is None:
-        return NOT_MEASURED if pub.kind != "context" else NO_NUMBER
-    if is_missing(value):
-        return NOT_MEASURED
     if pub.kind == "context" or pub.value is None and pub.kind != "equals":
-        return NO_NUMBER
+        return NO_NUMBER  # nothing to judge, whether or not this run measured it
+    if pub.metric is None or is_missing(value):
+        return NOT_MEASURED
     if pub.kind == "equals":
         return MEETS if value == pub.value else DIFFERS
     if pub.kind == "within":
