@@ -5,13 +5,14 @@ import math
 
 import numpy as np
 
-from verticality import cli
+from verticality import cli, experiments
 from verticality.reporting import flatten, format_value, to_jsonable
 
 
 def test_reproduce_json_contract_and_figures(tmp_path, capsys):
     rc = cli.main(["reproduce", "tahboub-gains", "--json", "--out", str(tmp_path)])
-    out = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
     assert rc == 0
     entry = out["experiments"]["tahboub-gains"]
     assert set(entry) >= {"metrics", "paper", "runtime"}
@@ -22,6 +23,28 @@ def test_reproduce_json_contract_and_figures(tmp_path, capsys):
     figures = list((tmp_path / "tahboub-gains").glob("*.png"))
     assert figures and all(f.stat().st_size > 1000 for f in figures)
     assert sorted(entry["figures"]) == sorted(str(f) for f in figures)
+    # the report is written beside results.json and its path told on stderr (stdout stays JSON)
+    page = tmp_path / "report.html"
+    assert page.stat().st_size > 10_000 and f"report: {page}" in captured.err
+    assert 'id="exp-tahboub-gains"' in page.read_text()
+    # results.json also says how the numbers were made and which experiments exist
+    saved = json.loads((tmp_path / "results.json").read_text())
+    assert saved == out
+    assert out["provenance"]["mode"] == "full"
+    assert out["provenance"]["experiments_requested"] == ["tahboub-gains"]
+    assert set(out["registry"]) == set(experiments.discover())
+    assert out["registry"]["tahboub-gains"]["source"] == "T eq. 7–13, 20–22"
+
+
+def test_reproduce_tables_report_path_and_no_report(tmp_path, capsys):
+    assert cli.main(["reproduce", "tahboub-gains", "--quick", "--out", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    assert "tahboub-gains" in out and out.strip().endswith(str(tmp_path / "a" / "report.html"))
+    assert json.loads((tmp_path / "a" / "results.json").read_text())["provenance"]["mode"] == "quick"
+    assert cli.main(["reproduce", "tahboub-gains", "--out", str(tmp_path / "b"),
+                     "--no-report"]) == 0
+    assert "report.html" not in capsys.readouterr().out
+    assert (tmp_path / "b" / "results.json").exists() and not (tmp_path / "b" / "report.html").exists()
 
 
 def test_unknown_experiment_is_one_line_and_status_2(capsys):

@@ -1,11 +1,18 @@
-"""Turning experiment results into JSON and terminal tables."""
+"""Running experiments into the results object of ``verticality reproduce``, and turning values
+into JSON and terminal text."""
 
 from __future__ import annotations
 
+import json
 import math
+import time
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+RESULTS_NAME = "results.json"
 
 
 def to_jsonable(value: Any) -> Any:
@@ -61,3 +68,55 @@ def format_value(v: Any) -> str:
         return "null"
     text = str(v)
     return text if len(text) <= 120 else text[:117] + "…"
+
+
+def run_experiments(names: list[str] | None, *, quick: bool = False, out_dir: Path | None = None,
+                    on_stage: Callable[[str, str], None] | None = None) -> dict:
+    """Run the named experiments (all registered ones when ``names`` is empty) and return the
+    results object of docs/reproduction.md: ``{"experiments": {NAME: {"metrics", "paper",
+    "runtime", "figures"?}}, "registry": {NAME: {"title", "source"}}, "provenance": {...}}``.
+    With ``out_dir``, each experiment's figures go to ``out_dir/NAME/`` and the object to
+    ``out_dir/results.json``. ``on_stage(name, stage)`` is told ``"running"`` and ``"figures"``.
+    An unknown name raises :class:`~verticality.errors.InputError` before anything runs."""
+    from verticality import experiments
+    from verticality.report import provenance
+
+    registry = experiments.discover()
+    chosen = list(names) if names else sorted(registry)
+    exps = [experiments.get(n) for n in chosen]
+    results: dict = {"experiments": {},
+                     "registry": {n: {"title": e.title, "source": e.source}
+                                  for n, e in sorted(registry.items())},
+                     "provenance": provenance.collect(quick=quick, names=list(names or []))}
+    for exp in exps:
+        if on_stage is not None:
+            on_stage(exp.name, "running")
+        t0 = time.perf_counter()
+        result = exp.run(quick=quick)
+        wall = time.perf_counter() - t0
+        entry = {
+            "metrics": to_jsonable(result.metrics),
+            "paper": to_jsonable(result.paper),
+            "runtime": {"wall_s": wall, "simulated_s": float(result.simulated_s)},
+        }
+        if out_dir is not None and exp.figures is not None:
+            if on_stage is not None:
+                on_stage(exp.name, "figures")
+            fig_dir = Path(out_dir) / exp.name
+            fig_dir.mkdir(parents=True, exist_ok=True)
+            entry["figures"] = [str(p) for p in exp.figures(result, fig_dir)]
+        results["experiments"][exp.name] = entry
+    if out_dir is not None:
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        (Path(out_dir) / RESULTS_NAME).write_text(json.dumps(results, indent=2))
+    return results
+
+
+def failed_checks(results: dict) -> list[str]:
+    """``"NAME: metric.path"`` of every check that did not pass."""
+    failed = []
+    for name, entry in results["experiments"].items():
+        for key, value in flatten(entry["metrics"]).items():
+            if isinstance(value, dict) and value.get("pass") is False:
+                failed.append(f"{name}: {key}")
+    return failed

@@ -1,17 +1,16 @@
-"""``verticality reproduce [NAME...] [--json] [--out DIR] [--quick]``."""
+"""``verticality reproduce [NAME...] [--json] [--out DIR] [--quick] [--no-report]``."""
 
 from __future__ import annotations
 
 import json
 import sys
-import time
 from pathlib import Path
 
 from rich.console import Console
 from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from verticality.reporting import flatten, format_value, to_jsonable
+from verticality.reporting import flatten, format_value
 
 DEFAULT_OUT = Path("verticality-results")
 
@@ -24,64 +23,57 @@ def register(sub):
     p.add_argument("names", nargs="*", metavar="NAME", help="experiments to run (see `list`)")
     p.add_argument("--json", action="store_true", help="print one JSON object to stdout")
     p.add_argument("--out", type=Path, default=None,
-                   help=f"folder for figures and results.json (default {DEFAULT_OUT}/ "
+                   help=f"folder for figures, results.json and report.html (default {DEFAULT_OUT}/ "
                         "without --json; none with --json unless given)")
     p.add_argument("--quick", action="store_true",
                    help="shorter runs (fewer Monte Carlo repetitions, shorter simulations)")
+    p.add_argument("--no-report", action="store_true",
+                   help="do not write report.html beside results.json")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from verticality import experiments
+    from verticality import report
+    from verticality.reporting import failed_checks, run_experiments
 
-    registry = experiments.discover()
-    names = args.names or sorted(registry)
-    exps = [experiments.get(n) for n in names]  # raises InputError on an unknown name
     out_dir = args.out if args.out is not None else (None if args.json else DEFAULT_OUT)
     err = Console(stderr=True)
-    report: dict = {"experiments": {}}
-    failed_checks: list[str] = []
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
                   console=err, transient=True, disable=not err.is_terminal) as progress:
-        for exp in exps:
-            task = progress.add_task(f"{exp.name}: running", total=None)
-            if not err.is_terminal and not args.json:
-                err.print(f"running {exp.name} …")
-            t0 = time.perf_counter()
-            result = exp.run(quick=args.quick)
-            wall = time.perf_counter() - t0
-            entry = {
-                "metrics": to_jsonable(result.metrics),
-                "paper": to_jsonable(result.paper),
-                "runtime": {"wall_s": wall, "simulated_s": float(result.simulated_s)},
-            }
-            if out_dir is not None and exp.figures is not None:
-                progress.update(task, description=f"{exp.name}: figures")
-                fig_dir = out_dir / exp.name
-                fig_dir.mkdir(parents=True, exist_ok=True)
-                entry["figures"] = [str(p) for p in exp.figures(result, fig_dir)]
-            report["experiments"][exp.name] = entry
-            for key, value in flatten(entry["metrics"]).items():
-                if isinstance(value, dict) and value.get("pass") is False:
-                    failed_checks.append(f"{exp.name}: {key}")
-            progress.remove_task(task)
-    if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / "results.json").write_text(json.dumps(report, indent=2))
+        tasks: dict[str, object] = {}
+
+        def on_stage(name: str, stage: str) -> None:
+            for task in tasks.values():
+                progress.remove_task(task)
+            tasks.clear()
+            tasks[name] = progress.add_task(f"{name}: {stage}", total=None)
+            if stage == "running" and not err.is_terminal and not args.json:
+                err.print(f"running {name} …")
+
+        results = run_experiments(args.names, quick=args.quick, out_dir=out_dir,
+                                  on_stage=on_stage)
+    page = None
+    if out_dir is not None and not args.no_report:
+        page = report.build(out_dir)
     if args.json:
-        json.dump(report, sys.stdout, indent=2)
+        json.dump(results, sys.stdout, indent=2)
         sys.stdout.write("\n")
+        if page is not None:
+            print(f"report: {page}", file=sys.stderr)
     else:
-        _print_tables(report, out_dir)
-    if failed_checks:
-        err.print("[red]failed checks:[/red] " + "; ".join(failed_checks))
+        _print_tables(results, out_dir)
+        if page is not None:
+            print(f"report: {page}")  # one line, never wrapped
+    failed = failed_checks(results)
+    if failed:
+        err.print("[red]failed checks:[/red] " + "; ".join(failed))
         return 1
     return 0
 
 
-def _print_tables(report: dict, out_dir: Path | None) -> None:
+def _print_tables(results: dict, out_dir: Path | None) -> None:
     console = Console()
-    for name, entry in report["experiments"].items():
+    for name, entry in results["experiments"].items():
         table = Table(title=f"{name}  ({entry['runtime']['wall_s']:.1f} s wall, "
                             f"{entry['runtime']['simulated_s']:.1f} s simulated)")
         table.add_column("metric", overflow="fold")
