@@ -79,3 +79,12 @@ P13_KD_NMS_RAD = 5.0
 
 # Lateral model default: pivots at +-r along head y (F Fig. 2.3).
 LATERAL_R_M = 0.05
+
+
+def lateral_pendulums(p: PendulumParams, r_m=LATERAL_R_M) -> tuple[PendulumParams, PendulumParams]:
+    """The lateral model's (left, right) pendulum parameters: ``p`` with its pivot at ``(0, +r, 0)``
+    and at ``(0, −r, 0)`` in the head frame (F Fig. 2.3: the organs on the interaural axis; F's
+    text writes ``H r = (0, 0, r)``). The one place where the lateral pivots are placed."""
+    p = p.resolved()
+    return (p._replace(pivot_H_m=jnp.array([0.0, r_m, 0.0])),
+            p._replace(pivot_H_m=jnp.array([0.0, -r_m, 0.0])))

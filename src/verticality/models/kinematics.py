@@ -42,3 +42,13 @@ def from_functions(position_I_m, R_I_B, t) -> RigidMotion:
     velocity = lambda s: jax.jvp(position_I_m, (s,), (1.0,))[1]  # noqa: E731
     a = jax.jvp(velocity, (t,), (1.0,))[1]
     return RigidMotion(R_I_B(t), w, wdot, a)
+
+
+def rotation_retract(R, dtheta_rad):
+    """``R ⊞ δ = R exp([δ]×)``: a right (body-frame) perturbation of a rotation matrix."""
+    return R @ so3.exp(dtheta_rad)
+
+
+def rotation_difference(R1, R0):
+    """``R1 ⊟ R0 = log(R0ᵀ R1)``, the inverse of :func:`rotation_retract` (angles below π)."""
+    return so3.log_principal(R0.T @ R1)
