@@ -1,6 +1,6 @@
 """Observability matrix of the medial otolith model: Taylor interpreter vs ``jax.experimental.jet``.
 
-Both compute ∂(y, ẏ, …, y^(K))/∂z at one random point (K = 6, 12 tangent coordinates + 6 unknown
+Both compute ∂(y, ẏ, …, y^(K))/∂z at one random point (K = 6, 12 tangent coordinates + 7 unknown
 constants); the time includes tracing and XLA compilation, which dominate. Prints the ratio.
 Run: ``python benchmarks/bench_observability.py``.
 """

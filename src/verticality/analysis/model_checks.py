@@ -76,6 +76,7 @@ from verticality.control import (
 from verticality.integrate import rk4_step
 from verticality.models import otolith_head, planar
 from verticality.models import vestibular as V
+from verticality.models.base import EuclideanState, model_dataclass
 from verticality.models.head import FreeHead, HeadInput, HeadState
 from verticality.models.kinematics import RigidMotion
 from verticality.models.pendulum import Pendulum, PendulumState
@@ -385,11 +386,25 @@ def _in_plane(R, w):
     return R, w * jnp.array([1.0, 0.0, 0.0])
 
 
+@model_dataclass
+class PlanarMedial(EuclideanState):
+    """The planar head carrying its pendulum (F p. 36), :func:`verticality.models.planar.dynamics`
+    as a value (``models/planar.py`` holds it as a function)."""
+
+    params: planar.PlanarParams
+
+    def dynamics(self, x, u):
+        return planar.dynamics(x, u, self.params)
+
+    def output(self, x, u=None):
+        return planar.inclinometer_reading(x)
+
+
 @functools.partial(jax.jit, static_argnames=("n",))
 def _planar_medial(n):
     x0p = planar.PlanarState(*(jnp.asarray(v) for v in (TH_S0, W_S0, TH_H0, W_H0)))
-    _, yp = V.simulate(lambda t, x: planar.dynamics(x, _planar_input(t, x), planar_params()), x0p,
-                       DT_S, n, output=lambda t, x: jnp.stack([x.theta_S_rad, x.theta_H_rad]))
+    _, yp = run_model(PlanarMedial(planar_params()), x0p, _planar_input, DT_S, n,
+                      output=lambda t, x: jnp.stack([x.theta_S_rad, x.theta_H_rad]))
     model = otolith_head.medial(P13_PENDULUM, P13_HEAD)
     x03 = otolith_head.OtolithHeadState(
         (PendulumState(*_in_plane(so3.rot_x(TH_S0), W_S0)),),
