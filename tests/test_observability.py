@@ -137,11 +137,11 @@ def test_curve_direction_of_yaw_is_the_null_space():
     prob = ex.accelerometer()
     res = ob.analyze(prob, points=2)
     x, _ = res.point
-    yaw = ob.curve_direction(prob, res, lambda model, x, th, e: (so3.rot_z(e) @ x, {}))
-    assert np.allclose(yaw, x.T @ np.array([0.0, 0.0, 1.0]), atol=1e-12)
-    assert res.in_null_space(yaw)
-    roll = ob.curve_direction(prob, res, lambda model, x, th, e: (so3.rot_x(e) @ x, {}))
-    assert not res.in_null_space(roll)
+    d = ob.curve_directions(prob, res, {"yaw": lambda model, x, th, e: (so3.rot_z(e) @ x, {}),
+                                        "roll": lambda model, x, th, e: (so3.rot_x(e) @ x, {})})
+    assert np.allclose(d["yaw"], x.T @ np.array([0.0, 0.0, 1.0]), atol=1e-12)
+    assert res.in_null_space(d["yaw"])
+    assert not res.in_null_space(d["roll"])
 
 
 def test_unknown_model_parameters_enter_through_the_parameter_map():

@@ -57,7 +57,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.experimental.jet import jet
-from jax.flatten_util import ravel_pytree
 
 from verticality.analysis.observability_taylor import taylor
 from verticality.errors import InputError
@@ -137,6 +136,11 @@ class Problem:
         return jnp.ravel(jnp.asarray(y, dtype=jnp.float64))
 
 
+def flat(tree):
+    """The leaves of ``tree`` ravelled and concatenated (``ravel_pytree``'s order)."""
+    return jnp.concatenate([jnp.ravel(leaf) for leaf in jax.tree_util.tree_leaves(tree)])
+
+
 def _size(shape) -> int:
     return int(np.prod(shape)) if shape else 1
 
@@ -172,16 +176,16 @@ class Layout:
         self.chart = chart
         self.problem = problem
         state = jax.tree_util.tree_map(lambda a: jnp.asarray(a, dtype=jnp.float64), problem.state)
-        flat, self.unravel = ravel_pytree(state)
-        self.n_state = int(flat.size)
-        paths_leaves = jax.tree_util.tree_flatten_with_path(state)[0]
+        paths_leaves, self.treedef = jax.tree_util.tree_flatten_with_path(state)
         names = (list(problem.leaf_names) if problem.leaf_names is not None
                  else [_path_name(p) for p, _ in paths_leaves])
         shapes = [tuple(np.shape(leaf)) for _, leaf in paths_leaves]
-        self.n_tangent = int(np.size(problem.model.difference(state, state)))
-        J = np.asarray(jax.jacfwd(lambda z: ravel_pytree(problem.model.retract(state, z))[0])(
-            jnp.zeros(self.n_tangent)))
         starts = np.cumsum([0] + [_size(s) for s in shapes])
+        self.n_state = int(starts[-1])
+        self.n_tangent = n_t = int(np.size(jax.eval_shape(problem.model.difference, state, state)))
+        self._retract_jacobian = jax.jit(lambda x: jax.jacfwd(
+            lambda z: flat(problem.model.retract(x, z)))(jnp.zeros(n_t)))
+        J = np.asarray(self._retract_jacobian(state))
         owner = [int(np.argmax([np.linalg.norm(J[starts[i]:starts[i + 1], j])
                                 for i in range(len(shapes))])) for j in range(self.n_tangent)]
         # leaves: (name, shape, ambient slice, tangent column indices)
@@ -223,16 +227,19 @@ class Layout:
         return labels
 
     def unpack(self, X) -> tuple[Any, dict]:
-        x = self.unravel(X[: self.n_state])
+        """``(x, θ)`` from an ambient vector (NumPy or JAX)."""
+        x = jax.tree_util.tree_unflatten(self.treedef, [X[s].reshape(shape)
+                                                        for _, shape, s, _ in self.leaves])
         th = {name: X[s].reshape(shape) for name, shape, s in self.unknown_blocks}
         return x, th
 
-    def pack(self, x, th: Mapping):
-        parts = [ravel_pytree(jax.tree_util.tree_map(
-            lambda a: jnp.asarray(a, dtype=jnp.float64), x))[0]]
-        parts += [jnp.ravel(jnp.asarray(th[name], dtype=jnp.float64))
+    def pack(self, x, th: Mapping, xp=jnp):
+        """The ambient vector of ``(x, θ)`` (``xp``: ``jax.numpy``, or ``numpy`` on the host)."""
+        parts = [xp.ravel(xp.asarray(leaf, dtype=xp.float64))
+                 for leaf in jax.tree_util.tree_leaves(x)]
+        parts += [xp.ravel(xp.asarray(th[name], dtype=xp.float64))
                   for name, _, _ in self.unknown_blocks]
-        return jnp.concatenate(parts)
+        return xp.concatenate(parts)
 
     def unpack_u(self, U) -> dict:
         return {name: U[s].reshape(shape) for name, shape, s in self.input_blocks}
@@ -242,14 +249,23 @@ class Layout:
         (ambient chart)."""
         if self.chart == "ambient":
             return lambda z: X0 + z
-        x0 = self.unravel(X0[: self.n_state])
+        x0 = self.unpack(X0)[0]
         model = self.problem.model
 
         def phi(z):
             x = model.retract(x0, z[: self.n_tangent])
-            return jnp.concatenate([ravel_pytree(x)[0], X0[self.n_state:] + z[self.n_tangent:]])
+            return jnp.concatenate([flat(x), X0[self.n_state:] + z[self.n_tangent:]])
 
         return phi
+
+    def chart_jacobian(self, X0) -> np.ndarray:
+        """``∂X/∂z`` of :meth:`chart_map` at ``z = 0`` (n_ambient × n_coords)."""
+        if self.chart == "ambient":
+            return np.eye(self.n_ambient)
+        J = np.zeros((self.n_ambient, self.n_coords))
+        J[: self.n_state, : self.n_tangent] = np.asarray(self._retract_jacobian(self.unpack(X0)[0]))
+        J[self.n_state:, self.n_tangent:] = np.eye(self.n_ambient - self.n_state)
+        return J
 
     def coordinate_mask(self, names) -> np.ndarray:
         """Boolean mask of the coordinates of the unknown constants ``names``."""
@@ -269,7 +285,7 @@ def flat_fields(problem: Problem, lay: Layout):
 
     def F(X, U):
         x, th = lay.unpack(X)
-        dx = ravel_pytree(problem.vector_field(x, lay.unpack_u(U), th))[0]
+        dx = flat(problem.vector_field(x, lay.unpack_u(U), th))
         return jnp.concatenate([dx, jnp.zeros(lay.n_ambient - lay.n_state, dtype=dx.dtype)])
 
     def H(X, U):
@@ -526,7 +542,7 @@ def observability_matrix(problem: Problem, order: int, *, chart: str = "tangent"
     X0s, Us = [], []
     for _ in range(points):
         x, th = (problem.sample or (lambda r: default_sample(problem, r)))(rng)
-        X = np.array(lay.pack(x, {k: np.asarray(v, dtype=float) for k, v in th.items()}))
+        X = lay.pack(x, th, xp=np)
         if chart == "ambient":  # constrained leaves (rotation matrices): a generic point off them
             for (_, shape, s, _), constrained in zip(lay.leaves, lay.constrained, strict=True):
                 if constrained:
@@ -626,50 +642,55 @@ def analyze(problem: Problem, *, order: int | None = None, chart: str = "tangent
         singular_values=svals[best[0]], null_space=nulls[best[0]], quantities=quantities,
         chart=chart, rtol=rtol, qtol=qtol, stalled=rank_by_order[-1] == rank_by_order[-2]
         if order > 0 else True,
-        point=jax.tree_util.tree_map(np.asarray, lay.unpack(jnp.asarray(X0s[best[0]]))),
+        point=lay.unpack(X0s[best[0]]),
     )
 
 
 _DIRECTIONS: dict = {}
 
 
-def _direction_parts(problem: Problem, chart: str, curve: Callable):
-    """jit(X₀ ↦ (velocity of the ambient point along ``curve``, Jacobian of the chart at X₀)),
-    cached per (problem, chart, curve)."""
-    key = (id(problem), chart, curve)
+def _curve_velocities(problem: Problem, chart: str, curves: tuple):
+    """jit(X₀ ↦ the velocities of the ambient point along each curve, as columns), cached per
+    (problem, chart, curves)."""
+    key = (id(problem), chart, curves)
     hit = _DIRECTIONS.get(key)
     if hit is not None and hit[0] is problem:
         return hit[1]
     lay = layout(problem, chart)
 
-    def parts(X0):
+    def velocities(X0):
         x0, th0 = lay.unpack(X0)
 
-        def ambient(eps):
-            x, th = curve(problem.model, x0, th0, eps)
-            return lay.pack(x, {**th0, **th})
+        def velocity(curve):
+            def ambient(eps):
+                x, th = curve(problem.model, x0, th0, eps)
+                return lay.pack(x, {**th0, **th})
 
-        dX = jax.jvp(ambient, (0.0,), (1.0,))[1]
-        return dX, jax.jacfwd(lay.chart_map(X0))(jnp.zeros(lay.n_coords))
+            return jax.jvp(ambient, (0.0,), (1.0,))[1]
 
-    fn = jax.jit(parts)
+        return jnp.stack([velocity(curve) for curve in curves], axis=1)
+
+    fn = jax.jit(velocities)
     _DIRECTIONS[key] = (problem, fn)
     return fn
 
 
-def curve_direction(problem: Problem, result: ObservabilityResult, curve: Callable) -> np.ndarray:
-    """The velocity at ``ε = 0`` of a curve through ``result.point``, in the result's coordinates
+def curve_directions(problem: Problem, result: ObservabilityResult,
+                     curves: Mapping[str, Callable]) -> dict[str, np.ndarray]:
+    """The velocity at ``ε = 0`` of each curve through ``result.point``, in the result's coordinates
     (``result.labels``, the chart of the result).
 
-    ``curve(model, x, θ, ε) -> (x(ε), θ(ε))`` moves the point ``(x, θ)`` (``θ(ε)`` may hold only the
-    unknowns it moves), e.g. a one-parameter group acting on states and unknowns. With the tangent
-    chart, the velocity of the ambient point is mapped back through the model's retraction (least
-    squares on its Jacobian, which has full column rank), so a symmetry of the model becomes the
-    direction that :meth:`ObservabilityResult.in_null_space` tests. Pass a module-level function:
-    its compiled form is cached per problem.
+    A curve ``curve(model, x, θ, ε) -> (x(ε), θ(ε))`` moves the point ``(x, θ)`` (``θ(ε)`` may hold
+    only the unknowns it moves), e.g. a one-parameter group acting on states and unknowns. With the
+    tangent chart, the velocity of the ambient point is mapped back through the model's retraction
+    (least squares on its Jacobian, which has full column rank), so a symmetry of the model becomes
+    the direction that :meth:`ObservabilityResult.in_null_space` tests. Pass module-level functions:
+    the compiled form is cached per problem and curves.
     """
     lay = layout(problem, result.chart)
-    dX, J = _direction_parts(problem, result.chart, curve)(lay.pack(*result.point))
-    v = np.linalg.lstsq(np.asarray(J), np.asarray(dX), rcond=None)[0]
+    X0 = lay.pack(*result.point, xp=np)
+    dX = np.asarray(_curve_velocities(problem, result.chart, tuple(curves.values()))(X0))
+    V = np.linalg.lstsq(lay.chart_jacobian(X0), dX, rcond=None)[0]
     index = {lab: i for i, lab in enumerate(lay.coordinate_labels())}
-    return np.array([v[index[lab]] for lab in result.labels])
+    rows = [index[lab] for lab in result.labels]
+    return {name: V[rows, k] for k, name in enumerate(curves)}

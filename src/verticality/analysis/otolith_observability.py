@@ -45,7 +45,7 @@ from verticality.analysis.observability import (
     ObservabilityResult,
     Problem,
     analyze,
-    curve_direction,
+    curve_directions,
     random_rotation,
 )
 from verticality.control import global_stabilizer
@@ -278,7 +278,7 @@ SYMMETRIES = {"global_yaw": global_yaw, "head_yaw": head_yaw, "yaw_conjugation":
 def symmetry_directions(case: CaseResult) -> dict[str, np.ndarray]:
     """The continuous symmetries of the otolith models (:data:`SYMMETRIES`, Rz(ε) the rotation by
     ε about the vertical e3), as directions at the case's test point
-    (:func:`~verticality.analysis.observability.curve_direction`).
+    (:func:`~verticality.analysis.observability.curve_directions`).
 
     ``global_yaw``: every frame turned about gravity.
     ``head_yaw``: the head turned about its own z axis with its angular velocity, torque and
@@ -290,8 +290,7 @@ def symmetry_directions(case: CaseResult) -> dict[str, np.ndarray]:
     equivariant under it when ``J_H`` is isotropic and the gains scalar (the P13 head), and so is the
     medial model: the stabilized medial model then hides the direction of the tilt too.
     """
-    return {name: curve_direction(case.problem, case.result, curve)
-            for name, curve in SYMMETRIES.items()}
+    return curve_directions(case.problem, case.result, SYMMETRIES)
 
 
 FREE_ENTRY_NOTE = (
