@@ -52,3 +52,40 @@ def rotation_retract(R, dtheta_rad):
 def rotation_difference(R1, R0):
     """``R1 ⊟ R0 = log(R0ᵀ R1)``, the inverse of :func:`rotation_retract` (angles below π)."""
     return so3.log_principal(R0.T @ R1)
+
+
+class TabulatedMotion(NamedTuple):
+    """A head (or trunk) motion sampled at the stage times of a fixed-step RK4 run.
+
+    ``samples`` is a :class:`RigidMotion` whose leaves have a leading axis over
+    ``t0_s + k·step_s`` (``step_s`` = half the integration step, so every RK4 stage time is a
+    sample). Evaluating a trajectory once per sample and looking it up inside the time loop keeps
+    the (autodiff-heavy) trajectory out of the integrator's compiled program and lets several runs
+    share one evaluation (bit-identical to calling the trajectory at the stage times). Pass it to
+    jitted functions as an argument (not as a closure constant).
+    """
+
+    samples: RigidMotion
+    t0_s: jnp.ndarray
+    step_s: jnp.ndarray
+
+    def motion(self, t) -> RigidMotion:
+        n = self.samples.a_I_m_s2.shape[0]
+        k = jnp.clip(jnp.round((t - self.t0_s) / self.step_s).astype(jnp.int32), 0, n - 1)
+        return jax.tree_util.tree_map(lambda a: a[k], self.samples)
+
+
+def tabulate(motion, dt_s: float, n_steps: int, t0_s: float = 0.0,
+             chunk: int = 1000) -> TabulatedMotion:
+    """Sample ``motion(t) -> RigidMotion`` at ``t0 + k·dt/2``, ``k = 0 … 2·n_steps`` (jitted, chunked)."""
+    n = 2 * n_steps + 1
+    n_pad = -(-n // chunk) * chunk
+    step = 0.5 * dt_s
+
+    @jax.jit
+    def sample(k):
+        return jax.lax.map(jax.vmap(lambda kk: motion(t0_s + kk * step)), k.reshape(-1, chunk))
+
+    out = sample(jnp.arange(n_pad, dtype=jnp.float64))
+    samples = jax.tree_util.tree_map(lambda a: a.reshape((n_pad,) + a.shape[2:])[:n], out)
+    return TabulatedMotion(samples, jnp.asarray(t0_s, dtype=float), jnp.asarray(step, dtype=float))

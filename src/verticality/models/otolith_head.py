@@ -21,7 +21,7 @@ pendulum's gyroscopic and Euler terms (F 2.7 and F 2.12 keep gravity, damping, h
 for the lateral model, the centripetal term); ``HeadParams(gyroscopic=0.0)`` drops the head's
 (F 2.7's ``J_H ω̇_H = τ``). The pendula do not act on the head (F §2.1.1: negligible mass).
 
-The planar lateral form (F 2.19) is :class:`verticality.models.vestibular.PlanarLateral`.
+* :class:`PlanarLateral` — the lateral model in the coronal plane (F 2.19), a planar value.
 """
 
 from __future__ import annotations
@@ -31,7 +31,8 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
-from verticality.models.base import model_dataclass, static_field
+from verticality.models import planar
+from verticality.models.base import EuclideanState, model_dataclass, static_field
 from verticality.models.head import FreeHead, HeadInput, HeadState, state_from_motion
 from verticality.models.kinematics import RigidMotion
 from verticality.models.pendulum import Pendulum
@@ -168,6 +169,7 @@ class HeadFrameAcceleration:
     model: OtolithHead
 
     def inertial_input(self, x: OtolithHeadState, u: HeadFrameInput) -> HeadInput:
+        """``(τ_H, ᴵa = R_IH ᴴa)``."""
         return HeadInput(tau_H_Nm=u.tau_H_Nm, a_I_m_s2=x.head.R_I_H @ u.a_H_m_s2)
 
     def dynamics(self, x, u: HeadFrameInput):
@@ -197,3 +199,66 @@ def replace_params(model: OtolithHead, pendulum=None, head=None) -> OtolithHead:
                  for p in model.pendula)
     h = model.head if head is None else dataclasses.replace(model.head, params=head(model.head.params))
     return dataclasses.replace(model, head=h, pendula=pend)
+
+
+# ------------------------------------------------------------------- planar lateral (F 2.19)
+class PlanarLateralState(NamedTuple):
+    """Coronal-plane lateral model: angles about the head's x axis, 0 = hanging / upright."""
+
+    theta_L_rad: jnp.ndarray
+    omega_L_rad_s: jnp.ndarray
+    theta_R_rad: jnp.ndarray
+    omega_R_rad_s: jnp.ndarray
+    theta_H_rad: jnp.ndarray
+    omega_H_rad_s: jnp.ndarray
+
+
+@model_dataclass
+class PlanarLateral(EuclideanState):
+    """F 2.19, the lateral model in the coronal plane, in our frames (the y–z plane of
+    :mod:`verticality.models.planar`, angles about x): the head driven by the torque ``u.tau_Nm``
+    about x (input :class:`verticality.models.planar.PlanarInput`, the centre's acceleration in I),
+    the two pendula at ``±r_m`` on the head's y axis; output (φ_x^L, φ_x^R), each pendulum's angle
+    relative to the head.
+
+    ``J θ̈_{L,R} = −m l ((g + a_z^P) sin θ + a_h^P cos θ) − β (θ̇ − θ̇_H)``, ``K θ̈_H = τ``, with
+    (a_h^P, a_z^P) the pivot's acceleration in I: the centre's plus, for the left (+r) / right (−r)
+    pivot, ``R_IH (0, ∓ κ r ω_H², ± ε r ω̇_H)``. F 2.19 keeps only the centripetal term
+    (``euler=0``, its ``± r ω_{h,y}²``); ``euler=1`` adds the Euler term, so that the planar form
+    equals the full 3-D :func:`lateral` model restricted to the plane (in the sagittal plane the
+    lateral model equals the medial one: ``ω_H ∥ y ∥ r`` makes both transport terms vanish)."""
+
+    params: planar.PlanarParams
+    r_m: float = LATERAL_R_M
+    euler: float = 1.0
+    centripetal: float = 1.0
+
+    def pivot_acceleration_I(self, side, x: PlanarLateralState, u: planar.PlanarInput, omegadot_H):
+        """Pivot acceleration (h, z) in I for the pivot at ``side·r`` on the head's y axis."""
+        w = x.omega_H_rad_s
+        # Head frame: ω × (ω × r) = (0, −r ω², 0)·side, ω̇ × r = (0, 0, r ω̇)·side, for ω = (ω, 0, 0).
+        t_h = -self.centripetal * side * self.r_m * w * w
+        t_z = self.euler * side * self.r_m * omegadot_H
+        dh, dz = planar.head_frame_to_inertial(t_h, t_z, x.theta_H_rad)
+        return u.a_h_I_m_s2 + dh, u.a_z_I_m_s2 + dz
+
+    def dynamics(self, x: PlanarLateralState, u: planar.PlanarInput) -> PlanarLateralState:
+        p = self.params
+        omegadot_H = u.tau_Nm / p.K_kg_m2
+        a_L = self.pivot_acceleration_I(1.0, x, u, omegadot_H)
+        a_R = self.pivot_acceleration_I(-1.0, x, u, omegadot_H)
+        w_H = x.omega_H_rad_s
+        return PlanarLateralState(
+            theta_L_rad=x.omega_L_rad_s,
+            omega_L_rad_s=planar.pendulum_angular_acceleration(
+                x.theta_L_rad, x.omega_L_rad_s, w_H, a_L[0], a_L[1], p),
+            theta_R_rad=x.omega_R_rad_s,
+            omega_R_rad_s=planar.pendulum_angular_acceleration(
+                x.theta_R_rad, x.omega_R_rad_s, w_H, a_R[0], a_R[1], p),
+            theta_H_rad=w_H,
+            omega_H_rad_s=omegadot_H,
+        )
+
+    def output(self, x: PlanarLateralState, u=None):
+        """Coronal otolith angles (φ_x^L, φ_x^R): each pendulum's angle relative to the head."""
+        return jnp.stack([x.theta_L_rad - x.theta_H_rad, x.theta_R_rad - x.theta_H_rad])
