@@ -75,10 +75,9 @@ from verticality.control import (
 )
 from verticality.integrate import rk4_step
 from verticality.models import otolith_head, planar
-from verticality.models import vestibular as V
 from verticality.models.base import EuclideanState, model_dataclass
 from verticality.models.head import FreeHead, HeadInput, HeadState
-from verticality.models.kinematics import RigidMotion
+from verticality.models.kinematics import RigidMotion, tabulate
 from verticality.models.pendulum import Pendulum, PendulumState
 from verticality.params import G_M_S2, LATERAL_R_M, P13_HEAD, P13_PENDULUM, lateral_pendulums
 
@@ -305,7 +304,7 @@ def impact_table():
     """The P13 impact motion (60 s) sampled at every RK4 stage time, shared by the impact runs."""
     from verticality import trajectories
 
-    return V.tabulate(trajectories.impact(duration_s=T_LONG_S).motion, DT_S, _steps(T_LONG_S))
+    return tabulate(trajectories.impact(duration_s=T_LONG_S).motion, DT_S, _steps(T_LONG_S))
 
 
 @functools.partial(jax.jit, static_argnames=("n",))
@@ -418,10 +417,9 @@ def _planar_medial(n):
 @functools.partial(jax.jit, static_argnames=("n",))
 def _planar_lateral(n):
     s = [jnp.asarray(v) for v in (TH_S0, W_S0, TH_R0, -W_S0, TH_H0, W_H0)]
-    _, yp = V.simulate(lambda t, x: V.planar_lateral_dynamics(x, _planar_input(t, x),
-                                                              planar_params()),
-                       V.PlanarLateralState(*s), DT_S, n,
-                       output=lambda t, x: jnp.stack([x.theta_L_rad, x.theta_R_rad, x.theta_H_rad]))
+    _, yp = run_model(otolith_head.PlanarLateral(planar_params()),
+                      otolith_head.PlanarLateralState(*s), _planar_input, DT_S, n,
+                      output=lambda t, x: jnp.stack([x.theta_L_rad, x.theta_R_rad, x.theta_H_rad]))
     model = otolith_head.lateral(P13_PENDULUM, P13_HEAD)
     x03 = otolith_head.OtolithHeadState(
         (PendulumState(*_in_plane(so3.rot_x(TH_S0), W_S0)),
