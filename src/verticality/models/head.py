@@ -23,7 +23,7 @@ import jax.numpy as jnp
 
 from verticality import so3
 from verticality.models.base import model_dataclass
-from verticality.models.kinematics import RigidMotion, rotation_difference, rotation_retract
+from verticality.models.kinematics import RigidMotion, RotationAndRate
 from verticality.params import HeadParams
 
 
@@ -42,7 +42,7 @@ class HeadInput(NamedTuple):
 
 
 @model_dataclass
-class FreeHead:
+class FreeHead(RotationAndRate):
     """The free head as a model value (see the module doc). ``params`` are used resolved."""
 
     params: HeadParams
@@ -80,16 +80,6 @@ class FreeHead:
     def output(self, x: HeadState, u=None):
         """The head's gyro: ω_H (rad/s, head frame)."""
         return x.omega_H_rad_s
-
-    def retract(self, x: HeadState, dx) -> HeadState:
-        return HeadState(rotation_retract(x.R_I_H, dx[0:3]), x.omega_H_rad_s + dx[3:6])
-
-    def difference(self, x1: HeadState, x0: HeadState):
-        return jnp.concatenate([rotation_difference(x1.R_I_H, x0.R_I_H),
-                                x1.omega_H_rad_s - x0.omega_H_rad_s])
-
-    def project(self, x: HeadState) -> HeadState:
-        return x._replace(R_I_H=so3.orthonormalize(x.R_I_H))
 
 
 def state_from_motion(head: RigidMotion) -> HeadState:

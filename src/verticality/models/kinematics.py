@@ -54,6 +54,21 @@ def rotation_difference(R1, R0):
     return so3.log_principal(R0.T @ R1)
 
 
+class RotationAndRate:
+    """``retract``/``difference``/``project`` of a model whose state is a NamedTuple ``(R, ω)``
+    (a rotation matrix and a body-frame angular velocity, e.g. the head's or a pendulum's):
+    ``x ⊞ (δθ, δω) = (R exp([δθ]×), ω + δω)``, 6 tangent coordinates."""
+
+    def retract(self, x, dx):
+        return type(x)(rotation_retract(x[0], dx[0:3]), x[1] + dx[3:6])
+
+    def difference(self, x1, x0):
+        return jnp.concatenate([rotation_difference(x1[0], x0[0]), x1[1] - x0[1]])
+
+    def project(self, x):
+        return type(x)(so3.orthonormalize(x[0]), x[1])
+
+
 class TabulatedMotion(NamedTuple):
     """A head (or trunk) motion sampled at the stage times of a fixed-step RK4 run.
 

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 
 from verticality import so3
 from verticality.models.base import model_dataclass
-from verticality.models.kinematics import RigidMotion, rotation_difference, rotation_retract
+from verticality.models.kinematics import RigidMotion, RotationAndRate
 from verticality.params import PendulumParams, gravity_I
 
 
@@ -85,10 +85,6 @@ def dynamics(x: PendulumState, head: HeadMotion, p: PendulumParams) -> PendulumS
         R_I_S=x.R_I_S @ so3.hat(x.omega_S_rad_s),
         omega_S_rad_s=angular_acceleration(x, head, p),
     )
-
-
-def project(x: PendulumState) -> PendulumState:
-    return x._replace(R_I_S=so3.orthonormalize(x.R_I_S))
 
 
 def R_H_S(x: PendulumState, R_I_H):
@@ -147,7 +143,7 @@ def rest_state(head: HeadMotion, p: PendulumParams) -> PendulumState:
 
 
 @model_dataclass
-class Pendulum:
+class Pendulum(RotationAndRate):
     """One otolith pendulum as a model value: ``ẋ = f(x, u)`` with ``u`` the head's
     :class:`RigidMotion` (the pivot sits at ``params.pivot_H_m`` on that head), ``y`` the otolith
     angles (φ_x, φ_y) of F 2.8–2.9 (rad). ``params`` are used resolved."""
@@ -163,16 +159,6 @@ class Pendulum:
 
     def output(self, x: PendulumState, u: RigidMotion):
         return self.angles(x, u.R_I_B)
-
-    def retract(self, x: PendulumState, dx) -> PendulumState:
-        return PendulumState(rotation_retract(x.R_I_S, dx[0:3]), x.omega_S_rad_s + dx[3:6])
-
-    def difference(self, x1: PendulumState, x0: PendulumState):
-        return jnp.concatenate([rotation_difference(x1.R_I_S, x0.R_I_S),
-                                x1.omega_S_rad_s - x0.omega_S_rad_s])
-
-    def project(self, x: PendulumState) -> PendulumState:
-        return project(x)
 
     def rest_state(self, u: RigidMotion) -> PendulumState:
         """At rest relative to the head moving as ``u``, along its pivot's gravito-inertial vertical."""
