@@ -20,11 +20,15 @@ import time
 os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false "
                                    "intra_op_parallelism_threads=1")
 
+import dataclasses  # noqa: E402
+
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 from verticality import simulation as sim  # noqa: E402
 from verticality import trajectories as tr  # noqa: E402
+from verticality.integrate import rk4_step_staged  # noqa: E402
+from verticality.models.gimbal import GimbalInput  # noqa: E402
 
 
 def timed(fn, *args, repeat=3):
@@ -37,19 +41,22 @@ def timed(fn, *args, repeat=3):
     return best_wall, best_cpu
 
 
-def batched_params(n: int) -> sim.PlantParams:
-    base = sim.PlantParams()
+def batched_plant(n: int):
+    """``n`` plants (one batch axis on every parameter leaf) whose pendula differ: m ±10 %, β ±20 %,
+    J = m l² (1, 1, 1/20) of the spread m."""
+    base = sim.DEFAULT_PLANT
     spread = jnp.linspace(-1.0, 1.0, n)
-    pend = base.pendulums[0]
-    m = pend.m_kg * (1.0 + 0.1 * spread)
-    pend_b = pend._replace(m_kg=m, beta_Nms=pend.beta_Nms * (1.0 + 0.2 * spread),
-                           J_pivot_S=m[:, None] * jnp.array([0.06**2, 0.06**2, 0.06**2 / 20.0]))
-    pend_b = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(jnp.asarray(a, float),
-                                                                (n,) + jnp.shape(a))
-                                    if jnp.shape(a)[:1] != (n,) else a, pend_b)
-    head_b = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(jnp.asarray(a, float),
-                                                               (n,) + jnp.shape(a)), base.head)
-    return sim.PlantParams(head_b, (pend_b,))
+    pend = base.otoliths.pendula[0]
+    p = pend.params
+    m = p.m_kg * (1.0 + 0.1 * spread)
+    p_b = p._replace(m_kg=m, beta_Nms=p.beta_Nms * (1.0 + 0.2 * spread),
+                     J_pivot_S=m[:, None] * jnp.array([0.06**2, 0.06**2, 0.06**2 / 20.0]))
+    p_b = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(jnp.asarray(a, float), (n,) + jnp.shape(a))
+                                 if jnp.shape(a)[:1] != (n,) else a, p_b)
+    gimbal_b = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(jnp.asarray(a, float),
+                                                                 (n,) + jnp.shape(a)), base.gimbal)
+    otoliths_b = dataclasses.replace(base.otoliths, pendula=(dataclasses.replace(pend, params=p_b),))
+    return dataclasses.replace(base, gimbal=gimbal_b, otoliths=otoliths_b)
 
 
 def main() -> None:
@@ -68,12 +75,12 @@ def main() -> None:
         run = sim.make_simulator(traj, cfg, controller=ctrl)
         key = jax.random.PRNGKey(0)
         w0 = time.perf_counter()
-        jax.block_until_ready(run(key, sim.PlantParams(), sim.NoiseParams()))
+        jax.block_until_ready(run(key, sim.DEFAULT_PLANT, sim.NoiseParams()))
         compile_s = time.perf_counter() - w0
-        wall, cpu = timed(run, key, sim.PlantParams(), sim.NoiseParams())
+        wall, cpu = timed(run, key, sim.DEFAULT_PLANT, sim.NoiseParams())
         # a batch whose plants differ (β and m spread ±20 %/±10 %), so that nothing is shared
         keys = jax.random.split(key, args.batch)
-        params_b = batched_params(args.batch)
+        params_b = batched_plant(args.batch)
         batch = jax.jit(jax.vmap(run, in_axes=(0, 0, None)))
         w0 = time.perf_counter()
         jax.block_until_ready(batch(keys, params_b, sim.NoiseParams()))
@@ -87,9 +94,9 @@ def main() -> None:
 
         single_s = jax.jit(summary)
         batch_s = jax.jit(jax.vmap(summary, in_axes=(0, 0, None)))
-        jax.block_until_ready(single_s(key, sim.PlantParams(), sim.NoiseParams()))
+        jax.block_until_ready(single_s(key, sim.DEFAULT_PLANT, sim.NoiseParams()))
         jax.block_until_ready(batch_s(keys, params_b, sim.NoiseParams()))
-        wall_s1, cpu_s1 = timed(single_s, key, sim.PlantParams(), sim.NoiseParams())
+        wall_s1, cpu_s1 = timed(single_s, key, sim.DEFAULT_PLANT, sim.NoiseParams())
         wall_sb, cpu_sb = timed(batch_s, keys, params_b, sim.NoiseParams(), repeat=2)
         print(f"[{condition}] summaries only (no records kept): single CPU {cpu_s1:.3f} s "
               f"({T / cpu_s1:.0f}x real time); batch of {args.batch} CPU {cpu_sb:.2f} s -> "
@@ -104,15 +111,17 @@ def main() -> None:
               f"{args.batch * wall / wall_b:.1f}x (wall); {args.batch * T / cpu_b:.0f}x real time")
 
     # peer: the same plant step, jitted alone and driven from Python (the naive way), 2 s
-    params = sim.PlantParams()
-    f = sim._plant_derivative(False)
-    x = sim.initial_plant_state(traj, params, "fixed")._replace(gimbal=None)  # locked: not integrated
+    plant = sim.with_condition(sim.DEFAULT_PLANT, "fixed")
+    x = sim.initial_state(plant, traj.motion(0.0))._replace(gimbal=None)  # locked: not integrated
     h = 1e-3
+
+    def f(trunk, xx):
+        return plant.rate_and_motion(xx, GimbalInput(jnp.zeros(2), trunk))[0], jnp.zeros(0)
 
     @jax.jit
     def step(x, t):
         w3 = jax.vmap(traj.motion)(t + jnp.array([0.0, 0.5 * h, h]))
-        return sim.rk4_step_with_mean(f, w3, x, h, jnp.zeros(2), params)[0]
+        return rk4_step_staged(f, w3, x, h, project=plant.project)[0]
 
     jax.block_until_ready(step(x, 0.0))
     n_naive = 2000

@@ -6,8 +6,39 @@ import numpy as np
 import pytest
 
 from verticality import so3
-from verticality.estimators import ekf, ekf_stacked
+from verticality.errors import InputError
+from verticality.estimators import base, ekf, ekf_stacked
+from verticality.models.base import EuclideanState, model_dataclass
+from verticality.models.head import HeadInput, HeadState
+from verticality.models.otolith_head import OtolithHeadState
+from verticality.models.pendulum import PendulumState
 from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM
+
+
+@model_dataclass
+class Linear(EuclideanState):
+    """x_{k+1} = A x_k + B u_k, y_k = C x_k on R^n (``dt`` ignored): the EKF is then the KF."""
+
+    A: jnp.ndarray
+    B: jnp.ndarray
+    C: jnp.ndarray
+
+    def transition(self, x, u, dt):
+        return self.A @ x + self.B @ u
+
+    def output(self, x, u):
+        return self.C @ x
+
+
+def same_value(a, b) -> bool:
+    """The same model value: one tree structure (static settings included), equal leaves."""
+    la, ta = jax.tree_util.tree_flatten(a)
+    lb, tb = jax.tree_util.tree_flatten(b)
+    return ta == tb and all(np.array_equal(x, y) for x, y in zip(la, lb, strict=True))
+
+
+def linear(A, B, C):
+    return Linear(*(jnp.asarray(M, dtype=jnp.float64) for M in (A, B, C)))
 
 
 # ------------------------------------------------------------------ linear model == Kalman filter
@@ -44,7 +75,8 @@ def test_ekf_on_linear_model_equals_kalman_filter():
     ys[10] = np.nan  # no measurement: predict only
     ys[20, 1] = np.nan  # one element missing
     x0, P0 = rng.standard_normal(n), np.eye(n)
-    filt = ekf.ExtendedKalmanFilter(ekf.linear_model(A, B, C), jnp.asarray(Q), jnp.asarray(R))
+    filt = ekf.ExtendedKalmanFilter(linear(A, B, C), jnp.asarray(Q), jnp.asarray(R))
+    assert isinstance(filt, base.Estimator)
     _, outs = jax.jit(filt.run)(filt.init(jnp.asarray(x0), jnp.asarray(P0)), us, ys, np.full(N, 0.1))
     xs_ref, Ps_ref = _kf_reference(A, B, C, Q, R, x0, P0, us, ys)
     np.testing.assert_allclose(outs.x, xs_ref, rtol=1e-9, atol=1e-9)
@@ -55,42 +87,76 @@ def test_ekf_on_linear_model_equals_kalman_filter():
 
 
 def test_non_finite_measurement_never_makes_nan():
-    filt = ekf.ExtendedKalmanFilter(ekf.linear_model(np.eye(2), np.zeros((2, 1)), np.eye(2)),
+    filt = ekf.ExtendedKalmanFilter(linear(np.eye(2), np.zeros((2, 1)), np.eye(2)),
                                     1e-3 * jnp.eye(2), 1e-2 * jnp.eye(2))
     s = filt.init(jnp.array([1.0, 2.0]), jnp.eye(2))
     s, out = filt.step(s, jnp.zeros(1), jnp.array([jnp.inf, jnp.nan]), 0.1)
     assert bool(out.predict_only)
     np.testing.assert_allclose(s.x, [1.0, 2.0])
     assert np.all(np.isfinite(np.asarray(s.P)))
+    with pytest.raises(InputError, match="initial covariance"):
+        filt.init(jnp.zeros(2))
+
+
+def test_all_missing_measurement_is_exactly_predict(medial):
+    filt, x = medial
+    s = filt.init(x, 0.01 * jnp.eye(ekf.N_ERR))
+    u = _u_blocks(2)
+    pred = filt.predict(s, u, 0.02)
+    new, out = filt.step(s, u, jnp.full(ekf.N_Y, jnp.nan), 0.02)
+    for a, b in zip(jax.tree_util.tree_leaves(new), jax.tree_util.tree_leaves(pred), strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert bool(out.predict_only) and not bool(out.rejected)
+    assert not np.any(np.asarray(out.measured))
+
+
+def test_a_non_finite_prediction_is_refused():
+    """A model that blows up: the state is kept and the step flagged."""
+    filt = ekf.ExtendedKalmanFilter(linear(np.eye(2), np.eye(2), np.eye(2)), 1e-3 * jnp.eye(2),
+                                    1e-2 * jnp.eye(2))
+    s = filt.init(jnp.array([1.0, 2.0]), jnp.eye(2))
+    new, out = filt.step(s, jnp.array([jnp.inf, 0.0]), jnp.array([1.0, 2.0]), 0.1)
+    assert bool(out.rejected)
+    assert np.all(np.isfinite(np.asarray(new.x))) and np.all(np.isfinite(np.asarray(new.P)))
+    np.testing.assert_array_equal(filt.predict(s, jnp.array([jnp.inf, 0.0]), 0.1).x, s.x)
 
 
 # ------------------------------------------------------------------ medial model on SO(3)
+def _state(R_S, w_S, R_H, w_H):
+    return OtolithHeadState((PendulumState(R_S, w_S),), HeadState(R_H, w_H))
+
+
+def _u_blocks(n, a_I=(1.0, 0.5, -0.3), tau=(0.01, -0.02, 0.005)):
+    """n input blocks, each the same (τ_H, a_I)."""
+    return HeadInput(jnp.tile(jnp.asarray(tau), (n, 1)), jnp.tile(jnp.asarray(a_I), (n, 1)))
+
+
 @pytest.fixture(scope="module")
 def medial():
     filt = ekf.medial_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, (1e-3, 0.3, 1e-3, 0.03))
-    x = ekf.MedialState(
-        so3.exp(jnp.array([0.1, -0.2, 0.3])), jnp.array([0.3, 0.1, -0.2]),
-        so3.exp(jnp.array([0.2, 0.1, 0.4])), jnp.array([0.5, -0.3, 1.0]))
+    x = _state(so3.exp(jnp.array([0.1, -0.2, 0.3])), jnp.array([0.3, 0.1, -0.2]),
+               so3.exp(jnp.array([0.2, 0.1, 0.4])), jnp.array([0.5, -0.3, 1.0]))
     return filt, x
 
 
 def test_autodiff_jacobians_match_finite_differences(medial):
     filt, x = medial
     m = filt.model
-    u = jnp.tile(jnp.array([1.0, 0.5, -0.3, 0.01, -0.02, 0.005]), (2, 1))
+    u = _u_blocks(2)
     dt = 0.02
 
     @jax.jit
     def jacobians(x, u):
-        x_pred = m.f(x, u, dt)
+        x_pred = m.transition(x, u, dt)
         z = jnp.zeros(ekf.N_ERR)
-        F = jax.jacfwd(lambda d: m.boxminus(m.f(m.boxplus(x, d), u, dt), x_pred))(z)
-        H = jax.jacfwd(lambda d: m.h(m.boxplus(x_pred, d), u))(z)
+        F = jax.jacfwd(lambda d: m.difference(m.transition(m.retract(x, d), u, dt), x_pred))(z)
+        H = jax.jacfwd(lambda d: m.output(m.retract(x_pred, d), u))(z)
         return F, H, x_pred
 
     @jax.jit
     def perturbed(x, u, x_pred, d):
-        return m.boxminus(m.f(m.boxplus(x, d), u, dt), x_pred), m.h(m.boxplus(x_pred, d), u)
+        return (m.difference(m.transition(m.retract(x, d), u, dt), x_pred),
+                m.output(m.retract(x_pred, d), u))
 
     F, H, x_pred = jacobians(x, u)
     eps = 1e-6
@@ -109,7 +175,7 @@ def test_autodiff_jacobians_match_finite_differences(medial):
 def test_multiplicative_ekf_keeps_rotations_on_so3_over_1e5_steps(medial):
     filt, x = medial
     n_steps = 100_000
-    u = jnp.array([[0.0, 0.0, 0.0, 0.01, 0.0, -0.005]])  # one substep; the head spins
+    u = _u_blocks(1, a_I=(0.0, 0.0, 0.0), tau=(0.01, 0.0, -0.005))  # one substep; the head spins
     key = jax.random.PRNGKey(3)
 
     @jax.jit
@@ -118,14 +184,15 @@ def test_multiplicative_ekf_keeps_rotations_on_so3_over_1e5_steps(medial):
             y = jnp.concatenate([0.2 * jax.random.normal(jax.random.fold_in(key, k), (2,)),
                                  jnp.array([0.5, -0.3, 1.0])])
             s, out = filt.step(s, u, y, 0.01)
-            err = jnp.maximum(so3.orthonormality_error(s.x.R_I_S), so3.orthonormality_error(s.x.R_I_H))
+            err = jnp.maximum(so3.orthonormality_error(s.x.pendula[0].R_I_S),
+                              so3.orthonormality_error(s.x.head.R_I_H))
             return s, (err, out.rejected)
 
         return jax.lax.scan(body, state, jnp.arange(n_steps))
 
     s, (err, rejected) = run(filt.init(x, 0.01 * jnp.eye(ekf.N_ERR)))
     assert float(jnp.max(err)) < 1e-12
-    assert abs(float(jnp.linalg.det(s.x.R_I_H)) - 1.0) < 1e-12
+    assert abs(float(jnp.linalg.det(s.x.head.R_I_H)) - 1.0) < 1e-12
     assert not bool(jnp.any(rejected))
     assert np.all(np.isfinite(np.asarray(s.P)))
     # the covariance stays symmetric positive definite
@@ -140,15 +207,22 @@ def test_stacked_model_is_the_same_model(medial):
     """
     filt, x = medial
     ms = ekf_stacked.stacked_model(P13_EKF_PENDULUM, P13_EKF_HEAD)
-    u = jnp.tile(jnp.array([1.0, 0.5, -0.3, 0.01, -0.02, 0.005]), (2, 1))
-    a = filt.model.f(x, u, 0.02)
-    b = ekf_stacked.from_flat(ms.f(ekf_stacked.to_flat(x), u, 0.02))
-    drift = max(float(so3.orthonormality_error(b.R_I_S)), float(so3.orthonormality_error(b.R_I_H)))
+    assert same_value(ms.head_model, filt.model.model)  # the same model value, not a re-derivation
+    u = _u_blocks(2)
+    a = filt.model.transition(x, u, 0.02)
+    b = ekf_stacked.from_flat(ms.transition(ekf_stacked.to_flat(x), u, 0.02))
+    drift = max(float(so3.orthonormality_error(b.pendula[0].R_I_S)),
+                float(so3.orthonormality_error(b.head.R_I_H)))
     assert 0.0 < drift < 1e-4
     for la, lb in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b), strict=True):
         np.testing.assert_allclose(la, lb, atol=5.0 * drift)
-    assert float(so3.orthonormality_error(a.R_I_S)) < 1e-13
-    np.testing.assert_allclose(ms.h(ekf_stacked.to_flat(x), u), filt.model.h(x, u), atol=1e-15)
+    assert float(so3.orthonormality_error(a.pendula[0].R_I_S)) < 1e-13
+    np.testing.assert_allclose(ms.output(ekf_stacked.to_flat(x), u), filt.model.output(x, u),
+                               atol=1e-15)
+    # P13 §4's order: ω_S, vec R_IS, ω_H, vec R_IH
+    v = ekf_stacked.to_flat(x)
+    np.testing.assert_array_equal(v[:3], x.pendula[0].omega_S_rad_s)
+    np.testing.assert_array_equal(v[15:24], x.head.R_I_H.reshape(9))
 
 
 # ------------------------------------------------------------------ experiment readings (ekf-*)
@@ -156,26 +230,34 @@ def test_head_frame_acceleration_input_is_the_same_model(medial):
     """F §4.2.1's u = (ᴴa, ᴴτ): the model rotating ᴴa with its own R̂_IH equals the ᴵa model."""
     from verticality import simulation as sim
     from verticality.experiments import ekf as exp
+    from verticality.models.head import FreeHead
     from verticality.models.kinematics import RigidMotion
+    from verticality.models.otolith_head import HeadFrameAcceleration, HeadFrameInput
 
     filt, x = medial
-    x = x._replace(omega_H_rad_s=jnp.zeros(3))  # a head at rest: R_IH constant over the step,
-    tau = jnp.zeros(3)  # so ᴵa = R_IH ᴴa holds throughout and the two models agree to round-off
-    a_I = jnp.array([1.0, 0.5, -0.3])
-    u_I = jnp.tile(jnp.concatenate([a_I, tau]), (2, 1))
-    u_H = jnp.tile(jnp.concatenate([x.R_I_H.T @ a_I, tau]), (2, 1))
-    m_H = exp._head_accel_model(P13_EKF_PENDULUM, P13_EKF_HEAD)
-    for la, lb in zip(jax.tree_util.tree_leaves(m_H.f(x, u_H, 0.02)),
-                      jax.tree_util.tree_leaves(filt.model.f(x, u_I, 0.02)), strict=True):
+    x = x._replace(head=x.head._replace(omega_H_rad_s=jnp.zeros(3)))  # a head at rest: R_IH
+    tau = jnp.zeros(3)  # constant over the step, so ᴵa = R_IH ᴴa holds throughout and the two
+    a_I = jnp.array([1.0, 0.5, -0.3])  # models agree to round-off
+    R = x.head.R_I_H
+    u_I = _u_blocks(2, a_I=a_I, tau=tau)
+    u_H = HeadFrameInput(u_I.tau_H_Nm, jnp.tile(R.T @ a_I, (2, 1)))
+    f_H = exp.multiplicative_filter(exp.SIGMA_PROCESS, "head")
+    assert isinstance(f_H.model.model, HeadFrameAcceleration)
+    assert same_value(f_H.model.model.model,
+                      exp.multiplicative_filter(exp.SIGMA_PROCESS, "inertial").model.model)
+    for la, lb in zip(jax.tree_util.tree_leaves(f_H.model.transition(x, u_H, 0.02)),
+                      jax.tree_util.tree_leaves(filt.model.transition(x, u_I, 0.02)), strict=True):
         np.testing.assert_allclose(la, lb, atol=1e-12)
-    # the simulator's head-frame input is R_IHᵀ ᴵa, the torque rows unchanged
-    head = RigidMotion(x.R_I_H, x.omega_H_rad_s, jnp.array([0.3, -0.2, 0.1]), a_I)
-    uI = sim.estimator_input(head, P13_EKF_HEAD)
-    uH = sim.estimator_input(head, P13_EKF_HEAD, "head")
-    np.testing.assert_allclose(uH[:3], x.R_I_H.T @ a_I, atol=1e-15)
-    np.testing.assert_allclose(uH[3:], uI[3:], atol=0.0)
+    # the simulator's head-frame input is R_IHᵀ ᴵa, the torque unchanged
+    head = RigidMotion(R, x.head.omega_H_rad_s, jnp.array([0.3, -0.2, 0.1]), a_I)
+    model = FreeHead(P13_EKF_HEAD)
+    uI = sim.estimator_input(head, model)
+    uH = sim.estimator_input(head, model, "head")
+    np.testing.assert_allclose(uH.a_H_m_s2, R.T @ a_I, atol=1e-15)
+    np.testing.assert_allclose(uH.tau_H_Nm, uI.tau_H_Nm, atol=0.0)
+    np.testing.assert_array_equal(uI.a_I_m_s2, a_I)
     with pytest.raises(ValueError):
-        sim.estimator_input(head, P13_EKF_HEAD, "trunk")
+        sim.estimator_input(head, model, "trunk")
 
 
 def test_common_initial_covariance_is_one_rotation_of_both(medial):
@@ -186,7 +268,7 @@ def test_common_initial_covariance_is_one_rotation_of_both(medial):
     P = np.asarray(exp.initial_covariance(x, "common"))
     np.testing.assert_allclose(P, P.T, atol=1e-15)
     assert np.linalg.eigvalsh(P).min() > -1e-14
-    R_SH = np.asarray(x.R_I_S.T @ x.R_I_H)
+    R_SH = np.asarray(x.pendula[0].R_I_S.T @ x.head.R_I_H)
     # the conditional covariance of δθ_S given δθ_H is the relative term only
     Pss, Psh, Phh = P[0:3, 0:3], P[0:3, 6:9], P[6:9, 6:9]
     np.testing.assert_allclose(Psh, exp.INITIAL_ERROR_RAD**2 * R_SH, atol=1e-15)
@@ -194,3 +276,22 @@ def test_common_initial_covariance_is_one_rotation_of_both(medial):
     np.testing.assert_allclose(cond, exp.SIGMA_RELATIVE_PENDULUM_RAD**2 * np.eye(3), atol=1e-12)
     np.testing.assert_allclose(np.asarray(exp.initial_covariance(x, "diagonal")),
                                exp.INITIAL_ERROR_RAD**2 * np.eye(12), atol=0.0)
+
+
+def test_run_equals_repeated_step(medial):
+    filt, x = medial
+    s0 = filt.init(x, 0.01 * jnp.eye(ekf.N_ERR))
+    n = 5
+    us = HeadInput(jnp.tile(jnp.array([0.01, -0.02, 0.005]), (n, 4, 1)),
+                   jnp.tile(jnp.array([1.0, 0.5, -0.3]), (n, 4, 1)))
+    ys = jnp.asarray(np.random.default_rng(4).normal(scale=0.1, size=(n, ekf.N_Y)))
+    ys = ys.at[2].set(jnp.nan).at[3, 0].set(jnp.nan)
+    final, outs = jax.jit(filt.run)(s0, us, ys, 0.02)
+    step = jax.jit(filt.step)
+    s = s0
+    for k in range(n):
+        s, out = step(s, jax.tree_util.tree_map(lambda a, k=k: a[k], us), ys[k], 0.02)
+        np.testing.assert_allclose(out.P, outs.P[k], rtol=1e-12, atol=1e-15)
+    for a, b in zip(jax.tree_util.tree_leaves(s), jax.tree_util.tree_leaves(final), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
+    assert bool(outs.predict_only[2]) and list(np.asarray(outs.measured[3])) == [False] + [True] * 4

@@ -8,8 +8,10 @@ import numpy as np
 
 from verticality import so3
 from verticality.control import joint_space_pd, trunk_orientation_estimate
-from verticality.models import gimbal
-from verticality.models import vestibular as V
+from verticality.integrate import rk4_step
+from verticality.models import base, gimbal
+from verticality.models.gimbal import GimbalHead, GimbalInput
+from verticality.models.head import FreeHead
 from verticality.models.kinematics import RigidMotion, still
 from verticality.params import P13_HEAD, P13_KD_NMS_RAD, P13_KP_NM_RAD
 
@@ -52,7 +54,7 @@ def _runs():
                                   trunk_orientation_estimate(R_I_H, x.theta_rad), P13_KP_NM_RAD,
                                   P13_KD_NMS_RAD)
         hp = P13_HEAD._replace(J_H=flag * P13_HEAD.J_H + (1.0 - flag) * HP_ANISO.J_H)
-        return gimbal.dynamics(x, m, trunk, hp)
+        return GimbalHead(FreeHead(hp)).dynamics(x, GimbalInput(m, trunk))
 
     def out(t, x, flag):
         trunk_R = _trunk_motion(t).R_I_B
@@ -63,8 +65,13 @@ def _runs():
                 jnp.arccos(trunk_R[2, 2]))
 
     def one(x0, flag):
-        return V.simulate(lambda t, x: f(t, x, flag), x0, DT, 4000,
-                          output=lambda t, x: out(t, x, flag), every=10)
+        def block(x, kb):  # the output every 10 steps, then 10 RK4 steps
+            y = out(kb * 10 * DT, x, flag)
+            x = jax.lax.fori_loop(0, 10, lambda i, xx: rk4_step(
+                lambda t, z: f(t, z, flag), (kb * 10 + i) * DT, xx, DT), x)
+            return x, y
+
+        return jax.lax.scan(block, x0, jnp.arange(400))
 
     x0 = gimbal.GimbalState(jnp.array([[0.3, -0.2], [0.4, -0.3]]), jnp.array([[1.0, -2.0], [0.0, 0.0]]))
     xf, outs = jax.jit(jax.vmap(one))(x0, jnp.array([0.0, 1.0]))
@@ -118,7 +125,8 @@ def test_closed_forms_equal_their_definitions():
     x = gimbal.GimbalState(theta, jnp.array([0.4, -1.1]))
     trunk = jax.jit(tr.impact().motion)(2.3)
     m = jnp.array([1.5, -0.8])
-    head, thdd = jax.jit(gimbal.driven_head_motion)(x, m, trunk, P13_HEAD)
+    model = GimbalHead(FreeHead(P13_HEAD))
+    head, thdd = jax.jit(model.head_motion)(x, GimbalInput(m, trunk))
     E = gimbal.body_jacobian(theta)
     J = P13_HEAD.J_H
     w = head.omega_B_rad_s
@@ -128,3 +136,11 @@ def test_closed_forms_equal_their_definitions():
     head_ref = gimbal.head_motion(x, thdd, trunk)
     for a, b in zip(head, head_ref, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+    # the value: ẋ = (θ̇, θ̈), the encoders as output, the head's ω without θ̈
+    dx = model.dynamics(x, GimbalInput(m, trunk))
+    np.testing.assert_allclose(dx.thetadot_rad_s, thdd, rtol=1e-14)
+    np.testing.assert_array_equal(dx.theta_rad, x.thetadot_rad_s)
+    np.testing.assert_array_equal(model.output(x), jnp.concatenate([theta, x.thetadot_rad_s]))
+    np.testing.assert_allclose(model.head_angular_velocity(x, trunk), head.omega_B_rad_s, rtol=1e-14)
+    np.testing.assert_allclose(model.head_orientation(x, trunk), head.R_I_B, rtol=1e-14)
+    assert isinstance(model, base.Model)

@@ -13,6 +13,7 @@ from verticality.analysis import observability_examples as ex
 from verticality.analysis.observability_exact import exact_rank
 from verticality.analysis.observability_taylor import taylor
 from verticality.errors import InputError
+from verticality.models.base import EuclideanState, model_dataclass
 
 
 def _random_linear(seed, n=5, unobs=2):
@@ -59,7 +60,7 @@ def test_accelerometer_tilt_but_never_yaw():
     assert res.quantities["tilt"].observable and res.quantities["tilt"].derivatives_needed == 0
     assert not res.quantities["heading"].observable
     x, _ = res.point  # the unobservable direction is yaw about gravity: δ = Rᵀ e3
-    assert res.in_null_space(x["R_I_B"].T @ np.array([0.0, 0.0, 1.0]))
+    assert res.in_null_space(x.T @ np.array([0.0, 0.0, 1.0]))
 
 
 def test_product_parameter_not_identifiable():
@@ -70,13 +71,22 @@ def test_product_parameter_not_identifiable():
     assert res.rank == 2 and res.n_coords == 3
 
 
+@model_dataclass
+class _Chained(EuclideanState):
+    """ẋ = v, ẏ = v p, ṗ = w; y = (x, y): a rational unicycle."""
+
+    def dynamics(self, q, u):
+        return jnp.array([u["v"][0], u["v"][0] * q[2], u["w"][0]])
+
+    def output(self, q, u):
+        return q[:2]
+
+
 def test_numeric_rank_equals_exact_sympy_rank():
     x, y, p, v, w, a, b, z = sp.symbols("x y p v w a b z")
     exact_uni = exact_rank([v, v * p, w], [x, y], [x, y, p], inputs=[v, w], order=2)
-    num_uni = ob.analyze(ob.Problem(
-        f=lambda s, u, th: {"q": jnp.array([u["v"][0], u["v"][0] * s["q"][2], u["w"][0]])},
-        h=lambda s, u, th: s["q"][:2], states={"q": (3,)}, inputs={"v": (1,), "w": (1,)}),
-        order=2, points=2)
+    num_uni = ob.analyze(ob.Problem(model=_Chained(), state=jnp.zeros(3),
+                                    inputs={"v": (1,), "w": (1,)}), order=2, points=2)
     assert num_uni.rank_by_order == exact_uni
     exact_prod = exact_rank([-a * b * z], [z], [z], unknowns=[a, b], order=3)
     num_prod = ob.analyze(ex.product_parameter(), order=3, points=2)
@@ -85,8 +95,8 @@ def test_numeric_rank_equals_exact_sympy_rank():
 
 def test_taylor_interpreter_matches_jet():
     prob = ex.accelerometer()
-    lay = ob._Layout(prob, "tangent")
-    F, H = ob._flat_fields(prob, lay)
+    lay = ob.layout(prob, "tangent")
+    F, H = ob.flat_fields(prob, lay)
     rng = np.random.default_rng(3)
     X0 = jnp.asarray(ob.random_rotation(rng).ravel())
     K = 4
@@ -105,11 +115,51 @@ def test_taylor_interpreter_matches_jet():
 def test_ambient_chart_counts_free_entries():
     res = ob.analyze(ex.accelerometer(), chart="ambient", points=2)
     assert res.n_coords == 9 and res.rank == 3  # only the third row of R is seen
+    assert res.labels[5] == "R_I_B[1,2]"
+    x, _ = res.point  # a generic matrix, off SO(3)
+    assert np.linalg.norm(x.T @ x - np.eye(3)) > 0.1
+
+
+def test_layout_reads_the_model_retraction():
+    """Tangent coordinates and labels come from the model's own retract: three per rotation."""
+    lay = ob.layout(ex.accelerometer(), "tangent")
+    assert lay.n_coords == 3 and lay.constrained == [True]
+    assert lay.coordinate_labels() == ["R_I_B.δx", "R_I_B.δy", "R_I_B.δz"]
+    lay = ob.layout(ex.product_parameter(), "tangent")
+    assert lay.coordinate_labels() == ["x[0]", "a[0]", "b[0]"] and lay.constrained == [False]
+
+
+def test_curve_direction_of_yaw_is_the_null_space():
+    """Turning the body about gravity (R → Rz(ε) R) is the accelerometer's hidden direction,
+    found through the model's retraction; a roll is not hidden."""
+    from verticality import so3
+
+    prob = ex.accelerometer()
+    res = ob.analyze(prob, points=2)
+    x, _ = res.point
+    d = ob.curve_directions(prob, res, {"yaw": lambda model, x, th, e: (so3.rot_z(e) @ x, {}),
+                                        "roll": lambda model, x, th, e: (so3.rot_x(e) @ x, {})})
+    assert np.allclose(d["yaw"], x.T @ np.array([0.0, 0.0, 1.0]), atol=1e-12)
+    assert res.in_null_space(d["yaw"])
+    assert not res.in_null_space(d["roll"])
+
+
+def test_unknown_model_parameters_enter_through_the_parameter_map():
+    prob = ex.product_parameter()
+    x = jnp.array([2.0])
+    th = {"a": jnp.array([3.0]), "b": jnp.array([0.5])}
+    assert np.allclose(prob.vector_field(x, {}, th), -3.0)
+    model = prob.model_for(th)
+    assert model.a is th["a"] and model.b is th["b"] and prob.model.a == 1.0
 
 
 def test_bad_input_is_a_clear_error():
     with pytest.raises(InputError):
-        ob.Problem(f=None, h=None, states={"R": "quaternion"})
+        ob.Problem(model=lambda x, u: x, state=jnp.zeros(2))  # not a model value
+    with pytest.raises(InputError):
+        ob.Problem(model=ex.Decay(), state=jnp.zeros(1), unknowns={"a": 1})
+    with pytest.raises(InputError):
+        ob.Problem(model=ex.Decay(), state=jnp.zeros(1), leaf_names=("x", "y"))
     with pytest.raises(InputError):
         ob.analyze(ex.product_parameter(), fixed={"c": 1.0})
     with pytest.raises(InputError):

@@ -1,10 +1,14 @@
 """The otolith models of F ch. 2 under the observability test (F Tables 3.1 and 3.2)."""
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from verticality import so3
 from verticality.analysis import otolith_observability as oo
 from verticality.errors import InputError
+from verticality.models.head import HeadInput, HeadState
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +32,7 @@ def test_null_space_is_exactly_the_yaw_symmetries(table):
     """Zero or unknown torque (medial): global yaw and the head's yaw about its own z axis."""
     for (model, _, control), case in table.items():
         r = case.result
-        sym = oo.symmetry_directions(r, oo.plant_params().J_H)
+        sym = oo.symmetry_directions(case)
         if control == "stabilized":
             assert r.rank == r.n_coords  # the feedback breaks every symmetry
             continue
@@ -42,22 +46,75 @@ def test_null_space_is_exactly_the_yaw_symmetries(table):
             assert case.orientation_observable
 
 
+def test_symmetry_directions_are_the_analytic_tangents(table):
+    """Through the model's retraction (right perturbations), global yaw moves every frame by
+    ``δ_X = R_IXᵀ e3`` and head yaw moves the head by ``δ_H = e3``, ``ω_H`` by ``−e3 × ω_H``, ``a_H``
+    by ``−e3 × a_H`` and ``τ`` by ``−J_H (e3 × J_H⁻¹ τ)``."""
+    case = table[("medial", "rot+trans", "unknown")]
+    x, th = case.result.point
+    sym = oo.symmetry_directions(case)
+    labels = case.result.labels
+
+    def part(v, name):
+        keys = [f"{name}.δ{a}" for a in "xyz"] if f"{name}.δx" in labels else \
+            [f"{name}[{i}]" for i in range(3)]
+        return np.array([v[labels.index(k)] for k in keys])
+
+    e3 = np.array([0.0, 0.0, 1.0])
+    J = np.array([1.0, 1.2, 0.9])
+    assert np.allclose(part(sym["global_yaw"], "R_I_S"), x.pendula[0].R_I_S.T @ e3, atol=1e-12)
+    assert np.allclose(part(sym["global_yaw"], "R_I_H"), x.head.R_I_H.T @ e3, atol=1e-12)
+    assert np.allclose(part(sym["global_yaw"], "a_H"), 0.0, atol=1e-12)
+    assert np.allclose(part(sym["head_yaw"], "R_I_H"), e3, atol=1e-12)
+    assert np.allclose(part(sym["head_yaw"], "omega_H"), -np.cross(e3, x.head.omega_H_rad_s),
+                       atol=1e-12)
+    assert np.allclose(part(sym["head_yaw"], "a_H"), -np.cross(e3, th["a_H"]), atol=1e-12)
+    assert np.allclose(part(sym["head_yaw"], "tau_H"), -J * np.cross(e3, th["tau_H"] / J),
+                       atol=1e-12)
+    assert np.allclose(part(sym["head_yaw"], "R_I_S"), 0.0, atol=1e-12)
+
+
 def test_head_yaw_changes_the_tilt_but_not_the_outputs(table):
     """The symmetry behind the medial 'No' rows, checked on the model itself (no rank involved)."""
-    import jax.numpy as jnp
-
-    from verticality import so3
-
-    prob = oo.problem_for("medial")
-    x, th = table[("medial", "rot", "zero")].result.point
-    th = {k: jnp.asarray(v) for k, v in th.items()}
+    case = table[("medial", "rot", "zero")]
+    prob = case.problem
+    x, th = case.result.point
     u = {"tau_u": jnp.zeros(3)}
     Rz = so3.rot_z(0.7)
-    x2 = dict(x, R_I_H=x["R_I_H"] @ Rz, omega_H=Rz.T @ x["omega_H"])
-    assert np.allclose(prob.h(x, u, th), prob.h(x2, u, th), atol=1e-12)
-    f1, f2 = prob.f(x, u, th), prob.f(x2, u, th)
-    assert np.allclose(f1["omega_S"], f2["omega_S"], atol=1e-12)
-    assert not np.allclose(oo.E3 @ x["R_I_H"], oo.E3 @ x2["R_I_H"], atol=1e-3)
+    x2 = x._replace(head=HeadState(x.head.R_I_H @ Rz, Rz.T @ x.head.omega_H_rad_s))
+    assert np.allclose(prob.measurement(x, u, th), prob.measurement(x2, u, th), atol=1e-12)
+    f1, f2 = prob.vector_field(x, u, th), prob.vector_field(x2, u, th)
+    assert np.allclose(f1.pendula[0].omega_S_rad_s, f2.pendula[0].omega_S_rad_s, atol=1e-12)
+    assert not np.allclose(oo.E3 @ x.head.R_I_H, oo.E3 @ x2.head.R_I_H, atol=1e-3)
+
+
+def test_problem_consumes_the_otolith_head_value():
+    """The problem's vector field is the model value's dynamics under the declared input, and
+    the 'thesis' output is the model's own output."""
+    from verticality.control import global_stabilizer
+    from verticality.models import otolith_head
+
+    prob = oo.problem_for("lateral")
+    assert isinstance(prob.model, otolith_head.OtolithHead) and len(prob.model.pendula) == 2
+    x, th = prob.sample(np.random.default_rng(5))
+    th = dict(th, stab=1.0)
+    u = {"tau_u": jnp.array([0.1, -0.2, 0.3])}
+    tau = th["tau_H"] + u["tau_u"] + global_stabilizer(x.head.R_I_H, x.head.omega_H_rad_s, 2.0, 1.5)
+    expected = prob.model.dynamics(x, HeadInput(tau, x.head.R_I_H @ th["a_H"]))
+    got = prob.vector_field(x, u, th)
+    for a, b in zip(jax.tree_util.tree_leaves(got), jax.tree_util.tree_leaves(expected), strict=True):
+        assert np.allclose(a, b, rtol=1e-14, atol=1e-14)
+    assert np.array_equal(prob.measurement(x, u, th), prob.model.output(x))
+    axis = oo.problem_for("lateral", output="axis").measurement(x, u, th)
+    assert axis.shape == (4,) and not np.allclose(axis, prob.model.output(x))
+
+
+def test_full_form_keeps_the_gyroscopic_and_euler_terms():
+    simple, full = oo.otolith_model("lateral"), oo.otolith_model("lateral", form="full")
+    assert simple.head.params.gyroscopic == 0.0 and full.head.params.gyroscopic == 1.0
+    assert all(p.params.euler == 0.0 and p.params.centripetal == 1.0 for p in simple.pendula)
+    assert all(p.params.euler == 1.0 and p.params.gyroscopic == 1.0 for p in full.pendula)
+    assert [float(p.params.pivot_H_m[1]) for p in simple.pendula] == [0.05, -0.05]
 
 
 def test_acceleration_rows(table):
@@ -87,7 +144,7 @@ def test_isotropic_head_hides_tilt_under_feedback():
     case = oo.analyze_case("medial", "rot", "stabilized", params="p13")
     r = case.result
     assert r.stalled and r.n_coords - r.rank == 1
-    assert r.in_null_space(oo.symmetry_directions(r, oo.plant_params("p13").J_H)["yaw_conjugation"])
+    assert r.in_null_space(oo.symmetry_directions(case)["yaw_conjugation"])
     assert not case.orientation_observable
 
 
@@ -96,3 +153,26 @@ def test_bad_case_names():
         oo.analyze_case("central", "rot", "zero")
     with pytest.raises(InputError):
         oo.case_settings("rot", "feedback")
+    with pytest.raises(InputError):
+        oo.otolith_model("medial", form="reduced")
+    with pytest.raises(InputError):
+        oo.build_problem("medial", output="canal")
+
+
+def test_cli_prints_the_selected_rows(capsys):
+    import json
+
+    from verticality import cli
+
+    argv = ["observability", "--model", "medial", "--motion", "rot", "--control", "known"]
+    assert cli.main(argv + ["--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["cases"] == 1 and out["agreement"] == 0
+    row = out["rows"][0]
+    assert (row["model"], row["motion"], row["control"]) == ("medial", "rot", "known")
+    assert row["orientation_observable"] and row["why"].endswith("[1]")
+    assert cli.main(argv) == 0
+    text = capsys.readouterr().out
+    assert "known τ breaks head yaw" in text and "agreement with F Tables 3.1/3.2: 0/1" in text
+    assert cli.main(["observability", "--points", "0"]) == 2
+    assert "points must be >= 1" in capsys.readouterr().err

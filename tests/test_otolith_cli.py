@@ -80,3 +80,33 @@ def test_motion_window_of_a_built_in_and_its_refusals(tmp_path, capsys):
         assert cli.main(["motion", *argv, "--out", str(out)]) == 2
         err = capsys.readouterr().err.strip()
         assert message in err and "\n" not in err
+
+
+def test_otolith_presets_and_their_checks():
+    """params.otolith_pendula: the P13 plant, J from the final m and l unless given, the lateral
+    pivots at ±r, and one-line refusals."""
+    import pytest
+
+    from verticality.errors import InputError
+    from verticality.params import P13_PENDULUM, otolith_pendula
+
+    (med,), sfx = otolith_pendula("medial")
+    assert sfx == ("",)
+    np.testing.assert_allclose(med.params.J_pivot_S, P13_PENDULUM.J_pivot_S, rtol=1e-15)
+    np.testing.assert_array_equal(med.params.pivot_H_m, np.zeros(3))
+    (left, right), sfx = otolith_pendula("lateral", ["l=0.05", "r=0.04", "Jzz=1e-5", "beta=0"])
+    assert sfx == ("_left", "_right")
+    np.testing.assert_allclose(left.params.J_pivot_S, [0.05 * 0.05**2, 0.05 * 0.05**2, 1e-5])
+    np.testing.assert_array_equal(left.params.pivot_H_m, [0.0, 0.04, 0.0])
+    np.testing.assert_array_equal(right.params.pivot_H_m, [0.0, -0.04, 0.0])
+    assert float(right.params.beta_Nms) == 0.0
+    for items, model, message in ((["m"], "medial", "expected NAME=VALUE"),
+                                  (["mass=1"], "medial", "unknown name"),
+                                  (["l=x"], "medial", "not a number"),
+                                  (["l=inf"], "medial", "not finite"),
+                                  (["Jxx=-1"], "medial", "must be positive"),
+                                  (["beta=-1"], "medial", "must not be negative"),
+                                  (["r=0.1"], "medial", "lateral model only"),
+                                  ([], "planar", "model must be one of")):
+        with pytest.raises(InputError, match=message):
+            otolith_pendula(model, items)

@@ -7,8 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import so3
-from verticality.models import pendulum
-from verticality.models import vestibular as V
+from verticality.models import base, pendulum
 from verticality.models.kinematics import RigidMotion, from_functions, still
 from verticality.params import G_M_S2, P13_PENDULUM
 
@@ -24,12 +23,11 @@ def _batch(R_I_S0, omega_S0, a_I, beta, n=N):
     """Medial pendulum in a still, level head with centre acceleration a_I; full states."""
 
     def one(R0, w0, a, b):
-        p = P13_PENDULUM._replace(beta_Nms=b)
+        model = pendulum.Pendulum(P13_PENDULUM._replace(beta_Nms=b))
         head = RigidMotion(jnp.eye(3), jnp.zeros(3), jnp.zeros(3), a)
-        x0 = V.MedialState(pendulum.PendulumState(R0, w0))
-        xf, xs = V.simulate(V.driven(V.medial_dynamics, lambda t: head, p), x0, DT, n,
-                            project=V.medial_project)
-        return xs.pendulum, xf.pendulum
+        x0 = pendulum.PendulumState(R0, w0)
+        xf, xs = base.simulate(model, x0, lambda t: head, DT, n)
+        return xs, xf
 
     return jax.vmap(one)(R_I_S0, omega_S0, a_I, beta)
 

@@ -168,3 +168,21 @@ def test_stabilize_reads_a_broad_recording_window(tmp_path, capsys):
     assert cli.main(["stabilize", str(path), "--start", "38", "--duration", "2000"]) == 2
     err = capsys.readouterr().err.strip()
     assert "after the recording" in err and "\n" not in err
+
+
+def test_whole_periods_and_option_checks():
+    from verticality import stabilization as st
+
+    assert st.whole_periods(2.994) == pytest.approx(2.98)
+    assert st.whole_periods(3.0) == pytest.approx(3.0)
+    assert st.EKF_PERIOD_S == 0.02
+    st.check_options(3.0, 1, 0.02, 2.0)
+    for args, message in (((3.0, 0, 0.02, 2.0), "--seeds"), ((3.0, 1, float("nan"), 2.0), "--noise"),
+                          ((3.0, 1, 0.02, -1.0), "--settle"), ((2.0, 1, 0.02, 2.0), "no EKF sample")):
+        with pytest.raises(InputError, match=message):
+            st.check_options(*args)
+    series = {"t_s": np.array([0.02, 0.04, 0.06]), "tilt_true_deg": np.zeros((3, 2)),
+              "tilt_est_deg": np.array([[0.0, 0.0], [0.0, np.nan], [0.0, 0.0]])}
+    assert st.first_non_finite(series, 10.0) == (pytest.approx(10.04), "estimate")
+    series["tilt_true_deg"][2, 0] = np.inf
+    assert st.first_non_finite(series)[1] == "plant"

@@ -1,6 +1,6 @@
-"""Medial and lateral models (F 2.3–2.19) and their planar forms (models/vestibular.py)."""
-
-import functools
+"""models/vestibular.py: the former function API, adapters onto the model values (for
+experiments/model_checks.py). The physics is tested on the values (tests/test_otolith_head.py);
+here the adapters give exactly the values' numbers and keep their refusals."""
 
 import jax
 import jax.numpy as jnp
@@ -8,158 +8,66 @@ import numpy as np
 import pytest
 
 from verticality import so3
-from verticality.experiments import model_checks as mc
-from verticality.models import pendulum, planar
+from verticality.models import otolith_head as oh
+from verticality.models import planar
 from verticality.models import vestibular as V
-from verticality.models.kinematics import RigidMotion, from_functions, still
-from verticality.params import LATERAL_R_M, P13_HEAD, P13_PENDULUM
+from verticality.models.head import FreeHead
+from verticality.models.kinematics import RigidMotion, still
+from verticality.models.pendulum import Pendulum, PendulumState
+from verticality.params import P13_HEAD, P13_PENDULUM, lateral_pendulums
 
-motion_of = from_functions
-
-
-DT = 1e-3
-
-
-_AXIS = jnp.array([0.6, 0.48, 0.64])
+RNG = np.random.default_rng(3)
 
 
-def _motion(t):
-    """Closed-form head motion: rotation 0.5 sin 2t about a fixed tilted axis, centre shaking."""
-    th, thd, thdd = 0.5 * jnp.sin(2 * t), 1.0 * jnp.cos(2 * t), -2.0 * jnp.sin(2 * t)
-    a = jnp.stack([-1.8 * jnp.sin(3 * t), -0.9 * jnp.cos(3 * t), -1.25 * jnp.sin(5 * t)])
-    return RigidMotion(so3.exp(_AXIS * th), _AXIS * thd, _AXIS * thdd, a)
+def _pend():
+    return PendulumState(so3.exp(jnp.asarray(RNG.normal(size=3))), jnp.asarray(RNG.normal(size=3)))
 
 
-def test_closed_form_motion_is_consistent():
-    """ω of the test motion is vee(RᵀṘ) and ω̇ its derivative (so the checks below mean something)."""
-    t = 0.3
-    m = _motion(t)
-    ref = motion_of(lambda s: jnp.stack([0.2 * jnp.sin(3 * s), 0.1 * jnp.cos(3 * s), 0.05 * jnp.sin(5 * s)]),
-                    lambda s: _motion(s).R_I_B, t)
-    for x, y in zip(m, ref, strict=True):
-        np.testing.assert_allclose(x, y, atol=1e-12)
+def _same(a, b):
+    for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b), strict=True):
+        np.testing.assert_array_equal(x, y)
 
 
-N = 1000
-
-
-@functools.lru_cache(maxsize=1)
-def _table():
-    return V.tabulate(_motion, DT, N)
-
-
-@functools.lru_cache(maxsize=1)
-def _lateral_vs_medial():
-    n = N
-    table = _table()
-
-    @jax.jit
-    def run(table):
-        p = P13_PENDULUM
-        head0 = table.motion(0.0)
-        _, med = V.simulate(V.driven(V.medial_dynamics, table.motion, p),
-                            V.medial_rest_state(head0, p), DT, n, project=V.medial_project)
-
-        def lateral(r):
-            return V.simulate(V.driven(V.lateral_dynamics, table.motion, p, r),
-                              V.lateral_rest_state(head0, p, r), DT, n,
-                              project=V.lateral_project)[1]
-
-        return med, jax.vmap(lateral)(jnp.array([0.0, LATERAL_R_M]))
-
-    return jax.tree_util.tree_map(np.asarray, run(table))
-
-
-def test_lateral_with_r0_equals_medial():
-    med, lat = _lateral_vs_medial()
-    for side in (lat.left, lat.right):
-        assert np.max(np.abs(side.R_I_S[0] - med.pendulum.R_I_S)) <= 1e-12
-        assert np.max(np.abs(side.omega_S_rad_s[0] - med.pendulum.omega_S_rad_s)) <= 1e-12
-
-
-def test_lateral_pendula_differ_under_rotation():
-    med, lat = _lateral_vs_medial()
-    d_left = np.max(np.abs(lat.left.R_I_S[1] - med.pendulum.R_I_S))
-    d_lr = np.max(np.abs(lat.left.R_I_S[1] - lat.right.R_I_S[1]))
-    assert d_left > 1e-4 and d_lr > 1e-4
-
-
-def test_tabulated_motion_matches_direct_evaluation():
-    table = _table()
-    direct_fn = jax.jit(_motion)
-    for t in (0.0, 0.0035, 0.5, N * DT):
-        direct, tab = direct_fn(t), table.motion(t)
-        for a, b in zip(direct, tab, strict=True):
-            np.testing.assert_allclose(a, b, atol=1e-13)
-
-
-@pytest.mark.parametrize("which", ["medial", "lateral"])
-def test_planar_equals_3d_restricted_to_plane(which):
-    fn = mc._run_planar_medial if which == "medial" else mc._run_planar_lateral
-    yp, y3 = (np.asarray(a) for a in fn(2000))
-    assert np.max(np.abs(yp - y3)) < 1e-7
-    assert np.ptp(yp[:, 0]) > 0.1  # the test motion is not trivial
-
-
-def test_planar_lateral_pivot_acceleration_signs():
-    """Left pivot (+r on y) sees the centripetal −r ω² along y and +r ω̇ along z (head level)."""
-    pp = planar.PlanarParams()
-    x = V.PlanarLateralState(*(jnp.asarray(v) for v in (0.0, 0.0, 0.0, 0.0, 0.0, 2.0)))
-    u = planar.PlanarInput(jnp.asarray(0.0), jnp.asarray(0.0), jnp.asarray(0.0))
-    r = 0.05
-    aL = V._planar_pivot_acceleration_I(1.0, x, u, 3.0, r, 1.0, 1.0)
-    aR = V._planar_pivot_acceleration_I(-1.0, x, u, 3.0, r, 1.0, 1.0)
-    np.testing.assert_allclose(aL, (-r * 4.0, r * 3.0), atol=1e-15)
-    np.testing.assert_allclose(aR, (r * 4.0, -r * 3.0), atol=1e-15)
-    # F 2.19 (simplified): only the centripetal term
-    aF = V._planar_pivot_acceleration_I(1.0, x, u, 3.0, r, 0.0, 1.0)
-    np.testing.assert_allclose(aF, (-r * 4.0, 0.0), atol=1e-15)
-    assert float(V.planar_lateral_dynamics(x, u, pp).omega_L_rad_s) != 0.0
-
-
-def test_free_head_torque_free_motion_conserves_momentum_and_energy():
-    hp = P13_HEAD._replace(J_H=jnp.array([0.1, 0.125, 0.16]))
-    h0 = V.HeadState(so3.rot_x(0.3), jnp.array([1.0, 2.0, -0.5]))
-    hf, _ = jax.jit(lambda h: V.simulate(lambda t, h: V.head_dynamics(h, jnp.zeros(3), hp), h, DT, 1000,
-                                         project=V._project_head))(h0)
-    L0 = h0.R_I_H @ (hp.J_H * h0.omega_H_rad_s)
-    L1 = hf.R_I_H @ (hp.J_H * hf.omega_H_rad_s)
-    np.testing.assert_allclose(L1, L0, atol=1e-10)
-    E = lambda h: 0.5 * jnp.sum(hp.J_H * h.omega_H_rad_s**2)  # noqa: E731
-    assert abs(E(hf) - E(h0)) < 1e-10
-    assert np.max(np.abs(hf.omega_H_rad_s - h0.omega_H_rad_s)) > 0.1  # gyroscopic coupling acts
-
-
-def test_free_head_drive_equals_kinematic_drive():
-    """A free head's pendulum sees exactly the RigidMotion built from the head's state and input."""
-    p, hp = P13_PENDULUM, P13_HEAD
-    h = V.HeadState(so3.rot_y(0.2), jnp.array([0.3, -0.2, 0.1]))
-    u = V.HeadInput(jnp.array([0.01, 0.02, -0.03]), jnp.array([1.0, 0.0, -2.0]))
-    xs = pendulum.PendulumState(so3.rot_x(0.1), jnp.array([0.5, 0.0, 0.2]))
-    free = V.lateral_dynamics(V.LateralState(xs, xs, h), u, p, hp=hp)
-    kin = V.lateral_dynamics(V.LateralState(xs, xs), V.free_head_motion(h, u, hp), p)
-    for a, b in zip(jax.tree_util.tree_leaves((free.left, free.right)),
-                    jax.tree_util.tree_leaves((kin.left, kin.right)), strict=True):
-        np.testing.assert_allclose(a, b, atol=1e-15)
-    assert kin.head is None and free.head is not None
+def test_adapters_give_the_values_numbers():
+    xl, xr = _pend(), _pend()
+    h = V.HeadState(so3.exp(jnp.asarray(RNG.normal(size=3))), jnp.asarray(RNG.normal(size=3)))
+    u = V.HeadInput(jnp.array([0.01, -0.02, 0.03]), jnp.array([1.0, -2.0, 0.5]))
+    motion = RigidMotion(h.R_I_H, h.omega_H_rad_s, jnp.array([0.3, 0.1, -0.2]), u.a_I_m_s2)
+    med = oh.medial(P13_PENDULUM, P13_HEAD)
+    d = V.medial_dynamics(V.MedialState(xl, h), u, P13_PENDULUM, P13_HEAD)
+    _same(d, med.dynamics(oh.OtolithHeadState((xl,), h), u))
+    lat = oh.lateral(P13_PENDULUM, P13_HEAD)
+    d = V.lateral_dynamics(V.LateralState(xl, xr, h), u, P13_PENDULUM, hp=P13_HEAD)
+    _same(d, lat.dynamics(oh.OtolithHeadState((xl, xr), h), u))
+    kin = oh.Otoliths(tuple(Pendulum(p) for p in lateral_pendulums(P13_PENDULUM)))
+    _same(V.lateral_dynamics(V.LateralState(xl, xr), motion, P13_PENDULUM).left,
+          kin.dynamics((xl, xr), motion)[0])
+    _same(V.head_dynamics(h, u.tau_H_Nm, P13_HEAD), FreeHead(P13_HEAD).dynamics(h, u))
+    _same(V.medial_outputs(V.MedialState(xl), h.R_I_H), med.otoliths.angles((xl,), h.R_I_H)[0])
+    _same(V.lateral_rest_state(motion, P13_PENDULUM, free_head=True),
+          (*kin.rest_state(motion), h))
+    x = V.PlanarLateralState(*(jnp.asarray(v) for v in RNG.normal(size=6)))
+    pu = planar.PlanarInput(*(jnp.asarray(v) for v in RNG.normal(size=3)))
+    _same(V.planar_lateral_dynamics(x, pu, planar.PlanarParams(), euler=0.0),
+          oh.PlanarLateral(planar.PlanarParams(), euler=0.0).dynamics(x, pu))
 
 
 def test_still_tilted_head_outputs():
     p = P13_PENDULUM
     R = so3.rot_x(0.3)
     x = V.lateral_rest_state(still(R), p)
-    phi = np.asarray(V.lateral_outputs(x, R))
-    np.testing.assert_allclose(phi, [-0.3, 0.0, -0.3, 0.0], atol=1e-12)
+    np.testing.assert_allclose(np.asarray(V.lateral_outputs(x, R)), [-0.3, 0.0, -0.3, 0.0],
+                               atol=1e-12)
     xm = V.medial_rest_state(still(so3.rot_y(0.3)), p)
     np.testing.assert_allclose(V.medial_outputs(xm, so3.rot_y(0.3)), [0.0, 0.3], atol=1e-12)
 
 
 def test_mismatched_drive_is_refused():
     p = P13_PENDULUM
-    xs = pendulum.PendulumState(jnp.eye(3), jnp.zeros(3))
+    xs = PendulumState(jnp.eye(3), jnp.zeros(3))
     with pytest.raises(ValueError, match="free head"):
         V.medial_dynamics(V.MedialState(xs), V.HeadInput(jnp.zeros(3), jnp.zeros(3)), p, P13_HEAD)
     with pytest.raises(ValueError, match="head=None"):
         V.medial_dynamics(V.MedialState(xs, V.HeadState(jnp.eye(3), jnp.zeros(3))), still(), p)
     with pytest.raises(ValueError, match="multiple"):
-        V.simulate(lambda t, x: x, jnp.zeros(1), DT, 10, every=3)
+        V.simulate(lambda t, x: x, jnp.zeros(1), 1e-3, 10, every=3)

@@ -79,3 +79,73 @@ P13_KD_NMS_RAD = 5.0
 
 # Lateral model default: pivots at +-r along head y (F Fig. 2.3).
 LATERAL_R_M = 0.05
+
+
+def lateral_pendulums(p: PendulumParams, r_m=LATERAL_R_M) -> tuple[PendulumParams, PendulumParams]:
+    """The lateral model's (left, right) pendulum parameters: ``p`` with its pivot at ``(0, +r, 0)``
+    and at ``(0, −r, 0)`` in the head frame (F Fig. 2.3: the organs on the interaural axis; F's
+    text writes ``H r = (0, 0, r)``). The one place where the lateral pivots are placed."""
+    p = p.resolved()
+    return (p._replace(pivot_H_m=jnp.array([0.0, r_m, 0.0])),
+            p._replace(pivot_H_m=jnp.array([0.0, -r_m, 0.0])))
+
+
+# The `otolith` command's pendulum presets: the P13 plant, NAME=VALUE overrides (SI units).
+OTOLITH_PARAM_NAMES = ("m", "l", "beta", "Jxx", "Jyy", "Jzz", "r")
+"""m (kg), l (m), beta (N·m·s), Jxx, Jyy, Jzz (kg·m², about the pivot, z along the arm; default
+from the final m and l: m·diag(l², l², l²/20)), r (m, the lateral model's pivot offset)."""
+OTOLITH_MODELS = ("medial", "lateral")
+
+
+def parse_overrides(items, model: str = "medial") -> dict[str, float]:
+    """``["NAME=VALUE", ...]`` → ``{NAME: value}`` for :data:`OTOLITH_PARAM_NAMES`, checked: known
+    names, finite numbers, positive m, l and J, non-negative β, r only for the lateral model
+    (:class:`verticality.errors.InputError`, one line each)."""
+    import math
+
+    from verticality.errors import InputError
+
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep:
+            raise InputError(f"--param {item!r}: expected NAME=VALUE")
+        if name not in OTOLITH_PARAM_NAMES:
+            raise InputError(f"--param {name}: unknown name; choose from "
+                             f"{', '.join(OTOLITH_PARAM_NAMES)}")
+        try:
+            v = float(value)
+        except ValueError:
+            raise InputError(f"--param {name}: not a number: {value!r}") from None
+        if not math.isfinite(v):
+            raise InputError(f"--param {name}: {value} is not finite")
+        if name in ("m", "l", "Jxx", "Jyy", "Jzz") and v <= 0.0:
+            raise InputError(f"--param {name}: must be positive, not {v:g}")
+        if name == "beta" and v < 0.0:
+            raise InputError(f"--param beta: must not be negative, not {v:g}")
+        if name == "r" and model != "lateral":
+            raise InputError("--param r applies to the lateral model only (use --model lateral)")
+        out[name] = v
+    return out
+
+
+def otolith_pendula(model: str = "medial", items=()) -> tuple[tuple, tuple[str, ...]]:
+    """The :class:`~verticality.models.pendulum.Pendulum` values of the ``medial`` (one, at the head
+    centre) or ``lateral`` model (two, :func:`lateral_pendulums`) from the P13 plant and the
+    ``NAME=VALUE`` overrides ``items`` (:func:`parse_overrides`), with the names of their output
+    columns' suffixes (``""``; ``"_left"``, ``"_right"``)."""
+    from verticality.errors import InputError
+    from verticality.models.pendulum import Pendulum
+
+    if model not in OTOLITH_MODELS:
+        raise InputError(f"model must be one of {', '.join(OTOLITH_MODELS)}, not {model!r}")
+    o = parse_overrides(items, model)
+    m = o.get("m", P13_PENDULUM.m_kg)
+    l = o.get("l", P13_PENDULUM.l_m)  # noqa: E741
+    J = jnp.array([o.get("Jxx", m * l * l), o.get("Jyy", m * l * l), o.get("Jzz", m * l * l / 20.0)])
+    base = PendulumParams(m_kg=m, l_m=l, J_pivot_S=J, beta_Nms=o.get("beta", P13_PENDULUM.beta_Nms))
+    if model == "medial":
+        return (Pendulum(base.resolved()),), ("",)
+    left, right = lateral_pendulums(base, o.get("r", LATERAL_R_M))
+    return (Pendulum(left), Pendulum(right)), ("_left", "_right")

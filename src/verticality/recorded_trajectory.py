@@ -120,6 +120,35 @@ def record_of(traj: Trajectory, t_s):
     return MotionRecord(t, q, np.asarray(m.omega_B_rad_s), np.asarray(m.a_I_m_s2))
 
 
+DEFAULT_RATE_HZ = 1000.0
+"""Rows per second of a built-in trajectory written as a MOTION.csv (`verticality motion`)."""
+
+
+def built_in_motion(name: str, rate_hz: float | None = None, start_s: float = 0.0,
+                    duration_s: float | None = None):
+    """The MOTION.csv rows of the built-in trajectory ``name`` (the head rigid on the trunk) from
+    ``start_s`` for ``duration_s`` seconds (to its end by default) at ``rate_hz`` (default
+    :data:`DEFAULT_RATE_HZ`), and a description of them. Bad settings raise :class:`InputError`."""
+    from verticality.trajectories import BY_NAME
+
+    for option, value in (("duration", duration_s), ("rate", rate_hz)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise InputError(f"--{option} must be a positive number, not {value}")
+    if not start_s >= 0.0:
+        raise InputError(f"--start must be a non-negative number, not {start_s}")
+    if name not in BY_NAME:
+        raise InputError(f"unknown trajectory {name!r}; choose from {', '.join(sorted(BY_NAME))}")
+    traj = BY_NAME[name]()
+    rate = DEFAULT_RATE_HZ if rate_hz is None else rate_hz
+    duration = (traj.duration_s - start_s) if duration_s is None else duration_s
+    if not duration > 0:
+        raise InputError(f"--start {start_s:g} is at or after the end of `{name}` "
+                         f"({traj.duration_s:g} s)")
+    n = int(round(duration * rate)) + 1
+    rec = record_of(traj, start_s + np.arange(n) / rate)
+    return rec, f"`{name}` ({duration:g} s from {start_s:g} s at {rate:g} Hz)"
+
+
 def from_record(t_s, q_I_T_wxyz, omega_T_rad_s, a_I_m_s2, name: str = "recorded") -> Trajectory:
     """The trunk trajectory through the samples (see the module docstring)."""
     t = np.asarray(t_s, float)

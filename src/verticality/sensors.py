@@ -3,7 +3,9 @@
 Every noisy reading is a pure function of a ``jax.random`` key, so runs are reproducible and
 batchable (``vmap`` over keys). Two forms are offered for each sensor:
 
-- one sample: ``gyro_step(key, bias, omega, dt, p) -> (bias, reading)`` (for closed loops);
+- one sample: ``gyro_step(key, bias, omega, dt, p) -> (bias, reading)`` (for closed loops), built
+  from ``gyro_white_noise``, ``gyro_reading`` and ``gyro_bias_step`` (a closed loop that draws its
+  random numbers in its own order, as the simulator does, calls these three);
 - a whole record: ``gyro_record(key, omega_series, dt, p) -> (readings, biases)`` (vectorised,
   the random-walk bias by a cumulative sum, no Python loop).
 
@@ -44,13 +46,29 @@ class AccelParams(NamedTuple):
 # -------------------------------------------------------------------------------------------
 
 
+def gyro_white_noise(key, shape, p: GyroParams):
+    """The gyro's white noise n ~ N(0, σ²) for readings of ``shape`` (e.g. (3,), or (n, 3) drawn at
+    once for n readings)."""
+    return p.noise_std_rad_s * jax.random.normal(key, shape)
+
+
+def gyro_reading(omega_B_rad_s, bias_rad_s, noise_rad_s):
+    """ω_m = ω_B + b + n: one reading from the true rate, the current bias and a white-noise draw."""
+    return jnp.asarray(omega_B_rad_s, float) + bias_rad_s + noise_rad_s
+
+
+def gyro_bias_step(key, bias_rad_s, dt_s, p: GyroParams):
+    """The bias random walk over ``dt_s``: b + √(q·dt) N(0, 1)."""
+    bias = jnp.asarray(bias_rad_s, float)
+    return bias + jnp.sqrt(p.bias_rw_q_rad2_s3 * dt_s) * jax.random.normal(key, bias.shape)
+
+
 def gyro_step(key, bias_rad_s, omega_B_rad_s, dt_s, p: GyroParams):
     """One gyro sample: returns (next bias, reading). The reading uses the current bias."""
     k_n, k_b = jax.random.split(key)
     omega = jnp.asarray(omega_B_rad_s, float)
-    noise = p.noise_std_rad_s * jax.random.normal(k_n, omega.shape)
-    reading = omega + bias_rad_s + noise
-    next_bias = bias_rad_s + jnp.sqrt(p.bias_rw_q_rad2_s3 * dt_s) * jax.random.normal(k_b, omega.shape)
+    reading = gyro_reading(omega, bias_rad_s, gyro_white_noise(k_n, omega.shape, p))
+    next_bias = gyro_bias_step(k_b, jnp.broadcast_to(bias_rad_s, omega.shape), dt_s, p)
     return next_bias, reading
 
 
@@ -63,8 +81,7 @@ def gyro_record(key, omega_B_rad_s, dt_s, p: GyroParams, bias0_rad_s=0.0):
     k_n, k_b = jax.random.split(key)
     steps = jnp.sqrt(p.bias_rw_q_rad2_s3 * dt_s) * jax.random.normal(k_b, omega.shape)
     bias = bias0_rad_s + jnp.concatenate([jnp.zeros_like(steps[:1]), jnp.cumsum(steps[:-1], 0)], 0)
-    noise = p.noise_std_rad_s * jax.random.normal(k_n, omega.shape)
-    return omega + bias + noise, bias
+    return gyro_reading(omega, bias, gyro_white_noise(k_n, omega.shape, p)), bias
 
 
 # -------------------------------------------------------------------------------------------

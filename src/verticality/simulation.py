@@ -11,9 +11,14 @@ One run is one jitted ``lax.scan`` over estimator ticks, with a scan over contro
 scan over plant steps inside that. Batches of runs are ``jax.vmap`` of the same function over keys,
 plant parameters and initial estimator states (:func:`simulate_batch`).
 
+The plant is a model value, :class:`verticality.models.gimbal_plant.GimbalPlant` (the head on its
+gimbal over the trunk, carrying its otolith pendula; :data:`DEFAULT_PLANT` is P13's medial plant),
+integrated as it is: its ``dynamics`` (staged RK4 with the trunk's motion at the stage times) and
+its ``project``. The sensors are :mod:`verticality.sensors`' gyro and inclinometer.
+
 Conditions (static): ``"fixed"`` — the head is rigid on the trunk (P13: ᵀR_H = I), the gimbal is
 locked at θ = 0 and no controller runs; ``"stabilized"`` — the gimbal's joint dynamics
-(:func:`verticality.models.gimbal.driven_head_motion`) under the motor torques of the controller.
+(:class:`verticality.models.gimbal.GimbalHead`) under the motor torques of the controller.
 
 Plug-in API
 -----------
@@ -24,24 +29,27 @@ Plug-in API
 
 called once per estimator tick t_k (k ≥ 1) with
 
-    u  (u_blocks, 6)   rows (a_I (3), τ_H (3)): the head centre's linear acceleration in frame I
-                       (gravity excluded) and the total torque on the head in frame H
-                       (:func:`gimbal.head_torque_total`: motors plus gimbal constraint, the torque
-                       that drives the free-head model of F 2.3), each row the exact (RK4-quadrature)
-                       mean over one of ``u_blocks`` equal sub-intervals of (t_{k−1}, t_k];
-                       with ``SimConfig(accel_frame="head")`` the acceleration rows are ᴴa
-                       (F §4.2.1's u = (ᴴτ, ᴴa)) instead of ᴵa;
+    u                  a :class:`~verticality.models.head.HeadInput` ``(τ_H, a_I)`` whose leaves
+                       have a leading axis of ``u_blocks``: the total torque on the head in frame
+                       H (``FreeHead.torque``: motors plus gimbal constraint, the torque that
+                       drives the free-head model of F 2.3) and the head centre's linear
+                       acceleration in frame I (gravity excluded), each the exact (RK4-quadrature)
+                       mean over one of ``u_blocks`` equal sub-intervals of (t_{k−1}, t_k] — the
+                       input of a ``Discretized`` model with ``u_blocks`` sub-steps; with
+                       ``SimConfig(accel_frame="head")`` a
+                       :class:`~verticality.models.otolith_head.HeadFrameInput` ``(τ_H, ᴴa)``
+                       (F §4.2.1's u = (ᴴτ, ᴴa)) instead;
     y  (2·P + 3,)      the P otolith pendulums' angles (φ_x, φ_y) of F 2.8–2.9, each with white noise
                        σ = ``noise.otolith_std_rad``, then the gyro (ω_H + bias + noise), at t_k;
     dt                 dt_estimator_s.
 
 ``verticality.estimators.ekf.medial_filter`` fits this directly::
 
-    filt = ekf.medial_filter(P13_EKF_PENDULUM, P13_EKF_HEAD)
-    est = Estimator(step=filt.step, R_I_H=lambda s: ekf.head_orientation(s.x))
-    run = make_simulator(trajectories.impact(), SimConfig(condition="stabilized"),
+    filt = ekf.medial_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, u_blocks=4)
+    est = Estimator(step=filt.step, R_I_H=lambda s: s.x.head.R_I_H)
+    run = make_simulator(trajectories.impact(), SimConfig(condition="stabilized", u_blocks=4),
                          estimator=est, controller=p13_controller())
-    result = run(key, PlantParams(), NoiseParams(), filt.init(x0, P0))
+    result = run(key, DEFAULT_PLANT, NoiseParams(), filt.init(x0, P0))
 
 ``estimator=None`` feeds the controller the true R_IH at every control tick (and the record's
 estimate is the truth).
@@ -63,6 +71,7 @@ docs/conventions.md.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -70,23 +79,20 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
+from verticality import sensors, so3
 from verticality.integrate import rk4_step_staged
-from verticality.models import gimbal, pendulum
-from verticality.models.gimbal import GimbalState
+from verticality.models import gimbal
+from verticality.models.gimbal import GimbalInput
+from verticality.models.gimbal_plant import GimbalPlant, GimbalPlantState, gimbal_plant
+from verticality.models.head import FreeHead, HeadInput
 from verticality.models.kinematics import RigidMotion
-from verticality.params import (
-    LATERAL_R_M,
-    P13_HEAD,
-    P13_KD_NMS_RAD,
-    P13_KP_NM_RAD,
-    P13_PENDULUM,
-    HeadParams,
-    PendulumParams,
-)
+from verticality.models.otolith_head import HeadFrameInput, Otoliths
+from verticality.models.pendulum import Pendulum, arm_direction_H
+from verticality.params import P13_HEAD, P13_KD_NMS_RAD, P13_KP_NM_RAD, P13_PENDULUM
 from verticality.sensors import GyroParams
 
 CONDITIONS = ("fixed", "stabilized")
+ACCEL_FRAMES = ("inertial", "head")
 
 
 class SimConfig(NamedTuple):
@@ -99,14 +105,10 @@ class SimConfig(NamedTuple):
     dt_estimator_s: float = 0.02
     u_blocks: int = 1  # sub-interval means of u handed to the estimator per tick
     record_control: bool = False  # also record the truth at every control tick
-    accel_frame: str = "inertial"  # u's acceleration rows: "inertial" (ᴵa, P13 §4) or "head" (ᴴa, F §4.2.1)
+    accel_frame: str = "inertial"  # u's acceleration: "inertial" (ᴵa, P13 §4) or "head" (ᴴa, F §4.2.1)
 
 
-class PlantParams(NamedTuple):
-    """Physical parameters of the plant (a pytree: batchable with vmap)."""
-
-    head: HeadParams = P13_HEAD
-    pendulums: tuple = (P13_PENDULUM,)  # medial by default; see lateral_pendulums()
+DEFAULT_CONFIG = SimConfig()
 
 
 class NoiseParams(NamedTuple):
@@ -116,7 +118,8 @@ class NoiseParams(NamedTuple):
     gyro: GyroParams = GyroParams(noise_std_rad_s=0.02, bias_rw_q_rad2_s3=0.0)
 
 
-DEFAULT_PARAMS = PlantParams()
+DEFAULT_PLANT = gimbal_plant(P13_HEAD, (P13_PENDULUM,))
+"""P13's plant (§5): the P13 head on the gimbal carrying one pendulum at its centre (medial)."""
 DEFAULT_NOISE = NoiseParams()
 
 
@@ -124,23 +127,11 @@ def noiseless() -> NoiseParams:
     return NoiseParams(otolith_std_rad=0.0, gyro=GyroParams(0.0, 0.0))
 
 
-def lateral_pendulums(p: PendulumParams = P13_PENDULUM, r_m: float = LATERAL_R_M) -> tuple:
-    """The lateral model's two pendulums (F 2.12): pivots at ±r along the head's y (left, right)."""
-    p = p.resolved()
-    return (p._replace(pivot_H_m=jnp.array([0.0, r_m, 0.0])),
-            p._replace(pivot_H_m=jnp.array([0.0, -r_m, 0.0])))
-
-
 class Estimator(NamedTuple):
     """Adapter for any estimator with the common API (see the module docstring)."""
 
-    step: Callable  # (state, u (u_blocks, 6), y (2P+3,), dt) -> (state, out)
+    step: Callable  # (state, u (HeadInput, leaves (u_blocks, 3)), y (2P+3,), dt) -> (state, out)
     R_I_H: Callable  # state -> (3, 3)
-
-
-class PlantState(NamedTuple):
-    gimbal: GimbalState
-    pendulums: tuple  # of PendulumState
 
 
 class Record(NamedTuple):
@@ -155,7 +146,7 @@ class Record(NamedTuple):
     thetadot_rad_s: jnp.ndarray
     otolith_rad: jnp.ndarray  # (K, P, 2) true (noise-free) otolith angles
     y: jnp.ndarray  # (K, 2P+3) the measurements handed to the estimator
-    u: jnp.ndarray  # (K, u_blocks, 6) the inputs handed to the estimator
+    u: Any  # HeadInput (or HeadFrameInput), leaves (K, u_blocks, 3): the estimator's inputs
     motor_torque_Nm: jnp.ndarray  # (K, 2) last motor torque of the interval
     estimator_out: Any  # the estimator's ``out`` pytree (None without estimator)
 
@@ -175,7 +166,7 @@ class ControlRecord(NamedTuple):
 class SimResult(NamedTuple):
     record: Record
     control: ControlRecord | None
-    final_plant: PlantState
+    final_plant: GimbalPlantState
     final_estimator: Any
 
 
@@ -210,69 +201,50 @@ def p13_controller(kp: float = P13_KP_NM_RAD, kd: float = P13_KD_NMS_RAD,
 # ----------------------------------------------------------------------------------------------
 
 
-def _head(trunk, x: GimbalState, m, head_p: HeadParams, stabilized: bool):
-    """Head motion and θ̈ for the condition."""
-    if stabilized:
-        return gimbal.driven_head_motion(x, m, trunk, head_p)
-    return gimbal.fixed(trunk), jnp.zeros(2)
+def estimator_input(head: RigidMotion, head_model: FreeHead, accel_frame: str = "inertial"):
+    """The estimator's input for the head moving as ``head`` (see the module docstring):
+    :class:`HeadInput` ``(τ_H, ᴵa)`` with τ_H the total torque on the head
+    (``head_model.torque``: motors plus gimbal constraint, the torque that drives the free-head
+    model of F 2.3 along the head's actual motion).
+
+    ``accel_frame="head"``: a :class:`HeadFrameInput` ``(τ_H, ᴴa = R_IHᵀ ᴵa)`` instead (F §4.2.1's
+    u = (ᴴτ, ᴴa), still gravity excluded); the estimator must rotate it with its own R̂_IH."""
+    return input_value(input_rows(head, head_model, accel_frame), accel_frame)
 
 
-def _plant_derivative(stabilized: bool, accel_frame: str = "inertial"):
-    def f(trunk, x: PlantState, m, params: PlantParams):
-        head, thdd = _head(trunk, x.gimbal, m, params.head, stabilized)
-        g_dot = GimbalState(x.gimbal.thetadot_rad_s, thdd) if stabilized else None
-        p_dot = tuple(pendulum.dynamics(xp, head, pp)
-                      for xp, pp in zip(x.pendulums, params.pendulums, strict=True))
-        if not stabilized:  # the head is the trunk: u is open-loop, computed outside the loop
-            return PlantState(g_dot, p_dot), jnp.zeros(0)
-        return PlantState(g_dot, p_dot), estimator_input(head, params.head, accel_frame)
-
-    return f
-
-
-def estimator_input(head, head_p: HeadParams, accel_frame: str = "inertial"):
-    """u = (a_I (3), τ_H (3)) of the head motion ``head`` (see the module docstring).
-
-    ``accel_frame="head"``: the acceleration rows are ᴴa = R_IHᵀ ᴵa instead (F §4.2.1's
-    u = (ᴴτ, ᴴa), still gravity excluded); the estimator must rotate them with its own R̂_IH.
-    """
+def input_rows(head: RigidMotion, head_model: FreeHead, accel_frame: str = "inertial"):
+    """:func:`estimator_input` as one array ``(a (3), τ_H (3))`` (the form the simulator averages
+    over its sub-intervals; :func:`input_value` makes the value of it)."""
     a = head.a_I_m_s2
     if accel_frame == "head":
         a = jnp.einsum("...ji,...j->...i", head.R_I_B, a)
     elif accel_frame != "inertial":
-        raise ValueError(f"accel_frame must be 'inertial' or 'head', not {accel_frame!r}")
-    return jnp.concatenate([a, gimbal.head_torque_total(head, head_p)], axis=-1)
+        raise ValueError(f"accel_frame must be one of {ACCEL_FRAMES}, not {accel_frame!r}")
+    return jnp.concatenate([a, head_model.torque(head.omega_B_rad_s, head.omegadot_B_rad_s2)],
+                           axis=-1)
 
 
-def _project(x: PlantState) -> PlantState:
-    return PlantState(x.gimbal, tuple(pendulum.project(p) for p in x.pendulums))
+def input_value(rows, accel_frame: str = "inertial"):
+    """The :class:`HeadInput` (or :class:`HeadFrameInput`) of rows ``(..., 6)`` of
+    :func:`input_rows`."""
+    a, tau = rows[..., :3], rows[..., 3:]
+    return HeadFrameInput(tau, a) if accel_frame == "head" else HeadInput(tau, a)
 
 
-def rk4_step_with_mean(f, inputs3, x, h, *args):
-    """:func:`integrate.rk4_step_staged` with the plant's projection onto SO(3)."""
-    return rk4_step_staged(f, inputs3, x, h, *args, project=_project)
+def initial_state(plant: GimbalPlant, trunk: RigidMotion, theta0_rad=None) -> GimbalPlantState:
+    """θ0: the upright head for the trunk at rest (``theta0_rad=None``; 0 and ignored when the plant
+    is ``fixed``), at rest relative to the trunk; pendula at rest relative to the head along the
+    gravito-inertial vertical."""
+    if theta0_rad is None and not plant.fixed:
+        theta0_rad = gimbal.joint_angles_for_up(so3.up_in_frame(trunk.R_I_B))
+    return plant.rest_state(trunk, theta0_rad)
 
 
-def initial_plant_state(traj, params: PlantParams, condition: str, theta0_rad=None) -> PlantState:
-    """θ0: the upright head for the trunk at t = 0 (``stabilized``) or 0 (``fixed``), at rest
-    relative to the trunk; pendulums at rest relative to the head along the gravito-inertial
-    vertical (:func:`pendulum.rest_state`)."""
-    trunk = traj.motion(0.0)
-    if condition == "fixed":
-        theta0 = jnp.zeros(2)
-    elif theta0_rad is None:
-        theta0 = gimbal.joint_angles_for_up(so3.up_in_frame(trunk.R_I_B))
-    else:
-        theta0 = jnp.asarray(theta0_rad, float)
-    g0 = GimbalState(theta0, jnp.zeros(2))
-    # θ̈ = 0 for the initial head kinematics (the motors hold the head at rest relative to the trunk)
-    head = gimbal.head_motion(g0, jnp.zeros(2), trunk) if condition != "fixed" else trunk
-    pends = tuple(pendulum.rest_state(head, pp) for pp in params.pendulums)
-    return PlantState(g0, pends)
-
-
-def _otolith(x: PlantState, R_I_H):
-    return jnp.stack([pendulum.otolith_angles(pendulum.R_H_S(p, R_I_H)) for p in x.pendulums])
+def with_condition(plant: GimbalPlant, condition: str) -> GimbalPlant:
+    """``plant`` in the ``condition`` of :data:`CONDITIONS` (``fixed``: head rigid on the trunk)."""
+    if condition not in CONDITIONS:
+        raise ValueError(f"condition must be one of {CONDITIONS}, not {condition!r}")
+    return dataclasses.replace(plant, fixed=condition == "fixed")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -289,10 +261,11 @@ def _ratio(a: float, b: float, what: str) -> int:
 
 def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
                    controller: Callable | None = None, theta0_rad=None) -> Callable:
-    """Build ``run(key, params, noise, estimator_state0) -> SimResult`` (jitted).
+    """Build ``run(key, plant, noise, estimator_state0) -> SimResult`` (jitted).
 
     ``traj`` is a :class:`verticality.trajectories.Trajectory` of the trunk (closed over, static).
-    Use ``jax.vmap(run)`` (or :func:`simulate_batch`) for batches.
+    ``plant`` is a :class:`GimbalPlant` value (default :data:`DEFAULT_PLANT`); ``config.condition``
+    sets its ``fixed`` switch. Use ``jax.vmap(run)`` (or :func:`simulate_batch`) for batches.
     """
     if config.condition not in CONDITIONS:
         raise ValueError(f"condition must be one of {CONDITIONS}, not {config.condition!r}")
@@ -306,77 +279,79 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
     if n_e % nb:
         raise ValueError(f"u_blocks={nb} must divide the {n_e} control ticks of an estimator tick")
     h = config.dt_plant_s
-    if config.accel_frame not in ("inertial", "head"):
-        raise ValueError(f"accel_frame must be 'inertial' or 'head', not {config.accel_frame!r}")
-    f = _plant_derivative(stabilized, config.accel_frame)
+    if config.accel_frame not in ACCEL_FRAMES:
+        raise ValueError(f"accel_frame must be one of {ACCEL_FRAMES}, not {config.accel_frame!r}")
 
-    def head_R(R_I_T, x: PlantState):
-        return R_I_T @ gimbal.Lambda(x.gimbal.theta_rad) if stabilized else R_I_T
+    def f(trunk, x: GimbalPlantState, m, plant: GimbalPlant):
+        """(ẋ, the estimator's input) for the staged RK4; the input is computed outside the loop
+        when the plant is fixed (it is open-loop)."""
+        rate, head = plant.rate_and_motion(x, GimbalInput(m, trunk))
+        if plant.fixed:
+            return rate, jnp.zeros(0)
+        return rate, input_rows(head, plant.head, config.accel_frame)
 
-    def omega_head(trunk, x: PlantState):
-        """The head's angular velocity (θ̈ does not enter ω)."""
-        if not stabilized:
-            return trunk.omega_B_rad_s
-        return (gimbal.Lambda(x.gimbal.theta_rad).T @ trunk.omega_B_rad_s
-                + gimbal.body_jacobian(x.gimbal.theta_rad) @ x.gimbal.thetadot_rad_s)
+    def plant_step(plant, inputs3, x, m):
+        return rk4_step_staged(f, inputs3, x, h, m, plant, project=plant.project)
 
-    def control_tick(carry, trunk_steps, params, t0, gyro_noise, bias):
+    def control_tick(carry, trunk_steps, plant, t0, gyro_noise, bias):
         # trunk_steps: the trunk's motion at (start, middle, end) of each of the n_c plant steps
         x, R_hat = carry
         trunk0 = jax.tree_util.tree_map(lambda a: a[0, 0], trunk_steps)
-        R_I_H = head_R(trunk0.R_I_B, x)
-        omega_true = omega_head(trunk0, x)
+        R_I_H = plant.head_orientation(x, trunk0)
+        omega_true = plant.head_angular_velocity(x, trunk0)
         if estimator is None:  # the controller sees the truth
             R_hat, omega_meas = R_I_H, omega_true
         else:  # the head's gyro at the control rate
-            omega_meas = omega_true + bias + gyro_noise
+            omega_meas = sensors.gyro_reading(omega_true, bias, gyro_noise)
         m = controller(R_hat, omega_meas, x.gimbal.theta_rad, x.gimbal.thetadot_rad_s) \
             if stabilized else jnp.zeros(2)
         locked = x.gimbal
         if not stabilized:  # the locked gimbal stays out of the integration
             x = x._replace(gimbal=None)
         if n_c == 1:  # one plant step per control tick: no inner loop (its overhead is per step)
-            x_new, u_step = rk4_step_with_mean(
-                f, jax.tree_util.tree_map(lambda a: a[0], trunk_steps), x, h, m, params)
+            x_new, u_step = plant_step(plant, jax.tree_util.tree_map(lambda a: a[0], trunk_steps),
+                                       x, m)
             u_steps = u_step[None]
         else:
-            x_new, u_steps = jax.lax.scan(
-                lambda c, w3: rk4_step_with_mean(f, w3, c, h, m, params), x, trunk_steps)
+            x_new, u_steps = jax.lax.scan(lambda c, w3: plant_step(plant, w3, c, m), x, trunk_steps)
         if not stabilized:
             x, x_new = x._replace(gimbal=locked), x_new._replace(gimbal=locked)
         rec = None
         if config.record_control:
             rec = ControlRecord(t0, R_I_H, R_hat, so3.tilt_error_deg(R_I_H, R_hat),
-                                x.gimbal.theta_rad, _otolith(x, R_I_H), m)
+                                x.gimbal.theta_rad, plant.otoliths.angles(x.pendula, R_I_H), m)
         # between estimator ticks the controller's estimate is propagated with the gyro
         R_next = so3.orthonormalize(R_hat @ so3.exp(omega_meas * (n_c * h)))
         return (x_new, R_next), (jnp.mean(u_steps, 0), m, rec)
 
-    def estimator_tick(carry, inp, params, noise, key):
+    def open_loop_input(plant, trunk_ticks):
+        """Simpson (= RK4) mean over each plant step of the fixed head's (the trunk's) input."""
+        u_stage = jax.vmap(jax.vmap(jax.vmap(
+            lambda w: input_rows(w, plant.head, config.accel_frame))))(trunk_ticks)  # (n_e, n_c, 3, 6)
+        return jnp.mean((u_stage[:, :, 0] + 4.0 * u_stage[:, :, 1] + u_stage[:, :, 2]) / 6.0, axis=1)
+
+    def estimator_tick(carry, inp, plant, noise, key):
         x, est_state, bias, R_hat = carry
         k, trunk_ticks = inp  # trunk_ticks: (n_e, n_c, 3, ...) stage motions of this interval
         t_ctrl = (k * n_e + jnp.arange(n_e)) * (n_c * h)
         k_ctrl, key_k = jax.random.split(jax.random.fold_in(key, k))
-        gyro_noise = noise.gyro.noise_std_rad_s * jax.random.normal(k_ctrl, (n_e, 3))
+        gyro_noise = sensors.gyro_white_noise(k_ctrl, (n_e, 3), noise.gyro)
         (x, _), (u_ticks, m_ticks, crec) = jax.lax.scan(
-            lambda c, a: control_tick(c, a[0], params, a[1], a[2], bias), (x, R_hat),
+            lambda c, a: control_tick(c, a[0], plant, a[1], a[2], bias), (x, R_hat),
             (trunk_ticks, t_ctrl, gyro_noise))
-        if not stabilized:  # Simpson (= RK4) mean over each plant step of the trunk's u, vectorised
-            u_stage = jax.vmap(jax.vmap(jax.vmap(lambda w: estimator_input(w, params.head, config.accel_frame))))(
-                trunk_ticks)  # (n_e, n_c, 3, 6)
-            u_ticks = jnp.mean((u_stage[:, :, 0] + 4.0 * u_stage[:, :, 1] + u_stage[:, :, 2]) / 6.0,
-                               axis=1)
-        u = jnp.mean(u_ticks.reshape(nb, n_e // nb, 6), axis=1)
+        if not stabilized:
+            u_ticks = open_loop_input(plant, trunk_ticks)
+        u = input_value(jnp.mean(u_ticks.reshape(nb, n_e // nb, 6), axis=1), config.accel_frame)
         t = (k + 1) * n_e * n_c * h
         trunk = jax.tree_util.tree_map(lambda a: a[-1, -1, 2], trunk_ticks)  # at t_{k+1}
-        R_I_H = head_R(trunk.R_I_B, x)
-        omega_H = omega_head(trunk, x)
-        phi = _otolith(x, R_I_H)
+        R_I_H = plant.head_orientation(x, trunk)
+        omega_H = plant.head_angular_velocity(x, trunk)
+        phi = plant.otoliths.angles(x.pendula, R_I_H)
         k_phi, k_gyro, k_bias = jax.random.split(key_k, 3)
-        y_phi = phi + noise.otolith_std_rad * jax.random.normal(k_phi, phi.shape)
-        y_gyro = omega_H + bias + noise.gyro.noise_std_rad_s * jax.random.normal(k_gyro, (3,))
-        bias = bias + jnp.sqrt(noise.gyro.bias_rw_q_rad2_s3 * config.dt_estimator_s) \
-            * jax.random.normal(k_bias, (3,))
+        y_phi = sensors.inclinometer(k_phi, phi, noise.otolith_std_rad)
+        y_gyro = sensors.gyro_reading(omega_H, bias,
+                                      sensors.gyro_white_noise(k_gyro, (3,), noise.gyro))
+        bias = sensors.gyro_bias_step(k_bias, bias, config.dt_estimator_s, noise.gyro)
         y = jnp.concatenate([y_phi.reshape(-1), y_gyro])
         if estimator is None:
             out = None
@@ -401,16 +376,17 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
             lambda a: jnp.stack([a[0:-1:2], a[1::2], a[2::2]], axis=1), M)
         return jax.tree_util.tree_map(lambda a: a.reshape((n_k, n_e, n_c) + a.shape[1:]), stages)
 
-    def run(key, params: PlantParams = DEFAULT_PARAMS, noise: NoiseParams = DEFAULT_NOISE,
+    def run(key, plant: GimbalPlant = DEFAULT_PLANT, noise: NoiseParams = DEFAULT_NOISE,
             estimator_state0=None, gyro_bias0_rad_s=None):
-        params = PlantParams(params.head.resolved(), tuple(p.resolved() for p in params.pendulums))
-        x0 = initial_plant_state(traj, params, config.condition, theta0_rad)
+        plant = with_condition(plant, config.condition)
+        trunk0 = traj.motion(0.0)
+        x0 = initial_state(plant, trunk0, theta0_rad)
         bias0 = jnp.zeros(3) if gyro_bias0_rad_s is None else jnp.asarray(gyro_bias0_rad_s, float)
-        R_hat0 = head_R(traj.motion(0.0).R_I_B, x0)
+        R_hat0 = plant.head_orientation(x0, trunk0)
         if estimator is not None:
             R_hat0 = estimator.R_I_H(estimator_state0)
         (x, est, _, _), (rec, crec) = jax.lax.scan(
-            lambda c, inp: estimator_tick(c, inp, params, noise, key),
+            lambda c, inp: estimator_tick(c, inp, plant, noise, key),
             (x0, estimator_state0, bias0, R_hat0), (jnp.arange(n_k), trunk_stages()))
         if crec is not None:
             crec = jax.tree_util.tree_map(lambda a: a.reshape((-1,) + a.shape[2:]), crec)
@@ -419,24 +395,25 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
     return jax.jit(run)
 
 
-def simulate(traj, config: SimConfig, key=None, params: PlantParams = DEFAULT_PARAMS,
+def simulate(traj, config: SimConfig, key=None, plant: GimbalPlant = DEFAULT_PLANT,
              noise: NoiseParams = DEFAULT_NOISE, estimator: Estimator | None = None,
              estimator_state0=None, controller: Callable | None = None) -> SimResult:
     """One run (builds, compiles and runs; keep :func:`make_simulator`'s ``run`` to reuse it)."""
     key = jax.random.PRNGKey(0) if key is None else key
     run = make_simulator(traj, config, estimator, controller)
-    return run(key, params, noise, estimator_state0)
+    return run(key, plant, noise, estimator_state0)
 
 
-def simulate_batch(run: Callable, keys, params: PlantParams = DEFAULT_PARAMS,
+def simulate_batch(run: Callable, keys, plant: GimbalPlant = DEFAULT_PLANT,
                    noise: NoiseParams = DEFAULT_NOISE, estimator_states0=None,
-                   batched_params: bool = False, batched_estimator: bool = False,
+                   batched_plant: bool = False, batched_estimator: bool = False,
                    batched_noise: bool = False) -> SimResult:
     """``jax.vmap`` of a :func:`make_simulator` ``run`` over ``keys`` (B, 2) and, optionally, over a
-    leading batch axis of ``params``, of ``noise`` and of the initial estimator states."""
-    in_axes = (0, 0 if batched_params else None, 0 if batched_noise else None,
+    leading batch axis of the plant's parameters, of ``noise`` and of the initial estimator
+    states."""
+    in_axes = (0, 0 if batched_plant else None, 0 if batched_noise else None,
                0 if batched_estimator else None)
-    return jax.jit(jax.vmap(run, in_axes=in_axes))(keys, params, noise, estimator_states0)
+    return jax.jit(jax.vmap(run, in_axes=in_axes))(keys, plant, noise, estimator_states0)
 
 
 def tilt_metrics(record: Record, t_min_s: float = 2.0) -> dict:
@@ -456,7 +433,7 @@ def _lerp(a, b, f):
     return a + f * (b - a)
 
 
-def _replay_chunk(pendulums: tuple, x0: tuple, rows, xs):
+def _replay_chunk(otoliths: Otoliths, x0: tuple, rows, xs):
     """RK4 over a chunk of sub-steps; inputs interpolated linearly between rows (the quaternion
     interpolated then normalized, ω̇ the slope of ω). Returns the states and (s_H, φ) after each."""
     t_rows, q_rows, w_rows, a_rows = rows
@@ -469,40 +446,34 @@ def _replay_chunk(pendulums: tuple, x0: tuple, rows, xs):
                            omegadot_B_rad_s2=(w_rows[i + 1] - w_rows[i]) / dt,
                            a_I_m_s2=_lerp(a_rows[i], a_rows[i + 1], f))
 
-    def f(head, x, _m, _p):
-        return tuple(pendulum.dynamics(xp, head, pp) for xp, pp in zip(x, pendulums, strict=True)), \
-            jnp.zeros(0)
+    def rate(head, x):
+        return otoliths.dynamics(x, head), None
 
     def body(x, inp):
         i, f0, fh, h = inp
         heads = jax.tree_util.tree_map(lambda *a: jnp.stack(a),
                                        head_at(i, f0), head_at(i, f0 + 0.5 * fh), head_at(i, f0 + fh))
-        x_new, _ = _rk4_generic(f, heads, x, h)
+        x_new, _ = rk4_step_staged(rate, heads, x, h, project=otoliths.project)
         R_I_H = heads.R_I_B[2]
-        s = jnp.stack([pendulum.arm_direction_H(xp, R_I_H) for xp in x_new])
-        phi = jnp.stack([pendulum.otolith_angles(pendulum.R_H_S(xp, R_I_H)) for xp in x_new])
-        return x_new, (s, phi)
+        s = jnp.stack([arm_direction_H(xp, R_I_H) for xp in x_new])
+        return x_new, (s, otoliths.angles(x_new, R_I_H))
 
     return jax.lax.scan(body, x0, xs)
-
-
-def _rk4_generic(f, inputs3, x, h):
-    return rk4_step_staged(lambda w, xs: (f(w, xs, None, None)[0], None), inputs3, x, h,
-                           project=lambda xs: tuple(pendulum.project(p) for p in xs))
 
 
 _replay_chunk_jit = jax.jit(_replay_chunk)
 
 
-def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendulums: tuple,
+def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendula: tuple[Pendulum, ...],
                    max_substep_s: float = 1e-3, chunk: int = 8192, progress=None):
     """What the otolith pendulum(s) report for a recorded head motion.
 
     Between rows the inputs are interpolated linearly (the quaternion then normalized; ω̇ is the
     slope of ω over the interval) and integrated by RK4 with ⌈Δt / max_substep_s⌉ equal sub-steps.
     The pendulums start at rest relative to the head, along the gravito-inertial vertical of the
-    first row (:func:`pendulum.rest_state`). Returns ``s_H`` (N, P, 3) and ``φ`` (N, P, 2) on the
-    rows. ``progress(done, total)`` is called after each chunk of sub-steps.
+    first row (:meth:`Pendulum.rest_state`). ``pendula``: the :class:`Pendulum` values (one for
+    the medial model; :func:`verticality.params.lateral_pendulums` for the lateral one). Returns
+    ``s_H`` (N, P, 3) and ``φ`` (N, P, 2) on the rows. ``progress(done, total)`` is called after each chunk of sub-steps.
     """
     t = np.asarray(t_s, float)
     q = np.array(q_I_H_wxyz, float)
@@ -511,7 +482,7 @@ def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendulums: tuple,
             q[i] = -q[i]
     w = np.asarray(omega_H_rad_s, float)
     a = np.asarray(a_I_m_s2, float)
-    pendulums = tuple(p.resolved() for p in pendulums)
+    otoliths = Otoliths(tuple(pendula))
     n_rows = t.size
     dt = np.diff(t)
     n_sub = np.maximum(np.ceil(dt / max_substep_s - 1e-9).astype(int), 1)
@@ -530,14 +501,13 @@ def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendulums: tuple,
     w_dot0 = (w[1] - w[0]) / dt[0] if n_rows > 1 else np.zeros(3)
     R0 = so3.matrix_from_quat(jnp.asarray(q[0]))
     head0 = RigidMotion(R0, jnp.asarray(w[0]), jnp.asarray(w_dot0), jnp.asarray(a[0]))
-    x = tuple(pendulum.rest_state(head0, p) for p in pendulums)
-    s_out = [np.stack([np.asarray(pendulum.arm_direction_H(xp, R0)) for xp in x])[None]]
-    phi_out = [np.stack([np.asarray(pendulum.otolith_angles(pendulum.R_H_S(xp, R0)))
-                         for xp in x])[None]]
+    x = otoliths.rest_state(head0)
+    s_out = [np.stack([np.asarray(arm_direction_H(xp, R0)) for xp in x])[None]]
+    phi_out = [np.asarray(otoliths.angles(x, R0))[None]]
     n_chunks = (total + pad) // chunk
     for c in range(n_chunks):
         sl = slice(c * chunk, (c + 1) * chunk)
-        x, (s_c, phi_c) = _replay_chunk_jit(pendulums, x, rows, tuple(jnp.asarray(v[sl]) for v in xs))
+        x, (s_c, phi_c) = _replay_chunk_jit(otoliths, x, rows, tuple(jnp.asarray(v[sl]) for v in xs))
         s_out.append(np.asarray(s_c))
         phi_out.append(np.asarray(phi_c))
         if progress is not None:

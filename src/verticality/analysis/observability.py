@@ -1,26 +1,37 @@
-"""Local (generic-rank) observability and identifiability of analytic models ẋ = f(x, u, θ), y = h(x, u, θ).
+"""Local (generic-rank) observability and identifiability of a model value.
+
+The model is a value of :mod:`verticality.models` (``dynamics(x, u)``, ``output(x, u)``, ``retract``,
+``difference``), consumed unchanged. Around it a :class:`Problem` declares what the test needs and
+the model does not know:
+
+- the *unknown constants* ``θ`` (parameters, constant unknown inputs), states with ``θ̇ = 0``;
+- the *known inputs* ``u``, which enter with their time derivatives ``u, u̇, ü, …`` as free variables;
+- how they reach the model: ``input_map(x, u, θ)`` gives the model's input (state feedback is
+  written here: an input that depends on ``x``), ``parameter_map(model, θ)`` puts unknown
+  parameters into the model value (its leaves), ``output(model, x, u)`` replaces the model's
+  output when another reading of the same state is studied;
+- the *quantities* ``q(x, θ)`` whose observability is asked.
 
 The test (Hermann & Krener 1977; the algebraic form used by Sedoglavic, F §3.1.2) asks whether the
 differentials of the outputs and of their time derivatives, ``d y, d ẏ, …, d y^(k)``, span the
-differential of a quantity of interest ``q(x, θ)``. Along a solution, ``y^(k)`` is the k-th Lie
-derivative of ``h`` along the extended vector field in which
-
-- the *state* ``x`` follows ``f`` (state feedback is simply part of ``f``),
-- the *unknown constants* ``θ`` (parameters, constant unknown inputs) are states with ``θ̇ = 0``,
-- the *known inputs* ``u`` enter with their time derivatives ``u, u̇, ü, …`` as free variables.
+differential of ``q``. Along a solution, ``y^(k)`` is the k-th Lie derivative of the output along
+the extended vector field (state, unknown constants, input chain).
 
 How it is computed. Instead of building the Lie derivatives symbolically, the output derivatives at
-a point are obtained in Taylor mode (``jax.experimental.jet``): the Taylor coefficients of the
-solution ``x(t)`` are generated order by order (``x^(k+1) = [f(x(t), u(t))]^(k)``), the input's
-derivatives being random numbers, and ``y^(0..K)`` follow from one more ``jet`` of ``h``. The
-observability matrix ``O_K = ∂(y, …, y^(K)) / ∂z`` is the forward-mode Jacobian (``jax.jacfwd``) of that
-map with respect to local coordinates ``z`` of the (extended) state. The cost is polynomial in K,
-where nested ``jvp`` would be exponential.
+a point are obtained in Taylor mode: the Taylor coefficients of the solution ``x(t)`` are generated
+order by order (``x^(k+1) = [f(x(t), u(t))]^(k)``), the input's derivatives being random numbers,
+and ``y^(0..K)`` follow from one more Taylor expansion of the output. The observability matrix
+``O_K = ∂(y, …, y^(K)) / ∂z`` is the forward-mode Jacobian (``jax.jacfwd``) of that map with respect
+to local coordinates ``z`` of the (extended) state. The cost is polynomial in K, where nested
+``jvp`` would be exponential.
 
-Manifolds. A state declared ``"so3"`` is a rotation matrix; its local coordinates are
-``R = R₀ exp(hat(δ))`` (δ ∈ R³, differentiated at δ = 0), so the rank is taken on the tangent space of
-SO(3) and the orthonormality constraint is respected. ``chart="ambient"`` instead treats the nine
-entries as free variables (no orthonormality) and evaluates at random *generic* matrices: the
+Charts. The state's leaves, flattened (``ravel_pytree``), followed by the unknown constants, are the
+*ambient* vector in which the solution's Taylor series is computed. ``chart="tangent"`` (default)
+takes the local coordinates from the model: ``z ↦ model.retract(x₀, z)`` (for a rotation matrix
+``R₀ exp(hat δ)``, so the rank is taken on the tangent space of SO(3) and orthonormality is
+respected), the unknowns ``θ₀ + z``. ``chart="ambient"`` treats every leaf entry as a free variable
+and evaluates at *generic* points: the entries of a leaf that the retraction constrains (fewer
+tangent directions than entries, e.g. a rotation matrix) are moved off the manifold at random — the
 formulation of a rational-model tool given rotation-matrix entries as states.
 
 Rank. Rows are normalised (the row space does not change), then the numerical rank is the number
@@ -38,7 +49,7 @@ of states (e.g. at an equilibrium) is not seen.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -47,13 +58,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax.experimental.jet import jet
 
-from verticality import so3
 from verticality.analysis.observability_taylor import taylor
 from verticality.errors import InputError
 
-SO3 = "so3"
 DEFAULT_RTOL = 1e-8
 DEFAULT_QTOL = 1e-6
+AMBIENT_SPREAD = 0.5
+"""Standard deviation of the random entries added to a constrained leaf in the ambient chart."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -63,130 +74,223 @@ DEFAULT_QTOL = 1e-6
 
 @dataclass(frozen=True)
 class Problem:
-    """An observability problem.
+    """An observability problem around one model value (see the module docstring).
 
-    ``f(x, u, theta) -> dict`` (same keys as ``x``) and ``h(x, u, theta) -> (p,)`` take dicts of arrays:
-    ``x`` the states (``states`` maps each name to a shape tuple or to ``"so3"`` for a rotation
-    matrix), ``theta`` the unknown constants (``unknowns``: name → shape), ``u`` the known inputs
-    (``inputs``: name → shape). ``quantities`` maps a name to ``q(x, theta) -> array``, the functions
-    whose observability is asked (each unknown constant is added automatically as ``"theta:<name>"``).
-    ``sample(rng)`` optionally draws a point ``(x, theta)`` (NumPy arrays) from a
-    ``numpy.random.Generator`` (default: uniform random rotations, standard-normal vectors).
+    ``model``: a model value (``dynamics(x, u)``, ``output(x, u)``, ``retract(x, dx)``,
+    ``difference(x1, x0)``). ``state``: an example state, which fixes the state's pytree structure
+    and shapes. ``unknowns``: name → shape of the unknown constants ``θ`` (a dict of arrays).
+    ``inputs``: name → shape of the known inputs ``u`` (a dict of arrays).
+    ``input_map(x, u, θ)``: the model's input (default: the dict ``u``).
+    ``parameter_map(model, θ)``: the model with its unknown parameters put in (default: the model).
+    ``output(model, x, u_model)``: the measured output (default: ``model.output(x, u_model)``).
+    ``quantities``: name → ``q(x, θ)``, the functions whose observability is asked (each unknown
+    constant is added automatically as ``"theta:<name>"``). ``sample(rng)`` draws a point ``(x, θ)``
+    from a ``numpy.random.Generator`` (default: standard-normal leaves, for states on a vector
+    space; a model on a manifold gives its own). ``leaf_names``: a name per leaf of the state, in
+    flattening order, for the coordinate labels (default: the leaves' pytree paths).
+    ``input_scale``: standard deviation of the inputs' random Taylor coefficients.
     """
 
-    f: Callable[[dict, dict, dict], dict]
-    h: Callable[[dict, dict, dict], Any]
-    states: Mapping[str, Any]
+    model: Any
+    state: Any
     unknowns: Mapping[str, tuple] = field(default_factory=dict)
     inputs: Mapping[str, tuple] = field(default_factory=dict)
-    quantities: Mapping[str, Callable[[dict, dict], Any]] = field(default_factory=dict)
-    sample: Callable[[np.random.Generator], tuple[dict, dict]] | None = None
+    input_map: Callable[[Any, dict, dict], Any] | None = None
+    parameter_map: Callable[[Any, dict], Any] | None = None
+    output: Callable[[Any, Any, Any], Any] | None = None
+    quantities: Mapping[str, Callable[[Any, dict], Any]] = field(default_factory=dict)
+    sample: Callable[[np.random.Generator], tuple[Any, dict]] | None = None
+    leaf_names: Sequence[str] | None = None
     input_scale: float = 1.0
 
     def __post_init__(self):
-        for name, spec in self.states.items():
-            if not (spec == SO3 or isinstance(spec, tuple)):
-                raise InputError(f"state {name!r}: shape tuple or 'so3' expected, got {spec!r}")
-        clash = set(self.states) & set(self.unknowns)
-        if clash:
-            raise InputError(f"names used both as state and unknown: {sorted(clash)}")
+        for part in ("dynamics", "output", "retract", "difference"):
+            if not callable(getattr(self.model, part, None)):
+                raise InputError(f"model: a model value with {part}() expected, got "
+                                 f"{type(self.model).__name__}")
+        for kind, specs in (("unknown", self.unknowns), ("input", self.inputs)):
+            for name, shape in specs.items():
+                if not (isinstance(shape, tuple) and all(isinstance(n, int) for n in shape)):
+                    raise InputError(f"{kind} {name!r}: a shape tuple expected, got {shape!r}")
+        n_leaves = len(jax.tree_util.tree_leaves(self.state))
+        if self.leaf_names is not None and len(self.leaf_names) != n_leaves:
+            raise InputError(f"leaf_names: {n_leaves} names expected (one per leaf of the state), "
+                             f"got {len(self.leaf_names)}")
+
+    def model_for(self, theta: dict):
+        """The model value with the unknown constants ``theta`` put in."""
+        return self.model if self.parameter_map is None else self.parameter_map(self.model, theta)
+
+    def model_input(self, x, u: dict, theta: dict):
+        return u if self.input_map is None else self.input_map(x, u, theta)
+
+    def vector_field(self, x, u: dict, theta: dict):
+        """``ẋ`` of the state (same pytree structure as ``x``)."""
+        return self.model_for(theta).dynamics(x, self.model_input(x, u, theta))
+
+    def measurement(self, x, u: dict, theta: dict):
+        """The measured output, a flat array."""
+        model = self.model_for(theta)
+        um = self.model_input(x, u, theta)
+        y = model.output(x, um) if self.output is None else self.output(model, x, um)
+        return jnp.ravel(jnp.asarray(y, dtype=jnp.float64))
 
 
-def _shape(spec):
-    return (3, 3) if spec == SO3 else tuple(spec)
+def flat(tree):
+    """The leaves of ``tree`` ravelled and concatenated (``ravel_pytree``'s order)."""
+    return jnp.concatenate([jnp.ravel(leaf) for leaf in jax.tree_util.tree_leaves(tree)])
 
 
-class _Layout:
-    """Flat ambient vector X = [states..., unknowns...] and the local coordinates z."""
+def _size(shape) -> int:
+    return int(np.prod(shape)) if shape else 1
+
+
+def _path_name(path) -> str:
+    parts = []
+    for key in path:
+        for attr in ("name", "key", "idx"):
+            if hasattr(key, attr):
+                parts.append(str(getattr(key, attr)))
+                break
+    return ".".join(parts) or "x"
+
+
+def _entry_labels(name: str, shape) -> list[str]:
+    if not shape:
+        return [name]
+    return [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
+
+
+class Layout:
+    """The ambient vector ``X = [state leaves (ravelled)…, unknowns…]`` and the coordinates ``z``.
+
+    Built from the problem's example state: which tangent coordinates move which leaf is read from
+    the Jacobian of ``z ↦ ravel(model.retract(state, z))`` at ``z = 0`` (each tangent column is
+    given to the leaf it moves most), so labels and the ambient chart's constrained leaves come from
+    the model's own retraction.
+    """
 
     def __init__(self, problem: Problem, chart: str):
         if chart not in ("tangent", "ambient"):
             raise InputError(f"chart must be 'tangent' or 'ambient', got {chart!r}")
         self.chart = chart
-        self.blocks = []  # (name, kind, shape, ambient slice, coordinate slice)
-        a = c = 0
-        for name, spec in list(problem.states.items()) + [
-            (k, tuple(v)) for k, v in problem.unknowns.items()
-        ]:
-            shape = _shape(spec)
-            size = int(np.prod(shape)) if shape else 1
-            kind = SO3 if spec == SO3 else "vector"
-            dim = 3 if (kind == SO3 and chart == "tangent") else size
-            self.blocks.append((name, kind, shape, slice(a, a + size), slice(c, c + dim)))
-            a += size
-            c += dim
-        self.n_ambient, self.n_coords = a, c
-        self.n_states = len(problem.states)
+        self.problem = problem
+        state = jax.tree_util.tree_map(lambda a: jnp.asarray(a, dtype=jnp.float64), problem.state)
+        paths_leaves, self.treedef = jax.tree_util.tree_flatten_with_path(state)
+        names = (list(problem.leaf_names) if problem.leaf_names is not None
+                 else [_path_name(p) for p, _ in paths_leaves])
+        shapes = [tuple(np.shape(leaf)) for _, leaf in paths_leaves]
+        starts = np.cumsum([0] + [_size(s) for s in shapes])
+        self.n_state = int(starts[-1])
+        self.n_tangent = n_t = int(np.size(jax.eval_shape(problem.model.difference, state, state)))
+        self._retract_jacobian = jax.jit(lambda x: jax.jacfwd(
+            lambda z: flat(problem.model.retract(x, z)))(jnp.zeros(n_t)))
+        J = np.asarray(self._retract_jacobian(state))
+        owner = [int(np.argmax([np.linalg.norm(J[starts[i]:starts[i + 1], j])
+                                for i in range(len(shapes))])) for j in range(self.n_tangent)]
+        # leaves: (name, shape, ambient slice, tangent column indices)
+        self.leaves = [(names[i], shapes[i], slice(int(starts[i]), int(starts[i + 1])),
+                        [j for j in range(self.n_tangent) if owner[j] == i])
+                       for i in range(len(shapes))]
+        self.constrained = [len(cols) < _size(shape) for _, shape, _, cols in self.leaves]
+        self.unknown_blocks = []  # (name, shape, ambient slice)
+        a = self.n_state
+        for name, shape in problem.unknowns.items():
+            self.unknown_blocks.append((name, tuple(shape), slice(a, a + _size(shape))))
+            a += _size(shape)
+        self.n_ambient = a
+        n_x = self.n_tangent if chart == "tangent" else self.n_state
+        self.unknown_coords = {name: slice(n_x + s.start - self.n_state, n_x + s.stop - self.n_state)
+                               for name, _, s in self.unknown_blocks}
+        self.n_coords = n_x + a - self.n_state
         self.input_blocks = []
         b = 0
         for name, shape in problem.inputs.items():
-            shape = tuple(shape)
-            size = int(np.prod(shape)) if shape else 1
-            self.input_blocks.append((name, shape, slice(b, b + size)))
-            b += size
+            self.input_blocks.append((name, tuple(shape), slice(b, b + _size(shape))))
+            b += _size(shape)
         self.n_inputs = b
 
     def coordinate_labels(self) -> list[str]:
-        labels = []
-        for name, kind, shape, _, cs in self.blocks:
-            n = cs.stop - cs.start
-            if kind == SO3 and self.chart == "tangent":
-                labels += [f"{name}.δ{ax}" for ax in "xyz"]
-            elif n == 1 and not shape:
-                labels.append(name)
+        labels = [""] * (self.n_tangent if self.chart == "tangent" else self.n_state)
+        for name, shape, amb, cols in self.leaves:
+            if self.chart == "ambient":
+                labels[amb] = _entry_labels(name, shape)
+            elif len(cols) == _size(shape):
+                for j, lab in zip(cols, _entry_labels(name, shape), strict=True):
+                    labels[j] = lab
             else:
-                labels += [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
+                axes = "xyz" if len(cols) == 3 else [str(k) for k in range(len(cols))]
+                for j, ax in zip(cols, axes, strict=True):
+                    labels[j] = f"{name}.δ{ax}"
+        for name, shape, _ in self.unknown_blocks:
+            labels += _entry_labels(name, shape)
         return labels
 
-    def unpack(self, X) -> tuple[dict, dict]:
-        x, th = {}, {}
-        for i, (name, _, shape, s, _) in enumerate(self.blocks):
-            (x if i < self.n_states else th)[name] = X[s].reshape(shape)
+    def unpack(self, X) -> tuple[Any, dict]:
+        """``(x, θ)`` from an ambient vector (NumPy or JAX)."""
+        x = jax.tree_util.tree_unflatten(self.treedef, [X[s].reshape(shape)
+                                                        for _, shape, s, _ in self.leaves])
+        th = {name: X[s].reshape(shape) for name, shape, s in self.unknown_blocks}
         return x, th
 
-    def pack(self, x: Mapping, th: Mapping):
-        parts = []
-        for i, (name, _, _, _, _) in enumerate(self.blocks):
-            v = x[name] if i < self.n_states else th[name]
-            parts.append(jnp.ravel(jnp.asarray(v, dtype=jnp.float64)))
-        return jnp.concatenate(parts) if parts else jnp.zeros(0)
+    def pack(self, x, th: Mapping, xp=jnp):
+        """The ambient vector of ``(x, θ)`` (``xp``: ``jax.numpy``, or ``numpy`` on the host)."""
+        parts = [xp.ravel(xp.asarray(leaf, dtype=xp.float64))
+                 for leaf in jax.tree_util.tree_leaves(x)]
+        parts += [xp.ravel(xp.asarray(th[name], dtype=xp.float64))
+                  for name, _, _ in self.unknown_blocks]
+        return xp.concatenate(parts)
 
     def unpack_u(self, U) -> dict:
         return {name: U[s].reshape(shape) for name, shape, s in self.input_blocks}
 
     def chart_map(self, X0):
-        """z ↦ X: R = R₀ exp(hat δ) for SO(3) blocks in the tangent chart, X₀ + z otherwise."""
+        """z ↦ X: the model's retraction of the state and ``θ₀ + z`` (tangent chart); ``X₀ + z``
+        (ambient chart)."""
+        if self.chart == "ambient":
+            return lambda z: X0 + z
+        x0 = self.unpack(X0)[0]
+        model = self.problem.model
 
         def phi(z):
-            parts = []
-            for _, kind, _shp, s, cs in self.blocks:
-                if kind == SO3 and self.chart == "tangent":
-                    R = X0[s].reshape(3, 3) @ so3.exp(z[cs])
-                    parts.append(R.ravel())
-                else:
-                    parts.append(X0[s] + z[cs])
-            return jnp.concatenate(parts)
+            x = model.retract(x0, z[: self.n_tangent])
+            return jnp.concatenate([flat(x), X0[self.n_state:] + z[self.n_tangent:]])
 
         return phi
 
+    def chart_jacobian(self, X0) -> np.ndarray:
+        """``∂X/∂z`` of :meth:`chart_map` at ``z = 0`` (n_ambient × n_coords)."""
+        if self.chart == "ambient":
+            return np.eye(self.n_ambient)
+        J = np.zeros((self.n_ambient, self.n_coords))
+        J[: self.n_state, : self.n_tangent] = np.asarray(self._retract_jacobian(self.unpack(X0)[0]))
+        J[self.n_state:, self.n_tangent:] = np.eye(self.n_ambient - self.n_state)
+        return J
+
+    def coordinate_mask(self, names) -> np.ndarray:
+        """Boolean mask of the coordinates of the unknown constants ``names``."""
+        mask = np.zeros(self.n_coords, dtype=bool)
+        for name in names:
+            mask[self.unknown_coords[name]] = True
+        return mask
 
 # ---------------------------------------------------------------------------------------------
 # Output derivatives in Taylor mode
 # ---------------------------------------------------------------------------------------------
 
 
-def _flat_fields(problem: Problem, lay: _Layout):
+def flat_fields(problem: Problem, lay: Layout):
+    """``(F, H)`` on the ambient vector: ``Ẋ = F(X, U)`` (the unknowns' rows zero), ``y = H(X, U)``
+    with ``U`` the flat known inputs."""
+
     def F(X, U):
         x, th = lay.unpack(X)
-        u = lay.unpack_u(U)
-        dx = problem.f(x, u, th)
-        parts = [jnp.ravel(jnp.asarray(dx[name], dtype=jnp.float64)) for name in problem.states]
-        parts.append(jnp.zeros(lay.n_ambient - sum(p.size for p in parts)))
-        return jnp.concatenate(parts)
+        dx = flat(problem.vector_field(x, lay.unpack_u(U), th))
+        return jnp.concatenate([dx, jnp.zeros(lay.n_ambient - lay.n_state, dtype=dx.dtype)])
 
     def H(X, U):
         x, th = lay.unpack(X)
-        return jnp.ravel(jnp.asarray(problem.h(x, lay.unpack_u(U), th), dtype=jnp.float64))
+        return problem.measurement(x, lay.unpack_u(U), th)
 
     return F, H
 
@@ -275,7 +379,7 @@ class ObservabilityResult:
     rtol: float
     qtol: float
     stalled: bool = True  # the rank did not grow at the last order used (saturation reached)
-    point: tuple[dict, dict] | None = None  # (x, theta) of the point whose null space is reported
+    point: tuple[Any, dict] | None = None  # (x, theta) of the point whose null space is reported
 
     def in_null_space(self, v, tol: float = 1e-6) -> bool:
         """Whether the direction ``v`` (in the coordinates ``labels``) is unobservable."""
@@ -368,24 +472,35 @@ def random_rotation(rng: np.random.Generator) -> np.ndarray:
     ])
 
 
-def default_sample(problem: Problem, rng: np.random.Generator) -> tuple[dict, dict]:
-    """Random rotations for SO(3) states, standard normal entries otherwise."""
-    x = {name: random_rotation(rng) if spec == SO3 else rng.standard_normal(_shape(spec))
-         for name, spec in problem.states.items()}
+def default_sample(problem: Problem, rng: np.random.Generator) -> tuple[Any, dict]:
+    """Standard-normal entries for every leaf of the state, then for every unknown constant."""
+    x = jax.tree_util.tree_map(lambda a: rng.standard_normal(np.shape(a)), problem.state)
     th = {name: rng.standard_normal(tuple(shape)) for name, shape in problem.unknowns.items()}
     return x, th
+
+
+_LAYOUTS: dict = {}
+
+
+def layout(problem: Problem, chart: str = "tangent") -> Layout:
+    """The coordinates of ``problem`` in ``chart`` (cached per problem and chart)."""
+    key = (id(problem), chart)
+    hit = _LAYOUTS.get(key)
+    if hit is None or hit[0] is not problem:
+        hit = _LAYOUTS[key] = (problem, Layout(problem, chart))
+    return hit[1]
 
 
 _COMPILED: dict = {}
 
 
-def _compiled(problem: Problem, lay: _Layout, order: int):
+def _compiled(problem: Problem, lay: Layout, order: int):
     """jit(vmap(point ↦ (O, {q: ∂q/∂z}))), cached per (problem, order, chart)."""
     key = (id(problem), order, lay.chart)
     hit = _COMPILED.get(key)
     if hit is not None and hit[0] is problem:
         return hit[1]
-    F, H = _flat_fields(problem, lay)
+    F, H = flat_fields(problem, lay)
 
     def one(X0, U):
         phi = lay.chart_map(X0)
@@ -422,34 +537,33 @@ def observability_matrix(problem: Problem, order: int, *, chart: str = "tangent"
     for name in zero_inputs:
         if name not in problem.inputs:
             raise InputError(f"zero_inputs: {name!r} is not an input of the problem")
-    lay = _Layout(problem, chart)
+    lay = layout(problem, chart)
     rng = np.random.default_rng(seed)
     X0s, Us = [], []
     for _ in range(points):
         x, th = (problem.sample or (lambda r: default_sample(problem, r)))(rng)
-        x = {k: np.asarray(v, dtype=float) for k, v in x.items()}
-        for name, spec in problem.states.items():
-            if spec == SO3 and chart == "ambient":  # a generic (non-orthogonal) matrix
-                x[name] = x[name] + 0.5 * rng.standard_normal((3, 3))
-        th = {k: np.broadcast_to(np.asarray(fixed.get(k, v), dtype=float), problem.unknowns[k])
-              for k, v in th.items()}
-        X0s.append(np.asarray(lay.pack(x, th)))
+        X = lay.pack(x, th, xp=np)
+        if chart == "ambient":  # constrained leaves (rotation matrices): a generic point off them
+            for (_, shape, s, _), constrained in zip(lay.leaves, lay.constrained, strict=True):
+                if constrained:
+                    X[s] += AMBIENT_SPREAD * rng.standard_normal(shape).ravel()
+        for name, shape, s in lay.unknown_blocks:
+            if name in fixed:
+                X[s] = np.broadcast_to(np.asarray(fixed[name], dtype=float), shape).ravel()
+        X0s.append(X)
         U = problem.input_scale * rng.standard_normal((order + 1, lay.n_inputs))
         for name, _, sl in lay.input_blocks:
             if name in zero_inputs:
                 U[:, sl] = 0.0
         Us.append(U)
     O, grads = _compiled(problem, lay, order)(jnp.asarray(np.stack(X0s)), jnp.asarray(np.stack(Us)))
-    keep = np.ones(lay.n_coords, dtype=bool)
-    for name, _, _, _, cs in lay.blocks:
-        if name in fixed:
-            keep[cs] = False
+    keep = ~lay.coordinate_mask(fixed)
     return (np.asarray(O), {k: np.asarray(v) for k, v in grads.items()}, lay, keep,
             np.stack(X0s))
 
 
-def _n_outputs(problem: Problem, lay: _Layout) -> int:
-    F, H = _flat_fields(problem, lay)
+def _n_outputs(problem: Problem, lay: Layout) -> int:
+    _, H = flat_fields(problem, lay)
     X = jax.ShapeDtypeStruct((lay.n_ambient,), jnp.float64)
     U = jax.ShapeDtypeStruct((lay.n_inputs,), jnp.float64)
     return int(jax.eval_shape(H, X, U).shape[0])
@@ -469,7 +583,7 @@ def analyze(problem: Problem, *, order: int | None = None, chart: str = "tangent
     compiled problem serve several cases.
     """
     fixed = dict(fixed or {})
-    lay = _Layout(problem, chart)
+    lay = layout(problem, chart)
     auto = order is None
     if auto:
         p_out = _n_outputs(problem, lay)
@@ -478,8 +592,8 @@ def analyze(problem: Problem, *, order: int | None = None, chart: str = "tangent
         raise InputError(f"order must be >= 0, got {order}")
     while True:
         O, grads, lay, keep, X0s = observability_matrix(problem, order, chart=chart, seed=seed,
-                                                   points=points, fixed=fixed,
-                                                   zero_inputs=zero_inputs)
+                                                        points=points, fixed=fixed,
+                                                        zero_inputs=zero_inputs)
         O = O[..., keep]
         n = int(keep.sum())
         last = [numerical_rank(O[i].reshape(-1, n), rtol)[0] for i in range(points)]
@@ -512,9 +626,9 @@ def analyze(problem: Problem, *, order: int | None = None, chart: str = "tangent
     for name in problem.unknowns:
         if name in fixed:
             continue
-        blk = [b for b in lay.blocks if b[0] == name][0]
-        G = np.zeros((blk[4].stop - blk[4].start, lay.n_coords))
-        G[:, blk[4]] = np.eye(G.shape[0])
+        cs = lay.unknown_coords[name]
+        G = np.zeros((cs.stop - cs.start, lay.n_coords))
+        G[:, cs] = np.eye(G.shape[0])
         qgrads[f"theta:{name}"] = np.broadcast_to(G[:, keep], (points,) + G[:, keep].shape)
     quantities: dict[str, QuantityResult] = {}
     for qname, G in qgrads.items():
@@ -528,5 +642,55 @@ def analyze(problem: Problem, *, order: int | None = None, chart: str = "tangent
         singular_values=svals[best[0]], null_space=nulls[best[0]], quantities=quantities,
         chart=chart, rtol=rtol, qtol=qtol, stalled=rank_by_order[-1] == rank_by_order[-2]
         if order > 0 else True,
-        point=tuple({k: np.asarray(v) for k, v in d.items()} for d in lay.unpack(X0s[best[0]])),
+        point=lay.unpack(X0s[best[0]]),
     )
+
+
+_DIRECTIONS: dict = {}
+
+
+def _curve_velocities(problem: Problem, chart: str, curves: tuple):
+    """jit(X₀ ↦ the velocities of the ambient point along each curve, as columns), cached per
+    (problem, chart, curves)."""
+    key = (id(problem), chart, curves)
+    hit = _DIRECTIONS.get(key)
+    if hit is not None and hit[0] is problem:
+        return hit[1]
+    lay = layout(problem, chart)
+
+    def velocities(X0):
+        x0, th0 = lay.unpack(X0)
+
+        def velocity(curve):
+            def ambient(eps):
+                x, th = curve(problem.model, x0, th0, eps)
+                return lay.pack(x, {**th0, **th})
+
+            return jax.jvp(ambient, (0.0,), (1.0,))[1]
+
+        return jnp.stack([velocity(curve) for curve in curves], axis=1)
+
+    fn = jax.jit(velocities)
+    _DIRECTIONS[key] = (problem, fn)
+    return fn
+
+
+def curve_directions(problem: Problem, result: ObservabilityResult,
+                     curves: Mapping[str, Callable]) -> dict[str, np.ndarray]:
+    """The velocity at ``ε = 0`` of each curve through ``result.point``, in the result's coordinates
+    (``result.labels``, the chart of the result).
+
+    A curve ``curve(model, x, θ, ε) -> (x(ε), θ(ε))`` moves the point ``(x, θ)`` (``θ(ε)`` may hold
+    only the unknowns it moves), e.g. a one-parameter group acting on states and unknowns. With the
+    tangent chart, the velocity of the ambient point is mapped back through the model's retraction
+    (least squares on its Jacobian, which has full column rank), so a symmetry of the model becomes
+    the direction that :meth:`ObservabilityResult.in_null_space` tests. Pass module-level functions:
+    the compiled form is cached per problem and curves.
+    """
+    lay = layout(problem, result.chart)
+    X0 = lay.pack(*result.point, xp=np)
+    dX = np.asarray(_curve_velocities(problem, result.chart, tuple(curves.values()))(X0))
+    V = np.linalg.lstsq(lay.chart_jacobian(X0), dX, rcond=None)[0]
+    index = {lab: i for i, lab in enumerate(lay.coordinate_labels())}
+    rows = [index[lab] for lab in result.labels]
+    return {name: V[rows, k] for k, name in enumerate(curves)}

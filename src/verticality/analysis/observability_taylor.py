@@ -14,7 +14,8 @@ stored as arrays with a leading axis of length K + 1:
 - quotient, ``sin``/``cos``, ``exp``, ``sqrt`` and ``atan2`` use the classical recurrences
   (Griewank & Walther, *Evaluating Derivatives*, ch. 13), a loop of K small steps.
 
-An unsupported primitive raises ``NotImplementedError`` naming it.
+Equations no output depends on are skipped. An unsupported primitive raises
+``NotImplementedError`` naming it.
 """
 
 from __future__ import annotations
@@ -128,6 +129,18 @@ def _primal(v):
     return v.c[0] if isinstance(v, _S) else v
 
 
+def _live_eqns(jaxpr):
+    """The equations that an output depends on (or that have effects), in order: dead code (e.g. an
+    input a model's output ignores) is never expanded into series."""
+    live = {v for v in jaxpr.outvars if not isinstance(v, jcore.Literal)}
+    keep = []
+    for eqn in reversed(jaxpr.eqns):
+        if eqn.effects or any(v in live for v in eqn.outvars):
+            keep.append(eqn)
+            live.update(v for v in eqn.invars if not isinstance(v, jcore.Literal))
+    return keep[::-1]
+
+
 def _eval_jaxpr(jaxpr, consts, args, K1):
     env = {}
 
@@ -140,7 +153,7 @@ def _eval_jaxpr(jaxpr, consts, args, K1):
         env[v] = c
     for v, a in zip(jaxpr.invars, args, strict=True):
         env[v] = a
-    for eqn in jaxpr.eqns:
+    for eqn in _live_eqns(jaxpr):
         ins = [read(v) for v in eqn.invars]
         outs = _apply(eqn.primitive, ins, eqn.params, K1)
         if not eqn.primitive.multiple_results:

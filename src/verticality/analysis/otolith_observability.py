@@ -1,24 +1,25 @@
 """Observability of the head's tilt from the otoliths: the 16 cases of F Tables 3.1 and 3.2.
 
-Models (composed from :mod:`verticality.models.pendulum`, not from ``models/vestibular.py``):
+Models: the :class:`~verticality.models.otolith_head.OtolithHead` values of the package, consumed
+unchanged (:func:`~verticality.models.otolith_head.medial`, one pendulum at the head centre, F 2.7;
+:func:`~verticality.models.otolith_head.lateral`, two pendula at ``±r`` on the head's y axis, F 2.12,
+``r = 0.05`` m). ``form="simplified"`` (default) is F 2.7 / 2.12: ``PendulumParams.simplified()``
+(no gyroscopic and no Euler term; the centripetal term of the lateral model kept) and
+``HeadParams(gyroscopic=0)`` (the head ``J_H ω̇_H = τ``); ``form="full"`` keeps every term.
 
-- ``medial`` (F 2.7): one damped spherical pendulum pivoting at the head centre;
-- ``lateral`` (F 2.12): two pendula pivoting at ``±r`` along the head's y axis (``r = 0.05`` m; the
-  thesis writes ``H r = (0, 0, r)``, but its Fig. 2.3 and planar form 2.19 put the ears to the side);
-- head: ``J_H ω̇_H = τ`` and ``Ṙ_IH = R_IH [ω_H]×`` (F 2.7: the head's gyroscopic term dropped).
+Outputs: the model's output, the otolith angles of F 2.8–2.9 / 2.13–2.16 (``output="thesis"``);
+``output="axis"`` reads the same angles from the pendulum's axis in the head frame instead.
 
-The pendulum is the simplified one of F 2.7 / 2.12 (``PendulumParams.simplified()``: no gyroscopic
-and no Euler term; the centripetal term of the lateral model kept). ``form="full"`` keeps every term
-(gyroscopic head and pendula, Euler transport acceleration).
+Around the model, the problem declares what F §3.1.2 makes unknown or known, through the model's
+input ``HeadInput(τ_H, a_I)``::
 
-Outputs: the otolith angles only, ``pendulum.otolith_angles(R_HS)`` (F 2.8–2.9, 2.13–2.16).
+    τ_H = θ.tau_H + u.tau_u + θ.stab · global_stabilizer(R_IH, ω_H)      a_I = R_IH θ.a_H
 
 Motion ``rot``: ``a = 0``; ``rot+trans``: ``H a`` a constant unknown (F §3.1.2 defines the head-frame
 acceleration as a symbolic parameter). Control: ``zero`` (τ = 0), ``unknown`` (τ a constant unknown
 parameter), ``known`` (τ a known input with free derivatives, not stabilized), ``stabilized`` (the
-feedback of F 2.20–2.21 substituted into the head dynamics). For the feedback we use the stabilizing
-sign, ``τ = K_p Σ_i e_i × (R_IHᵀ e_i) − K_d ω_H`` (the thesis' ``Ω`` with ``R_HI``; with ``R_IH`` the law
-would push away from upright; the sign does not change the generic rank).
+feedback of F 2.20–2.21, :func:`verticality.control.global_stabilizer`: the stabilizing sign,
+``τ = K_p Σ_i e_i × (R_IHᵀ e_i) − K_d ω_H``; the sign does not change the generic rank).
 
 Quantities asked: ``tilt`` = ``R_IHᵀ e3`` (gravity's up direction in the head frame, which fixes
 Θx and Θy of F 3.8–3.9; two degrees of freedom on SO(3)); ``acceleration`` = ``H a``; also
@@ -33,6 +34,7 @@ give the same answers.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import jax.numpy as jnp
@@ -40,27 +42,31 @@ import numpy as np
 
 from verticality import so3
 from verticality.analysis.observability import (
-    SO3,
     ObservabilityResult,
     Problem,
     analyze,
+    curve_directions,
     random_rotation,
 )
+from verticality.control import global_stabilizer
 from verticality.errors import InputError
-from verticality.models import pendulum
-from verticality.models.kinematics import RigidMotion
+from verticality.models import otolith_head, pendulum
+from verticality.models.head import HeadInput, HeadState
 from verticality.params import (
     LATERAL_R_M,
     P13_HEAD,
     P13_KD_NMS_RAD,
     P13_KP_NM_RAD,
     P13_PENDULUM,
+    HeadParams,
     PendulumParams,
 )
 
 MODELS = ("medial", "lateral")
 MOTIONS = ("rot", "rot+trans")
 CONTROLS = ("zero", "unknown", "known", "stabilized")
+FORMS = ("simplified", "full")
+OUTPUTS = ("thesis", "axis")
 
 E3 = jnp.array([0.0, 0.0, 1.0])
 
@@ -81,7 +87,7 @@ PUBLISHED = {
 @dataclass(frozen=True)
 class PlantParams:
     pendulum: PendulumParams
-    J_H: jnp.ndarray
+    head: HeadParams
     kp: float
     kd: float
     r_m: float = LATERAL_R_M
@@ -91,19 +97,26 @@ def plant_params(which: str = "generic", r_m: float = LATERAL_R_M) -> PlantParam
     if which == "generic":
         pend = PendulumParams(m_kg=1.0, l_m=1.0, J_pivot_S=jnp.array([1.0, 1.0, 0.3]),
                               beta_Nms=1.5).resolved()
-        return PlantParams(pend, jnp.array([1.0, 1.2, 0.9]), 2.0, 1.5, r_m)
+        return PlantParams(pend, HeadParams(J_H=jnp.array([1.0, 1.2, 0.9])).resolved(), 2.0, 1.5,
+                           r_m)
     if which == "p13":
-        return PlantParams(P13_PENDULUM, P13_HEAD.J_H, P13_KP_NM_RAD, P13_KD_NMS_RAD, r_m)
+        return PlantParams(P13_PENDULUM, P13_HEAD, P13_KP_NM_RAD, P13_KD_NMS_RAD, r_m)
     raise InputError(f"params must be 'generic' or 'p13', got {which!r}")
 
 
-def stabilizing_torque(R_I_H, omega_H, kp, kd):
-    """F 2.20–2.21 with the stabilizing sign: ``τ = K_p Ω − K_d ω_H``, ``Ω = Σ_i e_i × (R_IHᵀ e_i)``.
-
-    ``Ω = vee(R_IHᵀ − R_IH) ≈ −2θ`` for a small rotation vector θ of the head: a restoring torque.
-    """
-    Omega = 2.0 * so3.vee(R_I_H.T)
-    return kp * Omega - kd * omega_H
+def otolith_model(model: str, *, params: str = "generic", form: str = "simplified",
+                  r_m: float = LATERAL_R_M) -> otolith_head.OtolithHead:
+    """The medial or lateral :class:`~verticality.models.otolith_head.OtolithHead` value of a case."""
+    if model not in MODELS:
+        raise InputError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
+    if form not in FORMS:
+        raise InputError(f"form must be one of {', '.join(FORMS)}, got {form!r}")
+    pp = plant_params(params, r_m)
+    pend = pp.pendulum if form == "full" else pp.pendulum.simplified()
+    head = pp.head if form == "full" else pp.head._replace(gyroscopic=0.0)
+    if model == "medial":
+        return otolith_head.medial(pend, head)
+    return otolith_head.lateral(pend, head, pp.r_m)
 
 
 ORDERS = {"medial": 8, "lateral": 6}
@@ -116,78 +129,60 @@ AMBIENT_ORDERS = {"medial": 15, "lateral": 11}
 """Orders for the free-entry (ambient) formulation: 24–30 (medial) or 36–42 (lateral) coordinates."""
 
 
+def axis_angles(model: otolith_head.OtolithHead, x: otolith_head.OtolithHeadState, u=None):
+    """The otolith angles read from each pendulum's axis in the head frame (third *column* of
+    ``R_HS``, ``−s_H``) instead of the third row as F 2.8–2.9 write them."""
+    return jnp.concatenate([pendulum.otolith_angles(pendulum.R_H_S(xp, x.head.R_I_H).T)
+                            for xp in x.pendula])
+
+
+def _leaf_names(n_pendula: int) -> tuple[str, ...]:
+    sides = ("S",) if n_pendula == 1 else ("L", "R")
+    return tuple(name for k in sides for name in (f"R_I_{k}", f"omega_{k}")) + ("R_I_H", "omega_H")
+
+
 def build_problem(model: str, *, params: str = "generic", form: str = "simplified",
                   r_m: float = LATERAL_R_M, output: str = "thesis") -> Problem:
     """The observability :class:`Problem` of one model, serving all eight motion/control cases.
 
     Unknown constants: ``a_H`` (head-frame acceleration), ``tau_H`` (constant unknown torque) and the
-    switch ``stab`` (1 = feedback F 2.20 on); known input ``tau_u`` (known torque).
-    ``output="thesis"``: the otolith angles of F 2.8–2.9 as written, from the third *row* of
-    ``R_HS`` (the head's z axis seen in the pendulum frame); ``output="axis"``: the same angles
-    from the third *column* (the pendulum's axis seen in the head frame, ``−s_H``). A case fixes
-    the constants that are not unknown in it and zeroes the unused input (:func:`case_settings`),
-    so one compiled function serves the eight cases of a table.
+    switch ``stab`` (1 = feedback F 2.20 on); known input ``tau_u`` (known torque); they reach the
+    model through its input (module docstring). ``output="thesis"``: the model's output, the
+    otolith angles of F 2.8–2.9 as written (third *row* of ``R_HS``); ``output="axis"``:
+    :func:`axis_angles`. A case fixes the constants that are not unknown in it and zeroes the
+    unused input (:func:`case_settings`), so one compiled function serves the eight cases of a
+    table.
     """
-    if model not in MODELS:
-        raise InputError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
-    if form not in ("simplified", "full"):
-        raise InputError(f"form must be 'simplified' or 'full', got {form!r}")
-    if output not in ("thesis", "axis"):
-        raise InputError(f"output must be 'thesis' or 'axis', got {output!r}")
+    if output not in OUTPUTS:
+        raise InputError(f"output must be one of {', '.join(OUTPUTS)}, got {output!r}")
+    plant = otolith_model(model, params=params, form=form, r_m=r_m)
     pp = plant_params(params, r_m)
-    base = pp.pendulum if form == "full" else pp.pendulum.simplified()
-    head_gyro = 1.0 if form == "full" else 0.0
-    if model == "medial":
-        pends = {"S": base._replace(pivot_H_m=jnp.zeros(3))}
-    else:
-        pends = {
-            "L": base._replace(pivot_H_m=jnp.array([0.0, pp.r_m, 0.0])),
-            "R": base._replace(pivot_H_m=jnp.array([0.0, -pp.r_m, 0.0])),
-        }
-    J_H = pp.J_H
+    n = len(plant.pendula)
 
-    states = {}
-    for k in pends:
-        states[f"R_I_{k}"] = SO3
-        states[f"omega_{k}"] = (3,)
-    states["R_I_H"] = SO3
-    states["omega_H"] = (3,)
-    unknowns = {"a_H": (3,), "tau_H": (3,), "stab": ()}
-    inputs = {"tau_u": (3,)}
-
-    def f(x, u, th):
-        R_I_H, w_H = x["R_I_H"], x["omega_H"]
-        tau = th["tau_H"] + u["tau_u"] + th["stab"] * stabilizing_torque(R_I_H, w_H, pp.kp, pp.kd)
-        wdot_H = (tau - head_gyro * jnp.cross(w_H, J_H * w_H)) / J_H
-        head = RigidMotion(R_I_B=R_I_H, omega_B_rad_s=w_H, omegadot_B_rad_s2=wdot_H,
-                           a_I_m_s2=R_I_H @ th["a_H"])
-        dx = {"R_I_H": R_I_H @ so3.hat(w_H), "omega_H": wdot_H}
-        for k, p in pends.items():
-            d = pendulum.dynamics(pendulum.PendulumState(x[f"R_I_{k}"], x[f"omega_{k}"]), head, p)
-            dx[f"R_I_{k}"] = d.R_I_S
-            dx[f"omega_{k}"] = d.omega_S_rad_s
-        return dx
-
-    def h(x, u, th):
-        angles = []
-        for k in pends:
-            R_HS = pendulum.R_H_S(pendulum.PendulumState(x[f"R_I_{k}"], None), x["R_I_H"])
-            angles.append(pendulum.otolith_angles(R_HS if output == "thesis" else R_HS.T))
-        return jnp.concatenate(angles)
-
-    quantities = {
-        "tilt": lambda x, th: x["R_I_H"].T @ E3,
-        "heading": lambda x, th: x["R_I_H"][:, 0],
-    }
+    def input_map(x, u, th):
+        R_I_H, w_H = x.head.R_I_H, x.head.omega_H_rad_s
+        tau = th["tau_H"] + u["tau_u"] + th["stab"] * global_stabilizer(R_I_H, w_H, pp.kp, pp.kd)
+        return HeadInput(tau_H_Nm=tau, a_I_m_s2=R_I_H @ th["a_H"])
 
     def sample(rng):
-        x = {name: random_rotation(rng) if spec == SO3 else rng.standard_normal(3)
-             for name, spec in states.items()}
+        draws = [(random_rotation(rng), rng.standard_normal(3)) for _ in range(n + 1)]
+        x = otolith_head.OtolithHeadState(
+            pendula=tuple(pendulum.PendulumState(R, w) for R, w in draws[:n]),
+            head=HeadState(*draws[n]))
         th = {"a_H": 2.0 * rng.standard_normal(3), "tau_H": rng.standard_normal(3), "stab": 0.0}
         return x, th
 
-    return Problem(f=f, h=h, states=states, unknowns=unknowns, inputs=inputs,
-                   quantities=quantities, sample=sample)
+    rest = (jnp.eye(3), jnp.zeros(3))
+    return Problem(
+        model=plant,
+        state=otolith_head.OtolithHeadState(
+            pendula=tuple(pendulum.PendulumState(*rest) for _ in range(n)), head=HeadState(*rest)),
+        unknowns={"a_H": (3,), "tau_H": (3,), "stab": ()}, inputs={"tau_u": (3,)},
+        input_map=input_map, output=None if output == "thesis" else axis_angles,
+        quantities={"tilt": lambda x, th: x.head.R_I_H.T @ E3,
+                    "heading": lambda x, th: x.head.R_I_H[:, 0]},
+        sample=sample, leaf_names=_leaf_names(n),
+    )
 
 
 def case_settings(motion: str, control: str) -> tuple[dict, tuple[str, ...]]:
@@ -228,6 +223,7 @@ class CaseResult:
     result: ObservabilityResult
     params: str = "generic"
     output: str = "thesis"
+    problem: Problem | None = None  # the problem the result was computed on
 
     @property
     def agrees(self) -> bool:
@@ -247,51 +243,54 @@ def analyze_case(model: str, motion: str, control: str, *, chart: str = "tangent
     acc = res.quantities["theta:a_H"].observable if motion == "rot+trans" else None
     pub = PUBLISHED[(model, motion, control)]
     return CaseResult(model, motion, control, res.quantities["tilt"].observable, acc, pub[0],
-                      pub[1], res, params, output)
+                      pub[1], res, params, output, prob)
 
 
-def _direction(result: ObservabilityResult, parts: dict[str, np.ndarray]) -> np.ndarray:
-    """A vector in the result's coordinates from ``{label prefix: components}``."""
-    v = np.zeros(len(result.labels))
-    for name, comps in parts.items():
-        for i, c in enumerate(np.ravel(comps)):
-            lab = f"{name}.δ{'xyz'[i]}" if f"{name}.δx" in result.labels else f"{name}[{i}]"
-            if lab in result.labels:
-                v[result.labels.index(lab)] = c
-    return v
+def _turn_pendula(x, Rz):
+    return tuple(p._replace(R_I_S=Rz @ p.R_I_S) for p in x.pendula)
 
 
-def symmetry_directions(result: ObservabilityResult, J_H) -> dict[str, np.ndarray]:
-    """The two continuous symmetries of the otolith models, as tangent vectors at the test point.
+def global_yaw(model, x, th, eps):
+    """Every frame turned about gravity: ``R_IX → Rz(ε) R_IX``."""
+    Rz = so3.rot_z(eps)
+    return x._replace(pendula=_turn_pendula(x, Rz), head=x.head._replace(R_I_H=Rz @ x.head.R_I_H)), {}
 
-    ``global_yaw``: every frame turned about gravity, ``R_IX → Rz(ε) R_IX``, i.e. ``δ_X = R_IXᵀ e3``.
+
+def head_yaw(model, x, th, eps):
+    """The head turned about its own z axis, ``R_IH → R_IH Rz(ε)``, with ``ω_H``, ``a_H`` and
+    ``τ`` counter-rotated (``τ → J_H Rz(ε)ᵀ J_H⁻¹ τ``)."""
+    Rz = so3.rot_z(eps)
+    J = model.head.params.resolved().J_H
+    head = HeadState(x.head.R_I_H @ Rz, Rz.T @ x.head.omega_H_rad_s)
+    return x._replace(head=head), {"a_H": Rz.T @ th["a_H"], "tau_H": J * (Rz.T @ (th["tau_H"] / J))}
+
+
+def yaw_conjugation(model, x, th, eps):
+    """``R_IH → Rz R_IH Rzᵀ``, ``ω_H → Rz ω_H``, ``a_H → Rz a_H``, pendula ``R_IX → Rz R_IX``."""
+    Rz = so3.rot_z(eps)
+    head = HeadState(Rz @ x.head.R_I_H @ Rz.T, Rz @ x.head.omega_H_rad_s)
+    return x._replace(pendula=_turn_pendula(x, Rz), head=head), {"a_H": Rz @ th["a_H"]}
+
+
+SYMMETRIES = {"global_yaw": global_yaw, "head_yaw": head_yaw, "yaw_conjugation": yaw_conjugation}
+
+
+def symmetry_directions(case: CaseResult) -> dict[str, np.ndarray]:
+    """The continuous symmetries of the otolith models (:data:`SYMMETRIES`, Rz(ε) the rotation by
+    ε about the vertical e3), as directions at the case's test point
+    (:func:`~verticality.analysis.observability.curve_directions`).
+
+    ``global_yaw``: every frame turned about gravity.
     ``head_yaw``: the head turned about its own z axis with its angular velocity, torque and
-    acceleration counter-rotated, ``R_IH → R_IH Rz(ε)``, ``v → Rz(ε)ᵀ v`` (v = ω_H, a_H;
-    ``τ → J_H Rz(ε)ᵀ J_H⁻¹ τ`` so that ω̇_H = J_H⁻¹τ turns with ω_H): the
+    acceleration counter-rotated (``τ → J_H Rz(ε)ᵀ J_H⁻¹ τ`` so that ω̇_H = J_H⁻¹τ turns with ω_H): the
     inertial angular velocity ``R_IH ω_H``, the head's z axis and ``R_IH a_H`` do not change, so neither
     do the pendulum dynamics nor the otolith angles of F 2.8–2.9 (third row of ``R_HS``), but the
     gravity direction in the head frame turns about the head's z axis.
-    ``yaw_conjugation``: ``R_IH → Rz R_IH Rzᵀ``, ``ω_H → Rz ω_H``, ``a_H → Rz a_H``, pendula
-    ``R_IX → Rz R_IX`` (global yaw composed with the inverse head yaw). The feedback F 2.20 is
+    ``yaw_conjugation``: global yaw composed with the inverse head yaw. The feedback F 2.20 is
     equivariant under it when ``J_H`` is isotropic and the gains scalar (the P13 head), and so is the
     medial model: the stabilized medial model then hides the direction of the tilt too.
     """
-    x, th = result.point
-    e3 = np.array([0.0, 0.0, 1.0])
-    g1 = {name: np.asarray(R).T @ e3 for name, R in x.items() if name.startswith("R_I_")}
-    g3 = dict(g1)
-    g3["R_I_H"] = g1["R_I_H"] - e3
-    g3["omega_H"] = np.cross(e3, x["omega_H"])
-    if "a_H" in th:
-        g3["a_H"] = np.cross(e3, th["a_H"])
-    g2 = {"R_I_H": e3, "omega_H": -np.cross(e3, x["omega_H"])}
-    J = np.asarray(J_H)
-    if "tau_H" in th:
-        g2["tau_H"] = -J * np.cross(e3, th["tau_H"] / J)
-    if "a_H" in th:
-        g2["a_H"] = -np.cross(e3, th["a_H"])
-    return {"global_yaw": _direction(result, g1), "head_yaw": _direction(result, g2),
-            "yaw_conjugation": _direction(result, g3)}
+    return curve_directions(case.problem, case.result, SYMMETRIES)
 
 
 FREE_ENTRY_NOTE = (
@@ -310,7 +309,7 @@ def explain(case: CaseResult) -> str:
         return "full rank: the feedback breaks both yaw symmetries"
     if r.chart != "tangent":
         return f"{dims} hidden directions (matrix entries as free variables)"
-    sym = symmetry_directions(r, plant_params(case.params).J_H)
+    sym = symmetry_directions(case)
     found = [name.replace("_", " ") for name, v in sym.items() if r.in_null_space(v)]
     if "global yaw" in found and "head yaw" in found and "yaw conjugation" in found:
         found.remove("yaw conjugation")  # their composition
@@ -360,3 +359,25 @@ def row_dict(case: CaseResult) -> dict:
         "stalled": r.stalled,
         "why": explain(case),
     }
+
+
+def table(*, model: str | None = None, motion: str | None = None, control: str | None = None,
+          chart: str = "tangent", params: str = "generic", output: str = "thesis",
+          points: int = 2) -> dict:
+    """The rows (:func:`row_dict`) of the cases selected by ``model``/``motion``/``control`` (None:
+    all), with the orders of the chart, and how many agree with F: ``{"rows", "agreement",
+    "cases", "wall_s"}`` (what ``verticality observability`` prints)."""
+    if points < 1:
+        raise InputError(f"points must be >= 1, got {points}")
+    for name, value, allowed in (("model", model, MODELS), ("motion", motion, MOTIONS),
+                                 ("control", control, CONTROLS)):
+        if value is not None and value not in allowed:
+            raise InputError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
+    cases = [(m, mo, c) for m in MODELS for mo in MOTIONS for c in CONTROLS
+             if model in (None, m) and motion in (None, mo) and control in (None, c)]
+    t0 = time.perf_counter()
+    results = run_table(chart=chart, params=params, output=output, points=points,
+                        orders=AMBIENT_ORDERS if chart == "ambient" else ORDERS, cases=cases)
+    rows = [row_dict(c) for c in results]
+    return {"rows": rows, "agreement": sum(r["agrees"] for r in rows), "cases": len(rows),
+            "wall_s": time.perf_counter() - t0}

@@ -9,10 +9,9 @@ from pathlib import Path
 
 from verticality.errors import InputError
 
-DEFAULT_RATE_HZ = 1000.0
-
 
 def register(sub):
+    from verticality.recorded_trajectory import DEFAULT_RATE_HZ
     from verticality.trajectories import BY_NAME
 
     p = sub.add_parser(
@@ -34,64 +33,23 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-def _check_positive(name: str, value) -> None:
-    import math
-
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise InputError(f"--{name} must be a positive number, not {value}")
-
-
 def run(args) -> int:
-    from verticality.io.motion import write_motion_csv
+    from verticality.io.motion import broad_motion, write_motion_csv
     from verticality.io.output import check_writable_file
+    from verticality.recorded_trajectory import built_in_motion
     from verticality.trajectories import BY_NAME
 
     check_writable_file(args.out, "--out")
-    _check_positive("duration", args.duration)
-    _check_positive("rate", args.rate)
-    if not args.start >= 0.0:
-        raise InputError(f"--start must be a non-negative number, not {args.start}")
     if args.name in BY_NAME:
-        rec, what = _built_in(args)
+        rec, what = built_in_motion(args.name, args.rate, args.start, args.duration)
     elif Path(args.name).exists():
-        rec, what = _recording(args)
+        if args.rate is not None:
+            raise InputError("--rate applies to built-in trajectories; a recording keeps its own "
+                             "sampling rate")
+        rec, what = broad_motion(Path(args.name), args.start, args.duration)
     else:
         raise InputError(f"{args.name!r} is neither a built-in trajectory ({', '.join(sorted(BY_NAME))}) "
                          "nor an existing file")
     write_motion_csv(args.out, rec)
     print(f"wrote {rec.t_s.size} rows of {what} to {args.out}")
     return 0
-
-
-def _built_in(args):
-    import numpy as np
-
-    from verticality.recorded_trajectory import record_of
-    from verticality.trajectories import BY_NAME
-
-    traj = BY_NAME[args.name]()
-    rate = DEFAULT_RATE_HZ if args.rate is None else args.rate
-    duration = (traj.duration_s - args.start) if args.duration is None else args.duration
-    if not duration > 0:
-        raise InputError(f"--start {args.start:g} is at or after the end of `{args.name}` "
-                         f"({traj.duration_s:g} s)")
-    n = int(round(duration * rate)) + 1
-    rec = record_of(traj, args.start + np.arange(n) / rate)
-    return rec, f"`{args.name}` ({duration:g} s from {args.start:g} s at {rate:g} Hz)"
-
-
-def _recording(args):
-    from verticality.io import broad
-    from verticality.io.motion import from_broad_trial
-
-    path = Path(args.name)
-    if not broad.is_broad_file(path):
-        raise InputError(f"{path}: not an HDF5 file (a recording must be in the BROAD layout: "
-                         "imu_gyr, imu_acc, opt_quat, sampling_rate)")
-    if args.rate is not None:
-        raise InputError("--rate applies to built-in trajectories; a recording keeps its own "
-                         "sampling rate")
-    trial = broad.load_trial(path)
-    rec = from_broad_trial(trial, args.start, args.duration)
-    span = rec.t_s[-1] - rec.t_s[0]
-    return rec, f"{path.name} ({span:.3f} s from {rec.t_s[0]:.3f} s at {trial.sampling_rate_hz:g} Hz)"

@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 
 from rich.console import Console
 from rich.table import Table
 
-from verticality.analysis.otolith_observability import CONTROLS, MODELS, MOTIONS
+from verticality.analysis.otolith_observability import CONTROLS, MODELS, MOTIONS, OUTPUTS
 
 
 def register(sub):
@@ -25,7 +24,7 @@ def register(sub):
     p.add_argument("--chart", choices=("tangent", "ambient"), default="tangent",
                    help="tangent: rotations on SO(3) (default); ambient: matrix entries as free "
                         "variables (the published formulation for the medial table)")
-    p.add_argument("--output", choices=("thesis", "axis"), default="thesis",
+    p.add_argument("--output", choices=OUTPUTS, default="thesis",
                    help="otolith angles from the third row of R_HS as in F 2.8-2.9 (default) or "
                         "from its third column (the pendulum axis in the head frame)")
     p.add_argument("--params", choices=("generic", "p13"), default="generic",
@@ -41,31 +40,20 @@ def _yn(v) -> str:
 
 def run(args) -> int:
     from verticality.analysis import otolith_observability as oo
-    from verticality.errors import InputError
     from verticality.reporting import to_jsonable
 
-    if args.points < 1:
-        raise InputError(f"--points must be >= 1, got {args.points}")
-    cases = [(m, mo, c) for m in MODELS for mo in MOTIONS for c in CONTROLS
-             if (args.model in (None, m) and args.motion in (None, mo)
-                 and args.control in (None, c))]
-    orders = dict(oo.ORDERS)
-    if args.chart == "ambient":
-        orders = dict(oo.AMBIENT_ORDERS)
-    t0 = time.perf_counter()
-    results = oo.run_table(chart=args.chart, params=args.params, output=args.output,
-                           points=args.points, orders=orders, cases=cases)
-    rows = [oo.row_dict(c) for c in results]
-    wall = time.perf_counter() - t0
+    report = oo.table(model=args.model, motion=args.motion, control=args.control,
+                      chart=args.chart, params=args.params, output=args.output,
+                      points=args.points)
     if args.json:
-        json.dump(to_jsonable({"rows": rows, "agreement": sum(r["agrees"] for r in rows),
-                               "cases": len(rows), "wall_s": wall}), sys.stdout, indent=2)
+        json.dump(to_jsonable(report), sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     table = Table(title=f"Observability of the head's tilt from the otoliths ({args.chart} chart, "
                         f"{args.output} outputs, {args.params} parameters)")
     for col in ("model", "motion", "control", "published tilt/acc", "ours tilt/acc", "", "why"):
         table.add_column(col, overflow="fold")
+    rows = report["rows"]
     for r in rows:
         table.add_row(r["model"], r["motion"], r["control"],
                       f"{_yn(r['published_orientation_observable'])} / "
@@ -77,6 +65,6 @@ def run(args) -> int:
     console.print(table)
     if any("[1]" in r["why"] for r in rows):
         console.print(oo.FREE_ENTRY_NOTE)
-    console.print(f"agreement with F Tables 3.1/3.2: {sum(r['agrees'] for r in rows)}/{len(rows)}"
-                  f"  ({wall:.1f} s)")
+    console.print(f"agreement with F Tables 3.1/3.2: {report['agreement']}/{report['cases']}"
+                  f"  ({report['wall_s']:.1f} s)")
     return 0

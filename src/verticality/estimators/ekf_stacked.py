@@ -1,12 +1,14 @@
 """The papers' EKF: a plain, additive EKF on the 24-element stacked state (P13 §4, F §4.2.1).
 
 State (P13 §4's order): ``x = (ω_S, vec R_IS, ω_H, vec R_IH)`` — 3 + 9 + 3 + 9 = 24 numbers, the
-matrices stored row by row. The model is the *same* one as the multiplicative filter's
-(:func:`verticality.estimators.ekf.medial_dynamics`, RK4 substeps, the same inputs and outputs), but
-integrated on the flat coordinates without projection and corrected additively, ``x⁺ = x⁻ + K r``,
-so the estimated "rotation matrices" leave SO(3); that is the point of the comparison. The same
-generic :class:`verticality.estimators.ekf.ExtendedKalmanFilter` runs it (``boxplus`` is ``+``), so
-the Jacobians are autodiff and the covariance update Joseph form here too; Q = σ_w² I₂₄ (P13 §5).
+matrices stored row by row. The model is the *same* model value as the multiplicative filter's
+(:func:`verticality.estimators.ekf.medial_model`: the medial head–otolith model, RK4 sub-steps, the
+same inputs and outputs), seen through two adapters: :class:`Unprojected` integrates it in the
+embedding without the projection onto SO(3), and :class:`StackedCoordinates` puts it on the flat
+coordinates with the additive correction ``x⁺ = x⁻ + K r``, so the estimated "rotation matrices"
+leave SO(3); that is the point of the comparison. The same
+:class:`verticality.estimators.ekf.ExtendedKalmanFilter` runs it, so the Jacobians are autodiff and
+the covariance update Joseph form here too; Q = σ_w² I₂₄ (P13 §5).
 
 The tilt read from it uses the third row of the estimated ``R_IH`` (the world up axis in the head
 frame); :func:`verticality.so3.tilt_error_rad` is invariant to its length, and the controller's
@@ -15,52 +17,101 @@ frame); :func:`verticality.so3.tilt_error_rad` is invariant to its length, and t
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax.numpy as jnp
 
 from verticality.estimators import ekf
+from verticality.models.base import Discretized, EuclideanState, model_dataclass
+from verticality.models.head import HeadState
+from verticality.models.otolith_head import OtolithHeadState, medial
+from verticality.models.pendulum import PendulumState
 from verticality.params import HeadParams, PendulumParams
 
 N_STATE = 24
 
 
-def to_flat(x: ekf.MedialState):
-    return jnp.concatenate([x.omega_S_rad_s, x.R_I_S.reshape(9), x.omega_H_rad_s, x.R_I_H.reshape(9)])
+@model_dataclass
+class Unprojected:
+    """``model`` integrated in the embedding: the same dynamics, output and tangent maps, and no
+    projection back onto the manifold after a step."""
+
+    model: Any
+
+    def dynamics(self, x, u):
+        return self.model.dynamics(x, u)
+
+    def output(self, x, u=None):
+        return self.model.output(x, u)
+
+    def retract(self, x, dx):
+        return self.model.retract(x, dx)
+
+    def difference(self, x1, x0):
+        return self.model.difference(x1, x0)
+
+    def project(self, x):
+        return x
 
 
-def from_flat(v) -> ekf.MedialState:
-    return ekf.MedialState(
-        R_I_S=v[3:12].reshape(3, 3), omega_S_rad_s=v[0:3], R_I_H=v[15:24].reshape(3, 3),
-        omega_H_rad_s=v[12:15],
-    )
+def _rotation_rate_blocks(R, omega):
+    return [omega, R.reshape(9)]
 
 
-def stacked_model(p_pend: PendulumParams, p_head: HeadParams) -> ekf.Model:
-    p_pend = p_pend.resolved()
-    p_head = p_head.resolved()
+def to_flat(x: OtolithHeadState):
+    """(ω, vec R) of each pendulum, then of the head (P13 §4's order for the medial model)."""
+    parts = []
+    for p in x.pendula:
+        parts += _rotation_rate_blocks(p.R_I_S, p.omega_S_rad_s)
+    parts += _rotation_rate_blocks(x.head.R_I_H, x.head.omega_H_rad_s)
+    return jnp.concatenate(parts)
 
-    def f(v, u, dt):
-        x = ekf.medial_discrete(from_flat(v), u, dt, p_pend, p_head, project=False)
-        return to_flat(x)
 
-    return ekf.Model(
-        f=f,
-        h=lambda v, u: ekf.medial_output(from_flat(v)),
-        boxplus=lambda v, dv: v + dv,
-        boxminus=lambda v1, v0: v1 - v0,
-        residual=ekf.wrap_angle_residual,
-    )
+def from_flat(v, n_pendula: int = 1) -> OtolithHeadState:
+    def block(i):
+        return v[12 * i + 3:12 * i + 12].reshape(3, 3), v[12 * i:12 * i + 3]
+
+    pendula = tuple(PendulumState(*block(i)) for i in range(n_pendula))
+    return OtolithHeadState(pendula, HeadState(*block(n_pendula)))
+
+
+@model_dataclass
+class StackedCoordinates(EuclideanState):
+    """A discrete head–otolith model on the flat stacked coordinates (:func:`to_flat`), on which the
+    filter acts additively (``retract`` is ``+``)."""
+
+    discrete: Any  # a DiscreteModel whose states are OtolithHeadState
+
+    @property
+    def head_model(self):
+        """The continuous head–otolith model inside the adapters."""
+        m = self.discrete.model
+        return m.model if isinstance(m, Unprojected) else m
+
+    def transition(self, v, u, dt):
+        n = len(self.head_model.pendula)
+        return to_flat(self.discrete.transition(from_flat(v, n), u, dt))
+
+    def output(self, v, u=None):
+        return self.discrete.output(from_flat(v, len(self.head_model.pendula)), u)
+
+
+def stacked_model(p_pend: PendulumParams, p_head: HeadParams, u_blocks: int = 4) -> StackedCoordinates:
+    """The medial model of :func:`verticality.estimators.ekf.medial_model`, unprojected, on the
+    stacked coordinates."""
+    return StackedCoordinates(Discretized(Unprojected(medial(p_pend, p_head, gyro=True)),
+                                          substeps=u_blocks))
 
 
 def stacked_filter(p_pend: PendulumParams, p_head: HeadParams, sigma_process=1e-3,
-                   sigma_measurement=2e-2) -> ekf.ExtendedKalmanFilter:
+                   sigma_measurement=2e-2, u_blocks: int = 4) -> ekf.ExtendedKalmanFilter:
     """``sigma_process``: scalar, or four σ for the blocks (ω_S, R_IS, ω_H, R_IH) in P13's order."""
-    sig = jnp.broadcast_to(jnp.asarray(sigma_process, dtype=jnp.float64), (4,))
-    q = jnp.concatenate([jnp.full(3, sig[0] ** 2), jnp.full(9, sig[1] ** 2),
-                         jnp.full(3, sig[2] ** 2), jnp.full(9, sig[3] ** 2)])
+    model = stacked_model(p_pend, p_head, u_blocks)
     return ekf.ExtendedKalmanFilter(
-        model=stacked_model(p_pend, p_head),
-        Q=jnp.diag(q),
+        model=model,
+        Q=ekf.block_covariance(sigma_process, (3, 9, 3, 9)),
         R=sigma_measurement**2 * jnp.eye(ekf.N_Y),
+        angle_outputs=model.head_model.angle_outputs,
         reset_jacobian=False,
     )
 
@@ -68,10 +119,9 @@ def stacked_filter(p_pend: PendulumParams, p_head: HeadParams, sigma_process=1e-
 def init_covariance(sigma_rotation_rad=0.1, sigma_rate_rad_s=0.1):
     """Diagonal P0: σ_rate² on the rates, σ_rotation² on each matrix entry (an entry of R exp[δ]×
     moves by at most |δ| for a rotation error δ)."""
-    d = jnp.concatenate([jnp.full(3, sigma_rate_rad_s**2), jnp.full(9, sigma_rotation_rad**2),
-                         jnp.full(3, sigma_rate_rad_s**2), jnp.full(9, sigma_rotation_rad**2)])
-    return jnp.diag(d)
+    return ekf.block_covariance((sigma_rate_rad_s, sigma_rotation_rad, sigma_rate_rad_s,
+                                 sigma_rotation_rad), (3, 9, 3, 9))
 
 
 def head_orientation(v):
-    return from_flat(v).R_I_H
+    return from_flat(v).head.R_I_H

@@ -14,7 +14,12 @@ input-dependent where a constant Q is not: a pendulum hanging at rest in a still
 swinging after a change of the acceleration, or a head driven by a large torque, gives a large S.
 This is the standard treatment of uncertain parameters that are not estimated (Schmidt's
 "consider" states, linearized into the process noise). Nothing here knows the true parameters:
-only the model's own values and the relative uncertainties.
+only the model value's own parameters and the relative uncertainties.
+
+The derivative is taken through the model value itself: its parameter leaves are scaled
+(:func:`scaled`) and its ``dynamics`` called. The pendulum's inertia about the pivot scales as
+m l² (a geometrically similar pendulum: the default ``J = m l² (1, 1, 1/20)`` of
+:class:`PendulumParams` stays that of the scaled m and l).
 """
 
 from __future__ import annotations
@@ -23,31 +28,37 @@ import jax
 import jax.numpy as jnp
 
 from verticality.estimators import ekf
-from verticality.params import HeadParams, PendulumParams
+from verticality.models.head import HeadInput
+from verticality.models.otolith_head import OtolithHead, OtolithHeadState, replace_params
 
 # relative (1 σ) uncertainty of the EKF's m, l, β, J_H: "known to within about a half"
 SIGMA_RELATIVE = (0.5, 0.5, 0.5, 0.5)
 
 
-def _rates(log_scale, x: ekf.MedialState, u, p_pend: PendulumParams, p_head: HeadParams):
+def scaled(model: OtolithHead, log_scale) -> OtolithHead:
+    """``model`` with every pendulum's m, l, β scaled by exp(log_scale[0:3]) (J_S by m l²) and the
+    head's J_H by exp(log_scale[3])."""
     m, l, b, J = jnp.exp(log_scale)
-    pp = p_pend._replace(m_kg=p_pend.m_kg * m, l_m=p_pend.l_m * l, beta_Nms=p_pend.beta_Nms * b,
-                         J_pivot_S=None).resolved()  # J = m l² (1, 1, 1/20) of the scaled m, l
-    ph = p_head._replace(J_H=p_head.J_H * J)
-    d = ekf.medial_dynamics(x, u, pp, ph)
-    return jnp.concatenate([d.omega_S_rad_s, d.omega_H_rad_s])
+    return replace_params(
+        model,
+        pendulum=lambda p: p._replace(m_kg=p.m_kg * m, l_m=p.l_m * l, beta_Nms=p.beta_Nms * b,
+                                      J_pivot_S=p.J_pivot_S * (m * l * l)),
+        head=lambda h: h._replace(J_H=h.J_H * J))
 
 
-def medial_parameter_noise(x: ekf.MedialState, u_blocks, dt, p_pend: PendulumParams,
-                           p_head: HeadParams, sigma_relative=SIGMA_RELATIVE) -> jnp.ndarray:
+def _rates(log_scale, model: OtolithHead, x: OtolithHeadState, u: HeadInput):
+    d = scaled(model, log_scale).dynamics(x, u)
+    return jnp.concatenate([p.omega_S_rad_s for p in d.pendula] + [d.head.omega_H_rad_s])
+
+
+def medial_parameter_noise(model: OtolithHead, x: OtolithHeadState, u_blocks: HeadInput, dt,
+                           sigma_relative=SIGMA_RELATIVE) -> jnp.ndarray:
     """Q_param (12, 12) of the medial error state (δθ_S, δω_S, δθ_H, δω_H) for one step of ``dt``
-    from the prior ``x`` with input blocks ``u_blocks`` (n, 6): non-zero on the two rate blocks and
-    their cross terms. The pendulum's inertia follows m and l (J = m l² (1, 1, 1/20), the default
-    of :class:`PendulumParams`)."""
-    p_pend, p_head = p_pend.resolved(), p_head.resolved()
+    from the prior ``x`` with input blocks ``u_blocks`` (a :class:`HeadInput` whose leaves have a
+    leading axis over the blocks, in frame I): non-zero on the two rate blocks and their cross
+    terms."""
     sig = jnp.asarray(sigma_relative, dtype=jnp.float64)
-    S = jax.vmap(lambda u: jax.jacfwd(_rates)(jnp.zeros(4), x, u, p_pend, p_head))(
-        jnp.atleast_2d(u_blocks))  # (n, 6, 4)
+    S = jax.vmap(lambda u: jax.jacfwd(_rates)(jnp.zeros(4), model, x, u))(u_blocks)  # (n, 6, 4)
     Ss = S * sig
     Q6 = dt**2 * jnp.mean(jnp.einsum("bip,bjp->bij", Ss, Ss), axis=0)
     idx = jnp.concatenate([jnp.arange(3, 6), jnp.arange(9, 12)])

@@ -16,8 +16,8 @@ J̃_H = 0.15 I, β̃ = 0.0005), both started 0.1 rad off (a rotation of 0.1 rad 
 Readings where the papers are silent (choices):
 - **Torque input** (P13 §4: "u = (ᴵa, ᴴτ) ... the torque applied to the head"). P13 §3 defines τ
   as the torque "applied to the head platform by the actuated gimbal". In the ``stabilized``
-  condition the EKF receives the total torque on the head (:func:`gimbal.head_torque_total`,
-  motors plus the constraint torque about the one unactuated axis; the simulator's input). In the
+  condition the EKF receives the total torque on the head (``FreeHead.torque`` of the head's
+  motion: motors plus the constraint torque about the one unactuated axis; the simulator's input). In the
   ``fixed`` condition the gimbal is locked and no actuator torque exists: the EKF receives zero
   torque, so its head model does not know how the trunk rotates the head and the gyros must carry
   that (``torque_input="gimbal"``, default). The alternative reading, the total torque in both
@@ -26,8 +26,9 @@ Readings where the papers are silent (choices):
 - Inputs are given as 4 block means over each 20 ms period (5 ms each, the simulator's exact
   quadrature) and the EKF predicts with 4 RK4 substeps, each with its block's input held.
 - **Acceleration input**: ᴵa of the head centre, gravity excluded, noise-free (P13 §4: ᴵa).
-  F §4.2.1 writes ᴴa instead; that reading (the simulator's ``accel_frame="head"``, the filter
-  rotating ᴴa with its own R̂_IH) is run too: keys ``*_head_frame_accel``.
+  F §4.2.1 writes ᴴa instead; that reading (the simulator's ``accel_frame="head"``, the filter's
+  model the input adapter :class:`~verticality.models.otolith_head.HeadFrameAcceleration`, which
+  rotates ᴴa with its own R̂_IH) is run too: keys ``*_head_frame_accel``.
 - **Process noise** (one setting, both conditions, both experiments), per 20 ms step, on the error
   state (δθ_S, δω_S, δθ_H, δω_H) = (0.001, 0.03, 0.0003, 0.001), plus the parameter-uncertainty
   ("consider") noise of :mod:`verticality.estimators.parameter_noise`: the model's own m̃, l̃, β̃,
@@ -58,6 +59,7 @@ Readings where the papers are silent (choices):
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -66,11 +68,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import integrate, plots, so3, trajectories
+from verticality import plots, so3, trajectories
 from verticality import simulation as sim
 from verticality.estimators import ekf, ekf_stacked, parameter_noise
 from verticality.experiments import Result, check, register
 from verticality.models import gimbal
+from verticality.models.gimbal_plant import gimbal_plant
+from verticality.models.head import state_from_motion
+from verticality.models.otolith_head import HeadFrameAcceleration, OtolithHeadState
 from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM, P13_HEAD, P13_PENDULUM
 
 T_SETTLE_S = 2.0
@@ -85,7 +90,7 @@ SIGMA_PROCESS_STACKED = (0.3, 1e-3, 0.03, 1e-3)  # blocks in P13's order: ω_S, 
 SIGMA_RELATIVE_PENDULUM_RAD = 0.02
 U_BLOCKS = 4
 SEED = 0
-PLANT = sim.PlantParams(P13_HEAD, (P13_PENDULUM,))
+PLANT = gimbal_plant(P13_HEAD, (P13_PENDULUM,))
 EKF_MODEL = (P13_EKF_PENDULUM, P13_EKF_HEAD)  # the filter's (pendulum, head) parameters, P13 §5
 PAPER_NOTE = "P13 Fig. 2: errors much smaller when stabilized (no numbers published)"
 # Pass/fail check on the RMS ratio stabilized / fixed (thresholds, not metrics). P13 calls the
@@ -96,49 +101,38 @@ RATIO_LIMIT = {"impact": 1.0 / 3.0, "jump": 1.0 / 2.0}
 RATIO_LIMIT_TEXT = {"impact": "1/3", "jump": "1/2"}
 
 
-def _true_initial_state(traj, condition) -> ekf.MedialState:
-    x0 = sim.initial_plant_state(traj, PLANT, condition)
+def true_initial_state(traj, condition: str) -> OtolithHeadState:
+    """The plant's initial head and pendulum (:func:`simulation.initial_state` of ``PLANT``) as
+    the filter's state (the medial model's :class:`OtolithHeadState`)."""
+    plant = sim.with_condition(PLANT, condition)
     trunk = traj.motion(0.0)
-    head = gimbal.head_motion(x0.gimbal, jnp.zeros(2), trunk) if condition == "stabilized" else trunk
-    pe = x0.pendulums[0]
-    return ekf.MedialState(pe.R_I_S, pe.omega_S_rad_s, head.R_I_B, head.omega_B_rad_s)
+    x0 = sim.initial_state(plant, trunk)
+    head = trunk if plant.fixed else gimbal.head_motion(x0.gimbal, jnp.zeros(2), trunk)
+    return OtolithHeadState(x0.pendula, state_from_motion(head))
 
 
-def _perturbed(x: ekf.MedialState) -> ekf.MedialState:
+def perturbed(x: OtolithHeadState) -> OtolithHeadState:
+    """``x`` with both rotations turned by ``INITIAL_ERROR_RAD`` about the head's (1, 1, 0)/√2."""
     d = INITIAL_ERROR_RAD * jnp.array([1.0, 1.0, 0.0]) / jnp.sqrt(2.0)
-    return x._replace(R_I_S=x.R_I_S @ so3.exp(d), R_I_H=x.R_I_H @ so3.exp(d))
+    return OtolithHeadState(tuple(p._replace(R_I_S=p.R_I_S @ so3.exp(d)) for p in x.pendula),
+                            x.head._replace(R_I_H=x.head.R_I_H @ so3.exp(d)))
 
 
-def _head_accel_model(p_pend, p_head) -> ekf.Model:
-    """The medial model with F §4.2.1's input u = (ᴴa, ᴴτ): ᴵa = R̂_IH ᴴa inside the dynamics."""
-    p_pend, p_head = p_pend.resolved(), p_head.resolved()
-
-    def dyn(t, x, u):
-        u_I = jnp.concatenate([x.R_I_H @ u[:3], u[3:]])
-        return ekf.medial_dynamics(x, u_I, p_pend, p_head)
-
-    def f(x, u_blocks, dt):
-        u_blocks = jnp.atleast_2d(u_blocks)
-        h = dt / u_blocks.shape[0]
-
-        def body(xx, u):
-            return integrate.rk4_step(dyn, 0.0, xx, h, u, project=ekf.medial_project), None
-
-        return jax.lax.scan(body, x, u_blocks)[0]
-
-    base = ekf.medial_model(p_pend, p_head)
-    return base._replace(f=f)
-
-
-def _filter(sigma_process, accel_frame: str, sigma_measurement: float = SIGMA_MEASUREMENT,
-            model_params=EKF_MODEL) -> ekf.ExtendedKalmanFilter:
-    filt = ekf.medial_filter(*model_params, sigma_process, sigma_measurement)
-    if accel_frame == "head":
-        filt = filt._replace(model=_head_accel_model(*model_params))
+def multiplicative_filter(sigma_process, accel_frame: str = "inertial",
+                          sigma_measurement: float = SIGMA_MEASUREMENT,
+                          model_params=EKF_MODEL) -> ekf.ExtendedKalmanFilter:
+    """The multiplicative EKF of the ekf-* runs: :func:`ekf.medial_filter` with ``U_BLOCKS`` input
+    blocks; ``accel_frame="head"``: its model is the :class:`HeadFrameAcceleration` adapter of the
+    same medial model (F §4.2.1's ᴴa input)."""
+    filt = ekf.medial_filter(*model_params, sigma_process, sigma_measurement, U_BLOCKS)
+    if accel_frame == "head":  # F §4.2.1's u = (ᴴτ, ᴴa): the model rotates ᴴa with its own R̂_IH
+        discrete = filt.model
+        filt = dataclasses.replace(filt, model=dataclasses.replace(
+            discrete, model=HeadFrameAcceleration(discrete.model)))
     return filt
 
 
-def initial_covariance(x0: ekf.MedialState, kind: str = "common") -> jnp.ndarray:
+def initial_covariance(x0: OtolithHeadState, kind: str = "common") -> jnp.ndarray:
     """P0 of the multiplicative EKF (error state δθ_S, δω_S, δθ_H, δω_H).
 
     ``"diagonal"``: σ0² I₁₂ (σ0 = 0.1 rad, P13 §5's initial error, every element independent).
@@ -153,7 +147,7 @@ def initial_covariance(x0: ekf.MedialState, kind: str = "common") -> jnp.ndarray
         return P
     if kind != "common":
         raise ValueError(f"p0 must be 'diagonal' or 'common', not {kind!r}")
-    R_SH = x0.R_I_S.T @ x0.R_I_H
+    R_SH = x0.pendula[0].R_I_S.T @ x0.head.R_I_H
     P = P.at[0:3, 0:3].add(SIGMA_RELATIVE_PENDULUM_RAD**2 * jnp.eye(3))
     P = P.at[0:3, 6:9].set(s2 * R_SH).at[6:9, 0:3].set(s2 * R_SH.T)
     return P
@@ -167,7 +161,7 @@ class Setting(NamedTuple):
     sensor_noise_std: float = SIGMA_MEASUREMENT  # σ in the simulation and in the filter's R alike
 
 
-class _Tuned(NamedTuple):
+class Tuned(NamedTuple):
     """An EKF state carrying its filter's Q and R, so that they are traced values, not constants
     compiled into the simulator."""
 
@@ -180,14 +174,14 @@ def _filter_for(variant: str, setting: Setting, accel_frame: str = "inertial",
                 model_params=EKF_MODEL) -> ekf.ExtendedKalmanFilter:
     if variant == "multiplicative":
         sig = SIGMA_PROCESS if setting.sigma_process is None else setting.sigma_process
-        return _filter(sig, accel_frame, setting.sensor_noise_std, model_params)
+        return multiplicative_filter(sig, accel_frame, setting.sensor_noise_std, model_params)
     sig = SIGMA_PROCESS_STACKED if setting.sigma_process is None else setting.sigma_process
-    return ekf_stacked.stacked_filter(*model_params, sig, setting.sensor_noise_std)
+    return ekf_stacked.stacked_filter(*model_params, sig, setting.sensor_noise_std, U_BLOCKS)
 
 
 def _estimator(variant: str, condition: str, torque_input: str, accel_frame: str = "inertial",
                consider_noise: bool = True, model_params=EKF_MODEL):
-    """The closed-loop adapter of a :class:`_Tuned` state: Q and R are read from the state."""
+    """The closed-loop adapter of a :class:`Tuned` state: Q and R are read from the state."""
     filt = _filter_for(variant, Setting(), accel_frame, model_params)  # its model; Q, R replaced
     if variant == "multiplicative":
         R_of = lambda s: ekf.head_orientation(s.ekf_state.x)  # noqa: E731
@@ -195,18 +189,21 @@ def _estimator(variant: str, condition: str, torque_input: str, accel_frame: str
         R_of = lambda s: ekf_stacked.head_orientation(s.ekf_state.x)  # noqa: E731
     zero_torque = condition == "fixed" and torque_input == "gimbal"
     consider = variant == "multiplicative" and consider_noise
-    head_accel = accel_frame == "head"
+    model = filt.model.model if consider else None  # the continuous model value (or its adapter)
 
-    def step(state: _Tuned, u, y, dt):
+    def step(state: Tuned, u, y, dt):
         if zero_torque:
-            u = u.at[:, 3:].set(0.0)
+            u = u._replace(tau_H_Nm=jnp.zeros_like(u.tau_H_Nm))
         Q = state.Q
         if consider:  # the model's parameter uncertainty, linearized into Q at the prior
+            x = state.ekf_state.x
+            head_model = model
             u_I = u
-            if head_accel:  # the model rotates ᴴa with its own R̂_IH
-                u_I = u.at[:, :3].set(u[:, :3] @ state.ekf_state.x.R_I_H.T)
-            Q = Q + parameter_noise.medial_parameter_noise(state.ekf_state.x, u_I, dt, *model_params)
-        inner, out = filt._replace(Q=Q, R=state.R).step(state.ekf_state, u, y, dt)
+            if isinstance(model, HeadFrameAcceleration):
+                head_model = model.model
+                u_I = jax.vmap(lambda ub: model.inertial_input(x, ub))(u)  # per block
+            Q = Q + parameter_noise.medial_parameter_noise(head_model, x, u_I, dt)
+        inner, out = ekf.with_noise(filt, Q, state.R).step(state.ekf_state, u, y, dt)
         return state._replace(ekf_state=inner), out
 
     return filt, sim.Estimator(step=step, R_I_H=R_of)
@@ -237,7 +234,7 @@ def run_settings(traj, condition: str, settings, variant: str = "multiplicative"
                         accel_frame=accel_frame)
     controller = sim.p13_controller() if condition == "stabilized" else None
     run = sim.make_simulator(traj, cfg, est, controller)
-    x0 = _perturbed(_true_initial_state(traj, condition))
+    x0 = perturbed(true_initial_state(traj, condition))
     if variant == "multiplicative":
         s0 = filt.init(x0, initial_covariance(x0, p0))
     else:
@@ -249,7 +246,7 @@ def run_settings(traj, condition: str, settings, variant: str = "multiplicative"
         return jnp.repeat(jnp.stack([jnp.asarray(v, dtype=jnp.float64) for v in values]), n_seed,
                           axis=0)
 
-    states0 = _Tuned(jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (n_set * n_seed,) + a.shape), s0),
+    states0 = Tuned(jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (n_set * n_seed,) + a.shape), s0),
                      per_run([f.Q for f in filters]), per_run([f.R for f in filters]))
     noise = jax.tree_util.tree_map(lambda *v: per_run(v),
                                    *[_sensor_noise(s.sensor_noise_std) for s in settings])
@@ -275,7 +272,7 @@ def run_settings(traj, condition: str, settings, variant: str = "multiplicative"
             "tilt_true_deg": np.degrees(np.asarray(so3.tilt_angles(rec.R_I_H))),
             "tilt_est_deg": np.degrees(np.asarray(so3.tilt_angles(rec.R_I_H_est))),
             "tilt_error_deg": np.asarray(rec.tilt_error_deg),
-            "a_I_m_s2": np.asarray(rec.u[:, :, :3].mean(axis=1)),
+            "a_I_m_s2": np.asarray(rec.u[1].mean(axis=1)),  # the input's acceleration
         }
         out.append((metrics, series))
     return out

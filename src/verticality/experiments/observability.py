@@ -9,9 +9,10 @@ Readings and choices (the thesis leaves them open or they had to be fixed):
 - "Orientation observable" = the tilt ``R_IHᵀ e3`` (which fixes Θx, Θy of F 3.8–3.9) lies in the
   observable span; yaw about gravity is never observable from otoliths and is not asked.
   "Acceleration identifiable" = all three components of the constant head-frame acceleration ``H a``.
-- Models: F 2.7 / 2.12 simplified (no gyroscopic, no Euler term; centripetal term kept for the
-  lateral pendula), composed from ``models/pendulum.py``; lateral pivots at ±0.05 m on the head's y
-  axis; head ``J_H ω̇ = τ``.
+- Models: the ``OtolithHead`` values of ``models/otolith_head.py`` in the simplified form of
+  F 2.7 / 2.12 (no gyroscopic, no Euler term; centripetal term kept for the lateral pendula);
+  lateral pivots at ±0.05 m on the head's y axis; head ``J_H ω̇ = τ``. Unknown torque and
+  acceleration, known torque and the feedback enter through the model's input.
 - Outputs: the otolith angles of F 2.8–2.9 as written (third row of ``R_HS``).
 - Controls: ``unknown`` = constant unknown torque, ``known`` = known input with free derivatives,
   ``stabilized`` = F 2.20–2.21 with the restoring sign.

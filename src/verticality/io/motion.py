@@ -174,6 +174,22 @@ def _longest_valid_stretch(valid: np.ndarray) -> tuple[int, int]:
     return int(starts[k]), int(stops[k])
 
 
+def broad_motion(path, start_s: float = 0.0, duration_s: float | None = None):
+    """A BROAD-layout recording's window as MOTION.csv rows (:func:`from_broad_trial`), and a
+    description of them; a file that is not one raises :class:`InputError`."""
+    from verticality.io import broad
+
+    path = Path(path)
+    if not broad.is_broad_file(path):
+        raise InputError(f"{path}: not an HDF5 file (a recording must be in the BROAD layout: "
+                         "imu_gyr, imu_acc, opt_quat, sampling_rate)")
+    trial = broad.load_trial(path)
+    rec = from_broad_trial(trial, start_s, duration_s)
+    span = rec.t_s[-1] - rec.t_s[0]
+    return rec, (f"{path.name} ({span:.3f} s from {rec.t_s[0]:.3f} s at "
+                 f"{trial.sampling_rate_hz:g} Hz)")
+
+
 def load_motion(path, start_s: float = 0.0, duration_s: float | None = None) -> MotionRecord:
     """A MOTION.csv, or a BROAD-layout HDF5 recording converted by
     :func:`from_broad_trial`, over a window in seconds from its start."""

@@ -17,8 +17,13 @@ Joint-space dynamics (link inertias neglected, the head's inertia J_H about C):
     Eᵀ (J_H ω̇_H + γ ω_H × J_H ω_H) = m          m: the two motor torques (virtual power)
 
 solved for θ̈; ω̇_H's part that does not depend on θ̈ comes from a forward-mode derivative of the
-ω_H map, so nothing is differentiated by hand. The head-frame torque a motor pair exerts is
-``τ_H`` with ``m = Eᵀ τ_H`` (P13's ``τ = M^{-T} m`` for a square M; here the projection).
+ω_H map, so nothing is differentiated by hand; ``J_H ω̇_H + γ ω_H × J_H ω_H`` is the free head's
+Euler equation (:meth:`verticality.models.head.FreeHead.torque`). The head-frame torque a motor
+pair exerts is ``τ_H`` with ``m = Eᵀ τ_H`` (P13's ``τ = M^{-T} m`` for a square M; here the
+projection).
+
+The model value is :class:`GimbalHead` (u = the motor torques and the trunk's :class:`RigidMotion`);
+the functions are its implementation.
 """
 
 from __future__ import annotations
@@ -29,8 +34,9 @@ import jax
 import jax.numpy as jnp
 
 from verticality import so3
+from verticality.models.base import EuclideanState, model_dataclass
+from verticality.models.head import FreeHead
 from verticality.models.kinematics import RigidMotion
-from verticality.params import HeadParams
 
 
 class GimbalState(NamedTuple):
@@ -110,34 +116,27 @@ def head_motion(x: GimbalState, thetaddot_rad_s2, trunk: RigidMotion) -> RigidMo
     )
 
 
-def driven_head_motion(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, p: HeadParams):
+def head_angular_velocity(x: GimbalState, trunk: RigidMotion):
+    """ω_H = Λᵀ ω_T + E(θ) θ̇ (θ̈ does not enter it)."""
+    return _omega_head(x.theta_rad, x.thetadot_rad_s, trunk.omega_B_rad_s)
+
+
+def driven_head_motion(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, head: FreeHead):
     """The head's kinematics and θ̈ under the motor torques m (2,), for the head on the moving trunk:
-    Eᵀ (J_H ω̇_H + γ ω_H × J_H ω_H) = m solved for θ̈."""
+    Eᵀ τ_H = m with τ_H = ``head.torque(ω_H, ω̇_H)`` (the free head's Euler equation) solved for θ̈."""
     omega_H, omegadot_bias = _omega_and_bias(x, trunk)
     E = body_jacobian(x.theta_rad)
-    J = p.J_H
-    bias_torque = J * omegadot_bias + p.gyroscopic * jnp.cross(omega_H, J * omega_H)
+    J = head.params.resolved().J_H
+    bias_torque = head.torque(omega_H, omegadot_bias)
     M = E.T @ (J[:, None] * E)  # joint-space inertia, 2×2, positive definite
     thetaddot = _solve_spd_2x2(M, motor_torque_Nm - E.T @ bias_torque)
-    head = RigidMotion(
+    head_motion_ = RigidMotion(
         R_I_B=trunk.R_I_B @ Lambda(x.theta_rad),
         omega_B_rad_s=omega_H,
         omegadot_B_rad_s2=omegadot_bias + E @ thetaddot,
         a_I_m_s2=trunk.a_I_m_s2,
     )
-    return head, thetaddot
-
-
-def joint_acceleration(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, p: HeadParams):
-    """θ̈ from the motor torques m (2,) for the head on the moving trunk."""
-    return driven_head_motion(x, motor_torque_Nm, trunk, p)[1]
-
-
-def dynamics(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, p: HeadParams) -> GimbalState:
-    return GimbalState(
-        theta_rad=x.thetadot_rad_s,
-        thetadot_rad_s=joint_acceleration(x, motor_torque_Nm, trunk, p),
-    )
+    return head_motion_, thetaddot
 
 
 def motor_torques_from_head_torque(theta_rad, tau_H_Nm):
@@ -145,17 +144,34 @@ def motor_torques_from_head_torque(theta_rad, tau_H_Nm):
     return body_jacobian(theta_rad).T @ tau_H_Nm
 
 
-def head_torque_total(head: RigidMotion, p: HeadParams):
-    """Total torque on the head (motors plus gimbal constraint), head frame: J ω̇ + γ ω × J ω.
+class GimbalInput(NamedTuple):
+    """Input of the gimbal head: the two motor torques and the trunk's motion."""
 
-    This is the torque input of the free-head model of F 2.3 that reproduces the head's actual
-    motion, whichever way the head is driven.
-    """
-    J = p.J_H
-    w = head.omega_B_rad_s
-    return J * head.omegadot_B_rad_s2 + p.gyroscopic * jnp.cross(w, J * w)
+    motor_torque_Nm: jnp.ndarray  # (2,) m: M1 (pitch, on the trunk), M2 (roll, on the link)
+    trunk: RigidMotion  # the trunk T; its a_I_m_s2 is the acceleration of the head centre C
 
 
-def fixed(trunk: RigidMotion) -> RigidMotion:
-    """The `fixed` condition: head rigid on the trunk (Λ = I), so the head's motion is the trunk's."""
-    return trunk
+@model_dataclass
+class GimbalHead(EuclideanState):
+    """The head (a :class:`FreeHead`) on the gimbal over a trunk whose motion is prescribed, as a
+    model value: state :class:`GimbalState` (θ, θ̇), input :class:`GimbalInput`, output the
+    encoders (θ, θ̇). :meth:`head_motion` is the head's kinematics (what the head carries sees)."""
+
+    head: FreeHead
+
+    def head_motion(self, x: GimbalState, u: GimbalInput) -> tuple[RigidMotion, jnp.ndarray]:
+        """(the head's RigidMotion, θ̈)."""
+        return driven_head_motion(x, u.motor_torque_Nm, u.trunk, self.head)
+
+    def dynamics(self, x: GimbalState, u: GimbalInput) -> GimbalState:
+        return GimbalState(theta_rad=x.thetadot_rad_s, thetadot_rad_s=self.head_motion(x, u)[1])
+
+    def output(self, x: GimbalState, u=None):
+        return jnp.concatenate([x.theta_rad, x.thetadot_rad_s])
+
+    def head_orientation(self, x: GimbalState, trunk: RigidMotion):
+        """R_IH = R_IT Λ(θ)."""
+        return trunk.R_I_B @ Lambda(x.theta_rad)
+
+    def head_angular_velocity(self, x: GimbalState, trunk: RigidMotion):
+        return head_angular_velocity(x, trunk)

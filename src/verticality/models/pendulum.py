@@ -22,6 +22,10 @@ from pivot to mass, head frame) is ``−R_HS e3``.
 Sign of the otolith angles: for a still head, ``R_HS = R_IH^T`` (up to yaw of the pendulum), so the
 otolith angles are the tilt angles (F 3.8–3.9) of ``R_HI``: φ = Θ(R_IH^T). For a tilt about one axis
 that is φ = −Θ: the pendulum leans, relative to the head, opposite to the head's tilt.
+
+The model value is :class:`Pendulum`: driven kinematically by the head's :class:`RigidMotion` (its
+input ``u``), output the otolith angles (φ_x, φ_y); the functions below are its implementation.
+Tangent space: ``x ⊞ δ = (R_IS exp([δθ]×), ω_S + δω)``.
 """
 
 from __future__ import annotations
@@ -31,7 +35,8 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 from verticality import so3
-from verticality.models.kinematics import RigidMotion
+from verticality.models.base import model_dataclass
+from verticality.models.kinematics import RigidMotion, RotationAndRate
 from verticality.params import PendulumParams, gravity_I
 
 
@@ -80,10 +85,6 @@ def dynamics(x: PendulumState, head: HeadMotion, p: PendulumParams) -> PendulumS
         R_I_S=x.R_I_S @ so3.hat(x.omega_S_rad_s),
         omega_S_rad_s=angular_acceleration(x, head, p),
     )
-
-
-def project(x: PendulumState) -> PendulumState:
-    return x._replace(R_I_S=so3.orthonormalize(x.R_I_S))
 
 
 def R_H_S(x: PendulumState, R_I_H):
@@ -139,3 +140,30 @@ def rest_state(head: HeadMotion, p: PendulumParams) -> PendulumState:
     R_I_S = rest_orientation(up_H, head.R_I_B)
     omega_S = R_I_S.T @ (head.R_I_B @ head.omega_B_rad_s)
     return PendulumState(R_I_S=R_I_S, omega_S_rad_s=omega_S)
+
+
+@model_dataclass
+class Pendulum(RotationAndRate):
+    """One otolith pendulum as a model value: ``ẋ = f(x, u)`` with ``u`` the head's
+    :class:`RigidMotion` (the pivot sits at ``params.pivot_H_m`` on that head), ``y`` the otolith
+    angles (φ_x, φ_y) of F 2.8–2.9 (rad). ``params`` are used resolved."""
+
+    params: PendulumParams
+
+    def dynamics(self, x: PendulumState, u: RigidMotion) -> PendulumState:
+        return dynamics(x, u, self.params.resolved())
+
+    def angles(self, x: PendulumState, R_I_H):
+        """(φ_x, φ_y) of F 2.8–2.9 seen from a head at ``R_I_H``."""
+        return otolith_angles(R_H_S(x, R_I_H))
+
+    def output(self, x: PendulumState, u: RigidMotion):
+        return self.angles(x, u.R_I_B)
+
+    def rest_state(self, u: RigidMotion) -> PendulumState:
+        """At rest relative to the head moving as ``u``, along its pivot's gravito-inertial vertical."""
+        return rest_state(u, self.params.resolved())
+
+    def energy_J(self, x: PendulumState):
+        """Mechanical energy in a still frame (:func:`energy_J`)."""
+        return energy_J(x, self.params.resolved())
