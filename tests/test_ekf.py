@@ -258,6 +258,13 @@ def test_head_frame_acceleration_input_is_the_same_model(medial):
     np.testing.assert_array_equal(uI.a_I_m_s2, a_I)
     with pytest.raises(ValueError):
         sim.estimator_input(head, model, "trunk")
+    # the parameter noise's blocks in frame I are the adapter's inertial input of each block
+    blocks = HeadFrameInput(jnp.asarray(np.random.default_rng(2).normal(size=(4, 3))),
+                            jnp.asarray(np.random.default_rng(3).normal(size=(4, 3))))
+    got = exp.inertial_blocks(x, blocks)
+    ref = jax.vmap(lambda b: f_H.model.model.inertial_input(x, b))(blocks)
+    np.testing.assert_allclose(got.a_I_m_s2, ref.a_I_m_s2, rtol=1e-14, atol=1e-15)
+    np.testing.assert_array_equal(got.tau_H_Nm, blocks.tau_H_Nm)
 
 
 def test_common_initial_covariance_is_one_rotation_of_both(medial):

@@ -33,8 +33,10 @@ def test_fixed_head_admitting_unknown_torque_closes_the_gap(quick_sweeps):
 
 def test_figure_from_a_quick_result(quick_sweeps, tmp_path):
     out, simulated_s, _ = quick_sweeps
+    from verticality import experiments
+
     result = sens.Result(metrics=dict(out), simulated_s=simulated_s)
-    paths = sens._figures(result, tmp_path)
+    paths = experiments.get("ekf-sensitivity").figures(result, tmp_path)
     assert [p.name for p in paths] == ["ekf-sensitivity.png"]
     assert paths[0].stat().st_size > 10_000
 

@@ -74,8 +74,8 @@ from verticality.estimators import ekf, ekf_stacked, parameter_noise
 from verticality.experiments import Result, check, register
 from verticality.models import gimbal
 from verticality.models.gimbal_plant import gimbal_plant
-from verticality.models.head import state_from_motion
-from verticality.models.otolith_head import HeadFrameAcceleration, OtolithHeadState
+from verticality.models.head import HeadInput, state_from_motion
+from verticality.models.otolith_head import HeadFrameAcceleration, HeadFrameInput, OtolithHeadState
 from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM, P13_HEAD, P13_PENDULUM
 
 T_SETTLE_S = 2.0
@@ -201,12 +201,22 @@ def _estimator(variant: str, condition: str, torque_input: str, accel_frame: str
             u_I = u
             if isinstance(model, HeadFrameAcceleration):
                 head_model = model.model
-                u_I = jax.vmap(lambda ub: model.inertial_input(x, ub))(u)  # per block
+                u_I = inertial_blocks(x, u)
             Q = Q + parameter_noise.medial_parameter_noise(head_model, x, u_I, dt)
         inner, out = ekf.with_noise(filt, Q, state.R).step(state.ekf_state, u, y, dt)
         return state._replace(ekf_state=inner), out
 
     return filt, sim.Estimator(step=step, R_I_H=R_of)
+
+
+def inertial_blocks(x: OtolithHeadState, u: HeadFrameInput) -> HeadInput:
+    """Head-frame input blocks (leading axis) in frame I with the estimate's R̂_IH: ᴵa = R̂_IH ᴴa
+    (:meth:`HeadFrameAcceleration.inertial_input` of each block). Written on the blocks' (a, τ)
+    rows, one matrix product for all, as the ekf-* numbers were computed: another arrangement of
+    the same product rounds differently inside the compiled closed loop (1e-15)."""
+    rows = jnp.concatenate([u.a_H_m_s2, u.tau_H_Nm], -1)
+    rows = rows.at[:, :3].set(rows[:, :3] @ x.head.R_I_H.T)
+    return HeadInput(rows[:, 3:], rows[:, :3])
 
 
 def _sensor_noise(std: float) -> sim.NoiseParams:
