@@ -62,7 +62,7 @@ def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
                      "--sigma"]) == 0
     assert "tilt σ outside re-acquisitions: median" in capsys.readouterr().out
     table = imu.read_estimate_csv(out_csv)
-    ref = tilt.run(rec.gyr_rad_s, rec.acc_m_s2, imu.dt_from_t(rec.t_s))
+    ref = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, imu.dt_from_t(rec.t_s))
     np.testing.assert_allclose(table.tilt_sigma_rad, tilt.tilt_sigma_rad(ref.var), rtol=1e-15)
     np.testing.assert_allclose(table.t_s, rec.t_s, rtol=1e-15)
     np.testing.assert_allclose(table.roll_rad, ref.roll_rad, atol=1e-12)

@@ -42,7 +42,7 @@ def peer_status() -> dict[str, str | None]:
 def _ours(gyr, acc, dt_s):
     from verticality.estimators import tilt
 
-    out = tilt.run(gyr, acc, dt_s)
+    out = tilt.estimate(gyr, acc, dt_s)
     return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
 
 

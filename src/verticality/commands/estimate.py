@@ -127,7 +127,7 @@ def run(args) -> int:
         if args.filter == OURS:
             from verticality.estimators import tilt
 
-            out = tilt.run(gyr, acc, dt)
+            out = tilt.estimate(gyr, acc, dt)
             sigma = tilt.tilt_sigma_rad(out.var)
         else:
             quat, bias = run_filter(args.filter, gyr, acc, dt)
@@ -200,10 +200,11 @@ def _peer_output(quat, bias, dt):
     quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
     n = quat.shape[0]
     gap = dt > tilt.DEFAULT_PARAMS.gap_flag_s
-    res = tilt.TiltOutput(np.zeros(n), np.zeros(n), np.zeros((n, 3)), quat, bias,
-                          np.zeros((n, 7)), np.where(gap, tilt.DT_GAP, 0).astype(np.int32))
-    tilt._angles_np(res)
-    return res
+    from verticality.estimators.tilt_core import up_roll_pitch
+
+    up, roll, pitch = up_roll_pitch(tuple(quat.T), xp=np)
+    return tilt.TiltOutput(roll, pitch, np.stack(up, axis=1), quat, bias, np.zeros((n, 7)),
+                           np.where(gap, tilt.DT_GAP, 0).astype(np.int32), np.ones(n, dtype=bool))
 
 
 def _runs(flags, bit):
