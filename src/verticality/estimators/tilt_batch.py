@@ -221,8 +221,7 @@ def blocks_needing_gaps(dts, acc, k, block, p, pending, t_sum, pad: int = 0,
     base = k - pad
     nb = -(-(n - base) // block)
     need = np.zeros(nb, dtype=bool)
-    d = dts[k:]
-    gap = core.is_gap(np.where(core.valid_dt(d, np), d, 0.0), p)
+    gap = core.gaps_in(dts[k:], p, xp=np)
     gap_blocks = np.unique(np.concatenate([[0] if gap0 else [],
                                            (np.flatnonzero(gap) + pad) // block])).astype(int)
     j = 0

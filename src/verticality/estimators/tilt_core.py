@@ -107,6 +107,12 @@ def is_gap(dts, p):
     return dts > p.gap_flag_s
 
 
+def gaps_in(dt, p, xp=jnp):
+    """Which samples of raw steps ``dt`` span a gap in the recording (a valid Δt above
+    ``gap_flag_s``; flag DT_GAP)."""
+    return is_gap(xp.where(valid_dt(dt, xp), dt, 0.0), p)
+
+
 def masks(g, a, dt, xp=jnp):
     """``(dt_ok, gyr_ok, acc_ok, |acc|²)`` of samples given as component tuples ``g``, ``a`` and
     ``dt`` (arrays of one shape, any layout): a finite positive Δt; with it a finite gyro; with it
@@ -334,7 +340,7 @@ def block_prediction(x, c):
     block's specific force rotated to Earth ``Σ R f Δt`` and the velocity ``v + Π f_E``."""
     q0 = x[X.q]
     q_end = so3.quat_multiply(so3.quat_multiply(q0, c[C.dquat]), so3.quat_exp(-x[X.b] * c[C.tau]))
-    q_end = jnp.stack(so3.quat_normalize_components(tuple(q_end)))
+    q_end = so3.quat_normalize(q_end)
     f_E = so3.quat_rotate(q0, c[C.f])
     return q_end, f_E, x[X.v] + f_E[:2]
 
@@ -425,7 +431,7 @@ def block_update(x, c, p, gaps: bool = True):
                                                    jnp.array(False))
 
     q_new = so3.quat_multiply(so3.quat_exp(jnp.stack([dx[0], dx[1], 0.0])), q_end)
-    q_new = jnp.stack(so3.quat_normalize_components(tuple(q_new)))
+    q_new = so3.quat_normalize(q_new)
     x_new = X.pack(q=q_new, b=b + dx[E.bias], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t)
     return x_new, disturbed, reacq
