@@ -1,10 +1,10 @@
 """The tilt filter's paths against each other, case by case: the JAX core's batch ``run``, its
 per-sample ``step`` under ``lax.scan`` (the sequential reference of ``run``), the packed real-time
 ``Stepper``, and the plain-Python ``tilt_stream.Stream``, an independent implementation of the
-same filter (as PyVQF stands beside VQF's C++). Every case: a BROAD slice, NaNs in every channel,
-irregular Δt, gaps (two while one is pending), dropouts of either sensor, a start in motion, rest,
-rotations beyond the batch kernel's Taylor range, a given initial state, no usable accelerometer
-at all; the σ of every path."""
+same filter (as PyVQF stands beside VQF's C++). The cases: a BROAD slice, NaNs in every channel,
+readings beyond any IMU, irregular Δt, gaps (two while one is pending), dropouts of either
+sensor, a start in motion, rest, rotations beyond the batch kernel's Taylor range, a given initial
+state, no usable accelerometer at all; the σ of every path."""
 
 from pathlib import Path
 
@@ -83,6 +83,18 @@ def _nan_every_channel():
     return (gyr, acc, dts), None
 
 
+def _beyond_limits():
+    """Finite readings beyond any IMU (tilt_params.MAX_*): missing, so the estimate stays
+    finite."""
+    gyr, acc, dts = _tumbling(np.array([0.0, 0.0, 0.004]), seed=8)
+    gyr[200] = 1e200
+    gyr[210, 1] = -2e4
+    acc[400] = 1e300
+    acc[410, 0] = 2e6
+    dts[[600, 601]] = [1e300, 2e6]
+    return (gyr, acc, dts), None
+
+
 def _gaps_and_dropouts():
     """Gaps while a re-acquisition is pending, an accelerometer dropout that delays one, a gyro
     dropout across a block boundary."""
@@ -124,7 +136,8 @@ def _never_initialized():
 
 
 CASES = {"broad_slice": _broad_slice, "nans_irregular_gap": _nans_irregular_gap,
-         "nan_every_channel": _nan_every_channel, "gaps_and_dropouts": _gaps_and_dropouts,
+         "nan_every_channel": _nan_every_channel, "beyond_limits": _beyond_limits,
+         "gaps_and_dropouts": _gaps_and_dropouts,
          "start_in_motion": _start_in_motion, "large_rotations": _large_rotations,
          "given_x0": _given_x0, "never_initialized": _never_initialized}
 
@@ -247,6 +260,10 @@ def test_the_cases_exercise_what_they_claim(case):
                    for c in range(3))
         assert f[600] & GYR_MISSING and f[650] & ACC_MISSING and f[700] & ACC_MISSING
         assert all(f[k] & BAD_DT for k in (800, 801, 900))
+    elif name == "beyond_limits":
+        assert f[200] & GYR_MISSING and f[210] & GYR_MISSING
+        assert f[400] & ACC_MISSING and f[410] & ACC_MISSING
+        assert f[600] & BAD_DT and f[601] & BAD_DT and not np.any(f & DT_GAP)
     elif name == "gaps_and_dropouts":
         assert np.flatnonzero(f & DT_GAP).tolist() == [300, 340, 900, 1590]
         assert np.count_nonzero(f & REACQUIRED) == 3  # the start, after 340, after 900

@@ -18,6 +18,7 @@ from verticality.estimators import tilt_core as core
 from verticality.estimators import tilt_kernels
 from verticality.estimators.tilt_flags import DT_GAP, INIT, REACQUIRING, accelerometer_used
 from verticality.estimators.tilt_layout import HEAD, NE, ROW, SAMPLE, SOA, E, S, X
+from verticality.estimators.tilt_params import MAX_RATE_RAD_S
 
 CHUNK_BLOCKS = 256
 GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: it costs ~1.4x per sample
@@ -194,9 +195,9 @@ def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p):
     block's last sample already has the updated ones). Samples from ``k`` on, the first block
     having begun ``pad`` samples before ``k`` with ``qmiss0`` in its sums. In place; nothing to do
     on a recording without dropouts."""
-    if (qmiss0 == 0.0 and np.isfinite(np.sum(gyr[k:]))
+    if (qmiss0 == 0.0 and np.max(np.abs(gyr[k:]), initial=0.0) < MAX_RATE_RAD_S
             and not np.any(dts[k:] > p.gap_flag_s)):
-        return  # every gyro sample finite (a finite sum says so) and no gap: the usual case
+        return  # every gyro sample valid (NaN fails the test) and no gap: the usual case
     t = core.sample_terms(_columns(gyr[k:]), _columns(acc[k:]), dts[k:], p, xp=np)
     m = t.dts.shape[0]
     q = np.zeros(-(-(pad + m) // block) * block)

@@ -42,6 +42,7 @@ from verticality.estimators.tilt_flags import (
     REACQUIRING,
 )
 from verticality.estimators.tilt_layout import NE, C, E, S, X
+from verticality.estimators.tilt_params import MAX_ACC_M_S2, MAX_DT_S, MAX_RATE_RAD_S
 
 
 class TiltState(NamedTuple):
@@ -98,8 +99,9 @@ class TiltOutput(NamedTuple):
 # --- the sample: validity, flags, per-sample terms of the pre-integration ---
 
 def valid_dt(dt, xp=jnp):
-    """Whether a sample's Δt can be used: finite and positive (else the sample is skipped)."""
-    return xp.isfinite(dt) & (dt > 0)
+    """Whether a sample's Δt can be used: positive and below ``MAX_DT_S`` (so finite; else the
+    sample is skipped)."""
+    return (dt > 0) & (dt < MAX_DT_S)
 
 
 def is_gap(dts, p):
@@ -115,12 +117,16 @@ def gaps_in(dt, p, xp=jnp):
 
 def masks(g, a, dt, xp=jnp):
     """``(dt_ok, gyr_ok, acc_ok, |acc|²)`` of samples given as component tuples ``g``, ``a`` and
-    ``dt`` (arrays of one shape, any layout): a finite positive Δt; with it a finite gyro; with it
-    a finite, non-zero accelerometer (``|acc|²`` is 0 where the accelerometer is not finite)."""
+    ``dt`` (arrays of one shape, any layout): a valid Δt (:func:`valid_dt`); with it a gyro whose
+    components are finite and below ``MAX_RATE_RAD_S``; with it a non-zero accelerometer whose
+    components are finite and below ``MAX_ACC_M_S2`` (``|acc|²`` is 0 where they are not)."""
     dt_ok = valid_dt(dt, xp)
-    gyr_ok = xp.isfinite(g[0]) & xp.isfinite(g[1]) & xp.isfinite(g[2]) & dt_ok
-    acc_fin = xp.isfinite(a[0]) & xp.isfinite(a[1]) & xp.isfinite(a[2])
-    acc_n2 = xp.where(acc_fin, a[0] * a[0] + a[1] * a[1] + a[2] * a[2], 0.0)
+    gyr_ok = ((xp.abs(g[0]) < MAX_RATE_RAD_S) & (xp.abs(g[1]) < MAX_RATE_RAD_S)
+              & (xp.abs(g[2]) < MAX_RATE_RAD_S) & dt_ok)
+    acc_in = ((xp.abs(a[0]) < MAX_ACC_M_S2) & (xp.abs(a[1]) < MAX_ACC_M_S2)
+              & (xp.abs(a[2]) < MAX_ACC_M_S2))
+    a = tuple(xp.where(acc_in, c, 0.0) for c in a)
+    acc_n2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
     acc_ok = dt_ok & (acc_n2 > 1e-6)
     return dt_ok, gyr_ok, acc_ok, acc_n2
 

@@ -67,3 +67,11 @@ DEFAULT_PARAMS = TiltParams()
 # prior covariance of the error state (δx, δy [rad], ṽx, ṽy [m/s], b̃x, b̃y, b̃z [rad/s])
 DEFAULT_P0 = np.diag([0.05**2, 0.05**2, 0.1**2, 0.1**2, 0.01**2, 0.01**2, 0.01**2])
 BLOCK = 32  # samples per Kalman update (the canal signal is integrated in between)
+
+# Validity limits of a sample: far beyond any IMU (MEMS gyros read up to ~35 rad/s, accelerometers
+# up to ~2000 m/s²) and far below where the filter's sums and covariance would overflow. A gyro or
+# accelerometer component beyond them is taken as missing, a step beyond MAX_DT_S as a bad step, so
+# that no finite input turns the estimate non-finite.
+MAX_RATE_RAD_S = 1e4
+MAX_ACC_M_S2 = 1e6
+MAX_DT_S = 1e6

@@ -28,7 +28,14 @@ from verticality.estimators.tilt_flags import (
     REACQUIRED,
     REACQUIRING,
 )
-from verticality.estimators.tilt_params import BLOCK, DEFAULT_P0, DEFAULT_PARAMS
+from verticality.estimators.tilt_params import (
+    BLOCK,
+    DEFAULT_P0,
+    DEFAULT_PARAMS,
+    MAX_ACC_M_S2,
+    MAX_DT_S,
+    MAX_RATE_RAD_S,
+)
 
 
 def _qmul(p, q):
@@ -138,10 +145,11 @@ class Stream:
         gx, gy, gz = float(gyr[0]), float(gyr[1]), float(gyr[2])
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
         dt = float(dt)
-        dt_ok = math.isfinite(dt) and dt > 0
-        gyr_ok = dt_ok and math.isfinite(gx) and math.isfinite(gy) and math.isfinite(gz)
-        acc_fin = math.isfinite(ax) and math.isfinite(ay) and math.isfinite(az)
-        n2 = ax * ax + ay * ay + az * az if acc_fin else 0.0
+        dt_ok = 0.0 < dt < MAX_DT_S
+        gyr_ok = dt_ok and abs(gx) < MAX_RATE_RAD_S and abs(gy) < MAX_RATE_RAD_S \
+            and abs(gz) < MAX_RATE_RAD_S
+        acc_in = abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
+        n2 = ax * ax + ay * ay + az * az if acc_in else 0.0
         acc_ok = dt_ok and n2 > 1e-6
         dts = dt if dt_ok else 0.0
         if not gyr_ok:
