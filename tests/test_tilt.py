@@ -420,3 +420,29 @@ def test_error_transition_is_the_jacobian_of_the_block_prediction(omega, b_hat):
     else:
         wT = float(np.linalg.norm(omega)) * n * dt
         assert 1e-4 * off < np.max(np.abs(F_auto - F)) < 0.5 * wT * off
+
+
+def test_the_filter_is_an_estimator_value_with_named_state():
+    """TiltFilter follows the project's estimator interface; its state reads by name the flat
+    vectors the kernels use, through one layout per vector."""
+    from verticality.estimators.base import Estimator
+    from verticality.estimators.tilt_layout import NE, Packed, S, X
+
+    filt = tilt.TiltFilter()
+    assert isinstance(filt, Estimator)
+    assert tilt.TiltFilter(block=16) != filt and hash(tilt.TiltFilter()) == hash(filt)
+    q0 = np.asarray(so3.quat_from_rpy_radians(0.2, -0.1, 0.4))
+    P0 = np.diag(np.arange(1.0, NE + 1))
+    state = filt.init((2.0 * q0, [0.01, 0.02, 0.03]), P0)
+    np.testing.assert_allclose(state.quat_E_S, q0, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(state.bias_S_rad_s, [0.01, 0.02, 0.03])
+    np.testing.assert_array_equal(state.P, P0)
+    assert state.x.shape == (X.size,) and state.sums.shape == (S.size,)
+    assert bool(state.initialized) and int(state.count) == 0 and not bool(state.reacquire)
+    assert X.size == 65 and S.size == 21 and X.P == slice(9, 58) and X.reacq_t == 64
+    L = Packed([("a", 2), ("b", None)])
+    np.testing.assert_array_equal(L.pack(xp=np, b=3.0, a=(1.0, 2.0)), [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="missing"):
+        L.pack(xp=np, a=(1.0, 2.0))
+    with pytest.raises(ValueError, match="expected 2"):
+        L.pack(xp=np, a=np.zeros(3), b=0.0)
