@@ -195,9 +195,10 @@ def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p):
     block's last sample already has the updated ones). Samples from ``k`` on, the first block
     having begun ``pad`` samples before ``k`` with ``qmiss0`` in its sums. In place; nothing to do
     on a recording without dropouts."""
-    if (qmiss0 == 0.0 and np.max(np.abs(gyr[k:]), initial=0.0) < MAX_RATE_RAD_S
-            and not np.any(dts[k:] > p.gap_flag_s)):
-        return  # every gyro sample valid (NaN fails the test) and no gap: the usual case
+    g = gyr[k:]
+    if (qmiss0 == 0.0 and np.max(g, initial=0.0) < MAX_RATE_RAD_S
+            and np.min(g, initial=0.0) > -MAX_RATE_RAD_S and not np.any(dts[k:] > p.gap_flag_s)):
+        return  # every gyro sample valid (a NaN fails the test) and no gap: the usual case
     t = core.sample_terms(_columns(gyr[k:]), _columns(acc[k:]), dts[k:], p, xp=np)
     m = t.dts.shape[0]
     q = np.zeros(-(-(pad + m) // block) * block)

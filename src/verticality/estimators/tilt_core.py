@@ -98,9 +98,9 @@ class TiltOutput(NamedTuple):
 
 # --- the sample: validity, flags, per-sample terms of the pre-integration ---
 
-def valid_dt(dt, xp=jnp):
+def valid_dt(dt):
     """Whether a sample's Δt can be used: positive and below ``MAX_DT_S`` (so finite; else the
-    sample is skipped)."""
+    sample is skipped). NumPy or JAX arrays."""
     return (dt > 0) & (dt < MAX_DT_S)
 
 
@@ -112,7 +112,7 @@ def is_gap(dts, p):
 def gaps_in(dt, p, xp=jnp):
     """Which samples of raw steps ``dt`` span a gap in the recording (a valid Δt above
     ``gap_flag_s``; flag DT_GAP)."""
-    return is_gap(xp.where(valid_dt(dt, xp), dt, 0.0), p)
+    return is_gap(xp.where(valid_dt(dt), dt, 0.0), p)
 
 
 def masks(g, a, dt, xp=jnp):
@@ -120,7 +120,7 @@ def masks(g, a, dt, xp=jnp):
     ``dt`` (arrays of one shape, any layout): a valid Δt (:func:`valid_dt`); with it a gyro whose
     components are finite and below ``MAX_RATE_RAD_S``; with it a non-zero accelerometer whose
     components are finite and below ``MAX_ACC_M_S2`` (``|acc|²`` is 0 where they are not)."""
-    dt_ok = valid_dt(dt, xp)
+    dt_ok = valid_dt(dt)
     gyr_ok = ((xp.abs(g[0]) < MAX_RATE_RAD_S) & (xp.abs(g[1]) < MAX_RATE_RAD_S)
               & (xp.abs(g[2]) < MAX_RATE_RAD_S) & dt_ok)
     acc_in = ((xp.abs(a[0]) < MAX_ACC_M_S2) & (xp.abs(a[1]) < MAX_ACC_M_S2)
