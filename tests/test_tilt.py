@@ -372,7 +372,7 @@ def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
         q, sums = c
         q = so3.quat_multiply(q, so3.quat_exp(omega_rad_s * dt))
         acc = so3.quat_rotate(so3.quat_conjugate(q), jnp.array([0.0, 0.0, p.g_m_s2]))
-        t = core.sample_terms(tuple(gyr), tuple(acc), jnp.asarray(dt), p)
+        t = core.sample_terms(gyr, acc, jnp.asarray(dt), p)
         return (q, core.accumulate(sums, t)), None
 
     (q_true, sums), _ = jax.lax.scan(body, (q_true, core.empty_sums()), None, length=n)

@@ -24,22 +24,17 @@ CHUNK_BLOCKS = 256
 GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: it costs ~1.4x per sample
 
 
-def _columns(a):
-    return tuple(a[:, i] for i in range(a.shape[1]))
-
-
 def _acc_ok(acc, dts):
     """``tilt_core.masks``' acc_ok: a usable accelerometer sample (its gyro argument does not
     enter acc_ok, so the accelerometer stands in for it)."""
-    a = _columns(acc)
-    return core.masks(a, a, dts, xp=np)[2]
+    return core.masks(acc.T, acc.T, dts, xp=np)[2]
 
 
-def empty_output(n: int) -> core.TiltOutput:
-    """A :class:`~verticality.estimators.tilt_core.TiltOutput` of ``n`` samples to be filled."""
-    return core.TiltOutput(np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 4)),
-                           np.zeros((n, 3)), np.zeros((n, NE)), np.zeros(n, dtype=np.int32),
-                           np.zeros(n, dtype=bool))
+def empty_output(n: int, alloc=np.zeros) -> core.TiltOutput:
+    """A :class:`~verticality.estimators.tilt_core.TiltOutput` of ``n`` samples to be filled
+    (``alloc=np.empty`` for a temporary that is filled whole)."""
+    return core.TiltOutput(alloc(n), alloc(n), alloc((n, 3)), alloc((n, 4)), alloc((n, 3)),
+                           alloc((n, NE)), alloc(n, dtype=np.int32), alloc(n, dtype=bool))
 
 
 def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s):
@@ -91,7 +86,7 @@ def _before_initialization(res, p, x, sums, gyr, acc, dts):
     n = acc.shape[0]
     j = first_usable(acc, dts)
     k = min(n, j + 1)
-    t = core.sample_terms(_columns(gyr[:k]), _columns(acc[:k]), dts[:k], p, xp=np)
+    t = core.sample_terms(gyr[:k].T, acc[:k].T, dts[:k], p, xp=np)
     pending = (x[X.reacquire] > 0.5) | (sums[S.gap] > 0)
     flags = core.flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, gap=t.gap, reacquiring=pending, xp=np)
     var = core.output_var(x[X.P].reshape(NE, NE), False, 0.0, p, xp=np)
@@ -102,7 +97,7 @@ def _before_initialization(res, p, x, sums, gyr, acc, dts):
         quat[j] = x[X.q]
         variances[j] = core.output_var(x[X.P].reshape(NE, NE), True, 0.0, p, xp=np)
         flags[j] |= INIT | REACQUIRING
-    up, roll, pitch = core.up_roll_pitch(_columns(quat), xp=np)
+    up, roll, pitch = core.up_roll_pitch(tuple(quat.T), xp=np)
     res.quat_E_S[:k] = quat
     res.up_S[:k] = np.stack(up, axis=1)
     res.roll_rad[:k], res.pitch_rad[:k] = roll, pitch
@@ -116,13 +111,13 @@ _HEADS: dict = {}
 
 
 def _head(sums0, n_update: int, nb: int):
-    """The chunk header (``HEAD``); the usual one (no sums carried in, every block updated) is
-    put on the device once per chunk size."""
-    if n_update == nb and np.array_equal(sums0, _EMPTY_SUMS):
+    """The chunk header (``HEAD``); the usual one (no sums carried in: ``sums0`` None or empty;
+    every block updated) is put on the device once per chunk size."""
+    if n_update == nb and (sums0 is None or np.array_equal(sums0, _EMPTY_SUMS)):
         if nb not in _HEADS:
             _HEADS[nb] = jax.device_put(HEAD.pack(xp=np, sums0=_EMPTY_SUMS, n_update=nb))
         return _HEADS[nb]
-    return HEAD.pack(xp=np, sums0=sums0, n_update=n_update)
+    return HEAD.pack(xp=np, sums0=_EMPTY_SUMS if sums0 is None else sums0, n_update=n_update)
 
 
 _EMPTY_SUMS = np.asarray(core.empty_sums(xp=np))
@@ -168,8 +163,8 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k):
             data[m:, :] = 0.0
             data[m:, SAMPLE.dt] = np.nan
         n_update = m // block if v + m == nv else nb
-        x, current, outs = tilt_kernels.run_chunk(x, _head(sums0 if v == 0 else _EMPTY_SUMS,
-                                                           n_update, nb),
+        x, current, outs = tilt_kernels.run_chunk(x, _head(sums0 if v == 0 else None, n_update,
+                                                           nb),
                                                   data, p_vec, block, p._fields, gaps=gaps)
         pending.append((lo, lead, m, size, outs))
         v += m
@@ -179,7 +174,7 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k):
         if lead == 0 and m == size:
             put_chunk(res, lo, outs, block)
         else:  # a chunk with positions without a sample: through a temporary
-            tmp = empty_output(size)
+            tmp = empty_output(size, np.empty)
             put_chunk(tmp, 0, outs, block, gap0=gap0)
             for dst, src in zip(res, tmp, strict=True):
                 dst[lo:lo + m - lead] = src[lead:m]
@@ -199,7 +194,7 @@ def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p):
     if (qmiss0 == 0.0 and np.max(g, initial=0.0) < MAX_RATE_RAD_S
             and np.min(g, initial=0.0) > -MAX_RATE_RAD_S and not np.any(dts[k:] > p.gap_flag_s)):
         return  # every gyro sample valid (a NaN fails the test) and no gap: the usual case
-    t = core.sample_terms(_columns(gyr[k:]), _columns(acc[k:]), dts[k:], p, xp=np)
+    t = core.sample_terms(gyr[k:].T, acc[k:].T, dts[k:], p, xp=np)
     m = t.dts.shape[0]
     q = np.zeros(-(-(pad + m) // block) * block)
     q[pad:pad + m] = t.sums["qmiss"]
@@ -223,7 +218,12 @@ def blocks_needing_gaps(dts, acc, k, block, p, pending, t_sum, pad: int = 0,
     base = k - pad
     nb = -(-(n - base) // block)
     need = np.zeros(nb, dtype=bool)
-    gap = core.gaps_in(dts[k:], p, xp=np)
+    if p.gap_flag_s >= 0:  # a gap is a valid Δt above gap_flag_s: test the few candidates
+        cand = np.flatnonzero(dts[k:] > p.gap_flag_s)
+        gap = np.zeros(n - k, dtype=bool)
+        gap[cand] = core.gaps_in(dts[k:][cand], p, xp=np)
+    else:
+        gap = core.gaps_in(dts[k:], p, xp=np)
     gap_blocks = np.unique(np.concatenate([[0] if gap0 else [],
                                            (np.flatnonzero(gap) + pad) // block])).astype(int)
     j = 0

@@ -116,16 +116,16 @@ def gaps_in(dt, p, xp=jnp):
 
 
 def masks(g, a, dt, xp=jnp):
-    """``(dt_ok, gyr_ok, acc_ok, |acc|²)`` of samples given as component tuples ``g``, ``a`` and
-    ``dt`` (arrays of one shape, any layout): a valid Δt (:func:`valid_dt`); with it a gyro whose
-    components are finite and below ``MAX_RATE_RAD_S``; with it a non-zero accelerometer whose
-    components are finite and below ``MAX_ACC_M_S2`` (``|acc|²`` is 0 where they are not)."""
+    """``(dt_ok, gyr_ok, acc_ok, |acc|²)`` of samples: ``g``, ``a`` arrays with the component axis
+    first ((3, ...)), ``dt`` (...): a valid Δt (:func:`valid_dt`); with it a gyro whose components
+    are finite and below ``MAX_RATE_RAD_S``; with it a non-zero accelerometer whose components are
+    finite and below ``MAX_ACC_M_S2`` (``|acc|²`` is 0 where they are not)."""
     dt_ok = valid_dt(dt)
     gyr_ok = ((xp.abs(g[0]) < MAX_RATE_RAD_S) & (xp.abs(g[1]) < MAX_RATE_RAD_S)
               & (xp.abs(g[2]) < MAX_RATE_RAD_S) & dt_ok)
     acc_in = ((xp.abs(a[0]) < MAX_ACC_M_S2) & (xp.abs(a[1]) < MAX_ACC_M_S2)
               & (xp.abs(a[2]) < MAX_ACC_M_S2))
-    a = tuple(xp.where(acc_in, c, 0.0) for c in a)
+    a = xp.where(acc_in, a, 0.0)
     acc_n2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
     acc_ok = dt_ok & (acc_n2 > 1e-6)
     return dt_ok, gyr_ok, acc_ok, acc_n2
@@ -149,33 +149,34 @@ class SampleTerms(NamedTuple):
     acc_ok: jax.Array
     gap: jax.Array  # Δt above gap_flag_s: a gap in the recording
     dts: jax.Array  # Δt of a sample with a valid Δt, else 0
-    rot: tuple  # (3,) gyro rotation vector ω Δt of a valid gyro sample, else 0
-    acc: tuple  # (3,) accelerometer of a valid accelerometer sample (m/s²), else 0
+    rot: jax.Array  # (3, ...) gyro rotation vector ω Δt of a valid gyro sample, else 0
+    acc: jax.Array  # (3, ...) accelerometer of a valid accelerometer sample (m/s²), else 0
     wa: jax.Array  # Δt of a valid accelerometer sample, else 0
     sums: dict  # the sample's term of each additive block sum (every S field but dquat and f)
 
 
 def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True) -> SampleTerms:
-    """The per-sample part of the pre-integration, for samples given as component tuples ``g``
-    (rad/s), ``a`` (m/s²) and ``dt`` (s) of any one shape: the sample's validity and its term in
-    each block sum (``S``). A block sum is the sum of its samples' terms; ``dquat`` and ``f`` are
-    sequential (:func:`preintegrate`). ``gaps=False``: the caller guarantees that no sample is a
-    gap (the batch kernel without gap handling)."""
+    """The per-sample part of the pre-integration: ``g`` (rad/s) and ``a`` (m/s²) arrays with the
+    component axis first ((3, ...)), ``dt`` (s) of shape (...): the samples' validity and their
+    term in each block sum (``S``; the vector ones with the component axis first). A block sum is
+    the sum of its samples' terms; ``dquat`` and ``f`` are sequential (:func:`preintegrate`).
+    ``gaps=False``: the caller guarantees that no sample is a gap (the batch kernel without gap
+    handling)."""
     dt_ok, gyr_ok, acc_ok, acc_n2 = masks(g, a, dt, xp)
     dts = xp.where(dt_ok, dt, 0.0)
     wa = xp.where(acc_ok, dts, 0.0)  # Δt of a valid accelerometer sample
     wg = xp.where(gyr_ok, dts, 0.0)  # Δt of a valid gyro sample
-    g0 = tuple(xp.where(gyr_ok, c, 0.0) for c in g)
-    a0 = tuple(xp.where(acc_ok, c, 0.0) for c in a)
+    g0 = xp.where(gyr_ok, g, 0.0)
+    a0 = xp.where(acc_ok, a, 0.0)
+    rot = g0 * dts
     # the gyro sample does not describe the rotation inside a gap: it counts as a dropout
     gap = is_gap(dts, p) if gaps else xp.zeros_like(dt_ok)
     dev2 = (xp.sqrt(acc_n2) - p.g_m_s2) ** 2
     sums = dict(tau=wg, t_acc=wa, dev2=dev2 * wa,
                 w2=(g0[0] * g0[0] + g0[1] * g0[1] + g0[2] * g0[2]) * dts, t=dts,
                 qmiss=xp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2),
-                gsum=tuple(c * dts for c in g0), asum=tuple(c * wa for c in a0), a2=acc_n2 * wa,
-                gap=gap.astype(xp.float64))
-    return SampleTerms(dt_ok, gyr_ok, acc_ok, gap, dts, tuple(c * dts for c in g0), a0, wa, sums)
+                gsum=rot, asum=a0 * wa, a2=acc_n2 * wa, gap=gap.astype(xp.float64))
+    return SampleTerms(dt_ok, gyr_ok, acc_ok, gap, dts, rot, a0, wa, sums)
 
 
 def preintegrate(dq, f, e, acc, wa):
@@ -197,11 +198,8 @@ def empty_sums(xp=jnp):
 def accumulate(sums, terms: SampleTerms):
     """``sums`` (``S``) with one sample added (:func:`sample_terms`, :func:`preintegrate`)."""
     dq, f = preintegrate(tuple(sums[S.dquat]), tuple(sums[S.f]),
-                         so3.quat_exp_components(*terms.rot), terms.acc, terms.wa)
-    added = {k: (tuple(sums[getattr(S, k)][i] + v[i] for i in range(len(v)))
-                 if isinstance(v, tuple) else sums[getattr(S, k)] + v)
-             for k, v in terms.sums.items()}
-    return S.pack(dquat=dq, f=f, **added)
+                         so3.quat_exp_components(*terms.rot), tuple(terms.acc), terms.wa)
+    return S.pack(dquat=dq, f=f, **{k: sums[getattr(S, k)] + v for k, v in terms.sums.items()})
 
 
 # --- the initialization and the covariance helpers ---
@@ -455,12 +453,13 @@ def close_block(x, sums, p):
 # --- the outputs of a sample ---
 
 def sample_quat(q0, dq, b, tau, qexp=so3.quat_exp_components):
-    """``q_E_S`` at a sample inside a block, on component tuples: ``q0 ⊗ dq ⊗ exp(−b τ)``,
-    normalized (``q0``, ``b`` the block-start estimate, ``dq``, ``tau`` the block's sums so far).
-    ``qexp`` the quaternion exponential on components (the batch kernel passes its faster one)."""
+    """``q_E_S`` at a sample inside a block, on component tuples, before normalization:
+    ``q0 ⊗ dq ⊗ exp(−b τ)`` (``q0``, ``b`` the block-start estimate, ``dq``, ``tau`` the block's
+    sums so far). ``qexp`` the quaternion exponential on components (the batch kernel passes its
+    faster one); the caller normalizes (component-wise in the batch kernel, as one vector in
+    :func:`step`: fewer kernels per call)."""
     qb = qexp(-b[0] * tau, -b[1] * tau, -b[2] * tau)
-    return so3.quat_normalize_components(
-        so3.quat_multiply_components(so3.quat_multiply_components(q0, dq), qb))
+    return so3.quat_multiply_components(so3.quat_multiply_components(q0, dq), qb)
 
 
 def up_roll_pitch(q, xp=jnp, atan2=None):
@@ -492,9 +491,9 @@ def step(state: TiltState, gyr, acc, dt, p, block: int):
     gyr = jnp.asarray(gyr, dtype=jnp.float64)
     acc = jnp.asarray(acc, dtype=jnp.float64)
     dt = jnp.asarray(dt, dtype=jnp.float64)
-    t = sample_terms(tuple(gyr[i] for i in range(3)), tuple(acc[i] for i in range(3)), dt, p)
+    t = sample_terms(gyr, acc, dt, p)
     init_now = ~state.initialized & t.acc_ok
-    x = jnp.where(init_now, initialize(state.x, jnp.stack(t.acc), p), state.x)
+    x = jnp.where(init_now, initialize(state.x, t.acc, p), state.x)
     sums = jnp.where(state.initialized, accumulate(state.sums, t), state.sums)
     count = jnp.where(state.initialized, state.count + 1, state.count)
     initialized = state.initialized | init_now
@@ -507,11 +506,12 @@ def step(state: TiltState, gyr, acc, dt, p, block: int):
     x, sums, count, disturbed, reacq = jax.lax.cond(
         initialized & (count >= block), close,
         lambda a: (*a, jnp.array(False), jnp.array(False)), (x, sums, count))
-    q = sample_quat(tuple(x[X.q]), tuple(sums[S.dquat]), x[X.b], sums[S.tau])
-    q = tuple(jnp.where(count == 0, x[X.q][i], q[i]) for i in range(4))
-    up, roll, pitch = up_roll_pitch(q)
+    q = so3.quat_normalize(jnp.stack(sample_quat(tuple(x[X.q]), tuple(sums[S.dquat]), x[X.b],
+                                                  sums[S.tau])))
+    q = jnp.where(count == 0, x[X.q], q)
+    up, roll, pitch = up_roll_pitch(tuple(q))
     flags = flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, disturbed, t.gap, reacq,
                       (x[X.reacquire] > 0.5) | (sums[S.gap] > 0), init_now)
     var = output_var(x[X.P].reshape(NE, NE), initialized, sums[S.qmiss], p)
-    out = TiltOutput(roll, pitch, jnp.stack(up), jnp.stack(q), x[X.b], var, flags, t.acc_ok)
+    out = TiltOutput(roll, pitch, jnp.stack(up), q, x[X.b], var, flags, t.acc_ok)
     return TiltState(x, sums, count, initialized), out

@@ -111,14 +111,13 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     sums0 = head[HEAD.sums0]
     # structure of arrays (one transpose): sample k of every block in one contiguous row
     ds = data.reshape(nb, block, SAMPLE.size).transpose(2, 1, 0)  # (SAMPLE, block, nb)
-    t = core.sample_terms(tuple(ds[SAMPLE.gyr]), tuple(ds[SAMPLE.acc]), ds[SAMPLE.dt], p,
-                          gaps=gaps)
+    t = core.sample_terms(ds[SAMPLE.gyr], ds[SAMPLE.acc], ds[SAMPLE.dt], p, gaps=gaps)
     e = quat_exp_batched(*t.rot)
 
     # pre-integration: block sequential steps, each over all nb blocks at once; the first block
     # continues from sums0
     def pre(c, k):
-        dq, f = core.preintegrate(c[0], c[1], tuple(ei[k] for ei in e), tuple(ai[k] for ai in t.acc),
+        dq, f = core.preintegrate(c[0], c[1], tuple(ei[k] for ei in e), tuple(t.acc[:, k]),
                                   t.wa[k])
         return (dq, f), jnp.stack(dq)
 
@@ -127,8 +126,8 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
                   for sl, vals in ((S.dquat, (1.0, 0.0, 0.0, 0.0)), (S.f, (0.0, 0.0, 0.0))))
     (dq_end, f_end), dq_all = jax.lax.scan(pre, start, jnp.arange(block))  # dq_all (block, 4, nb)
     tau_b = jnp.cumsum(t.sums["tau"], axis=0) + jnp.where(first, sums0[S.tau], 0.0)
-    reduced = {k: (tuple(jnp.sum(c, 0) for c in v) if isinstance(v, tuple) else jnp.sum(v, 0))
-               for k, v in t.sums.items() if k != "tau"}
+    reduced = {k: (tuple(jnp.sum(c, 0) for c in v) if v.ndim == 3 else jnp.sum(v, 0))
+               for k, v in t.sums.items() if k != "tau"}  # vector sums: each component
     sums = S.pack(dquat=dq_end, tau=tau_b[-1], f=f_end, **reduced)  # (nb, S)
     sums = sums + jnp.where(first[:, None] & _REDUCED, sums0, 0.0)
 
@@ -148,8 +147,8 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     # carries the updated estimate
     q0 = tuple(rows[:, ROW.q0][:, i] for i in range(4))
     b0 = tuple(rows[:, ROW.b0][:, i] for i in range(3))
-    q = core.sample_quat(q0, tuple(dq_all[:, i] for i in range(4)), b0, tau_b,
-                         qexp=quat_exp_batched)  # each (block, nb)
+    q = so3.quat_normalize_components(core.sample_quat(
+        q0, tuple(dq_all[:, i] for i in range(4)), b0, tau_b, qexp=quat_exp_batched))  # (block, nb)
     last = jnp.arange(block)[:, None] == block - 1
     q = tuple(jnp.where(last, rows[:, ROW.q1][:, i], q[i]) for i in range(4))
     up, roll, pitch = core.up_roll_pitch(q, atan2=atan2)
