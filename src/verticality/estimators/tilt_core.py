@@ -116,8 +116,8 @@ def gaps_in(dt, p, xp=jnp):
 
 
 def masks(g, a, dt, xp=jnp):
-    """``(dt_ok, gyr_ok, acc_ok, |acc|²)`` of samples: ``g``, ``a`` arrays with the component axis
-    first ((3, ...)), ``dt`` (...): a valid Δt (:func:`valid_dt`); with it a gyro whose components
+    """``(dt_ok, gyr_ok, acc_ok, |acc|²)`` of samples: ``g``, ``a`` vectors with the component
+    axis first (arrays (3, ...) or tuples of three arrays), ``dt`` (...): a valid Δt (:func:`valid_dt`); with it a gyro whose components
     are finite and below ``MAX_RATE_RAD_S``; with it a non-zero accelerometer whose components are
     finite and below ``MAX_ACC_M_S2`` (``|acc|²`` is 0 where they are not)."""
     dt_ok = valid_dt(dt)
@@ -125,7 +125,7 @@ def masks(g, a, dt, xp=jnp):
               & (xp.abs(g[2]) < MAX_RATE_RAD_S) & dt_ok)
     acc_in = ((xp.abs(a[0]) < MAX_ACC_M_S2) & (xp.abs(a[1]) < MAX_ACC_M_S2)
               & (xp.abs(a[2]) < MAX_ACC_M_S2))
-    a = xp.where(acc_in, a, 0.0)
+    a = _each(lambda c: xp.where(acc_in, c, 0.0), a)
     acc_n2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
     acc_ok = dt_ok & (acc_n2 > 1e-6)
     return dt_ok, gyr_ok, acc_ok, acc_n2
@@ -151,31 +151,41 @@ class SampleTerms(NamedTuple):
     dts: jax.Array  # Δt of a sample with a valid Δt, else 0
     rot: jax.Array  # (3, ...) gyro rotation vector ω Δt of a valid gyro sample, else 0
     acc: jax.Array  # (3, ...) accelerometer of a valid accelerometer sample (m/s²), else 0
+    # (rot and acc, and the vector sums, as tuples of components when the sample was given so)
     wa: jax.Array  # Δt of a valid accelerometer sample, else 0
     sums: dict  # the sample's term of each additive block sum (every S field but dquat and f)
 
 
+def _each(fn, v):
+    """``fn`` of a vector given as a tuple of component arrays (component by component), or as an
+    array with the component axis first (at once)."""
+    return tuple(fn(c) for c in v) if isinstance(v, tuple) else fn(v)
+
+
 def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True) -> SampleTerms:
-    """The per-sample part of the pre-integration: ``g`` (rad/s) and ``a`` (m/s²) arrays with the
-    component axis first ((3, ...)), ``dt`` (s) of shape (...): the samples' validity and their
-    term in each block sum (``S``; the vector ones with the component axis first). A block sum is
-    the sum of its samples' terms; ``dquat`` and ``f`` are sequential (:func:`preintegrate`).
-    ``gaps=False``: the caller guarantees that no sample is a gap (the batch kernel without gap
-    handling)."""
+    """The per-sample part of the pre-integration: ``g`` (rad/s) and ``a`` (m/s²) vectors with the
+    component axis first (arrays (3, ...), or tuples of three arrays), ``dt`` (s) of shape (...):
+    the samples' validity and their term in each block sum (``S``; the vector ones in the form of
+    ``g``). A block sum is the sum of its samples' terms; ``dquat`` and ``f`` are sequential
+    (:func:`preintegrate`). ``gaps=False``: the caller guarantees that no sample is a gap (the
+    batch kernel without gap handling). The batch kernel passes tuples, the per-sample step arrays:
+    the same arithmetic, each compiled the faster way (XLA runs few large kernels best, and a
+    single sample's few small ones as vectors)."""
     dt_ok, gyr_ok, acc_ok, acc_n2 = masks(g, a, dt, xp)
     dts = xp.where(dt_ok, dt, 0.0)
     wa = xp.where(acc_ok, dts, 0.0)  # Δt of a valid accelerometer sample
     wg = xp.where(gyr_ok, dts, 0.0)  # Δt of a valid gyro sample
-    g0 = xp.where(gyr_ok, g, 0.0)
-    a0 = xp.where(acc_ok, a, 0.0)
-    rot = g0 * dts
+    g0 = _each(lambda c: xp.where(gyr_ok, c, 0.0), g)
+    a0 = _each(lambda c: xp.where(acc_ok, c, 0.0), a)
+    rot = _each(lambda c: c * dts, g0)
     # the gyro sample does not describe the rotation inside a gap: it counts as a dropout
     gap = is_gap(dts, p) if gaps else xp.zeros_like(dt_ok)
     dev2 = (xp.sqrt(acc_n2) - p.g_m_s2) ** 2
     sums = dict(tau=wg, t_acc=wa, dev2=dev2 * wa,
                 w2=(g0[0] * g0[0] + g0[1] * g0[1] + g0[2] * g0[2]) * dts, t=dts,
                 qmiss=xp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2),
-                gsum=rot, asum=a0 * wa, a2=acc_n2 * wa, gap=gap.astype(xp.float64))
+                gsum=rot, asum=_each(lambda c: c * wa, a0), a2=acc_n2 * wa,
+                gap=gap.astype(xp.float64))
     return SampleTerms(dt_ok, gyr_ok, acc_ok, gap, dts, rot, a0, wa, sums)
 
 

@@ -111,14 +111,15 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     sums0 = head[HEAD.sums0]
     # structure of arrays (one transpose): sample k of every block in one contiguous row
     ds = data.reshape(nb, block, SAMPLE.size).transpose(2, 1, 0)  # (SAMPLE, block, nb)
-    t = core.sample_terms(ds[SAMPLE.gyr], ds[SAMPLE.acc], ds[SAMPLE.dt], p, gaps=gaps)
+    t = core.sample_terms(tuple(ds[SAMPLE.gyr]), tuple(ds[SAMPLE.acc]), ds[SAMPLE.dt], p,
+                          gaps=gaps)  # component arrays (block, nb): XLA's faster form here
     e = quat_exp_batched(*t.rot)
 
     # pre-integration: block sequential steps, each over all nb blocks at once; the first block
     # continues from sums0
     def pre(c, k):
-        dq, f = core.preintegrate(c[0], c[1], tuple(ei[k] for ei in e), tuple(t.acc[:, k]),
-                                  t.wa[k])
+        dq, f = core.preintegrate(c[0], c[1], tuple(ei[k] for ei in e),
+                                  tuple(ai[k] for ai in t.acc), t.wa[k])
         return (dq, f), jnp.stack(dq)
 
     first = jnp.arange(nb) == 0
@@ -126,8 +127,8 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
                   for sl, vals in ((S.dquat, (1.0, 0.0, 0.0, 0.0)), (S.f, (0.0, 0.0, 0.0))))
     (dq_end, f_end), dq_all = jax.lax.scan(pre, start, jnp.arange(block))  # dq_all (block, 4, nb)
     tau_b = jnp.cumsum(t.sums["tau"], axis=0) + jnp.where(first, sums0[S.tau], 0.0)
-    reduced = {k: (tuple(jnp.sum(c, 0) for c in v) if v.ndim == 3 else jnp.sum(v, 0))
-               for k, v in t.sums.items() if k != "tau"}  # vector sums: each component
+    reduced = {k: (tuple(jnp.sum(c, 0) for c in v) if isinstance(v, tuple) else jnp.sum(v, 0))
+               for k, v in t.sums.items() if k != "tau"}
     sums = S.pack(dquat=dq_end, tau=tau_b[-1], f=f_end, **reduced)  # (nb, S)
     sums = sums + jnp.where(first[:, None] & _REDUCED, sums0, 0.0)
 
