@@ -58,6 +58,7 @@ for real-time loops.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -187,9 +188,6 @@ def _step_packed(filt, z, sample):
                      bias=o.bias_S_rad_s, flags=o.flags))
 
 
-_step_packed_jit = jax.jit(_step_packed, static_argnums=0)  # parameters baked in as constants
-
-
 @dataclasses.dataclass(frozen=True)
 class Stepper:
     """Real-time form of :meth:`TiltFilter.step` for Python loops in JAX (:func:`make_step`): the
@@ -199,6 +197,12 @@ class Stepper:
 
     filter: TiltFilter
     z0: np.ndarray = dataclasses.field(compare=False, repr=False)
+    # the step jitted once per stepper, the filter's parameters baked in as constants (a static
+    # argument instead would be hashed on every call)
+    _jitted: object = dataclasses.field(init=False, compare=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "_jitted", jax.jit(functools.partial(_step_packed, self.filter)))
 
     def init(self):
         """The packed initial state."""
@@ -208,11 +212,11 @@ class Stepper:
         """``(z, out)`` after one sample ``gyr`` (3,), ``acc`` (3,), ``dt``."""
         sample = np.empty(SAMPLE.size)  # (faster than SAMPLE.pack, for a per-sample call)
         sample[SAMPLE.gyr], sample[SAMPLE.acc], sample[SAMPLE.dt] = gyr, acc, dt
-        return _step_packed_jit(self.filter, z, sample)
+        return self._jitted(z, sample)
 
     def step_packed(self, z, sample):
         """:meth:`step` with the sample as one vector ``[gyr, acc, dt]`` (one argument less)."""
-        return _step_packed_jit(self.filter, z, sample)
+        return self._jitted(z, sample)
 
     def unpack(self, z) -> TiltState:
         """The packed state as a :class:`TiltState` (NumPy arrays)."""

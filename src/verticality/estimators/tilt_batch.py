@@ -32,7 +32,7 @@ def _acc_ok(acc, dts):
 
 def empty_output(n: int, alloc=np.zeros) -> core.TiltOutput:
     """A :class:`~verticality.estimators.tilt_core.TiltOutput` of ``n`` samples to be filled
-    (``alloc=np.empty`` for a temporary that is filled whole)."""
+    (``alloc=np.empty`` when every sample will be written)."""
     return core.TiltOutput(alloc(n), alloc(n), alloc((n, 3)), alloc((n, 4)), alloc((n, 3)),
                            alloc((n, NE)), alloc(n, dtype=np.int32), alloc(n, dtype=bool))
 
@@ -53,8 +53,8 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s):
     x = np.array(state.x, dtype=np.float64)
     sums = np.array(state.sums, dtype=np.float64)
     count, initialized = int(state.count), bool(state.initialized)
-    res = empty_output(n)
-    k = 0
+    res = empty_output(n, np.empty)  # every sample is written below (by the samples before the
+    k = 0                             # initialization and by the chunks)
     if not initialized:
         k, x = _before_initialization(res, params, x, sums, gyr, acc, dts)
         initialized = k > 0 and bool(res.flags[k - 1] & INIT)
@@ -86,9 +86,10 @@ def _before_initialization(res, p, x, sums, gyr, acc, dts):
     n = acc.shape[0]
     j = first_usable(acc, dts)
     k = min(n, j + 1)
-    t = core.sample_terms(gyr[:k].T, acc[:k].T, dts[:k], p, xp=np)
+    dt_ok, gyr_ok, acc_ok, _ = core.masks(gyr[:k].T, acc[:k].T, dts[:k], xp=np)
     pending = (x[X.reacquire] > 0.5) | (sums[S.gap] > 0)
-    flags = core.flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, gap=t.gap, reacquiring=pending, xp=np)
+    flags = core.flag_bits(dt_ok, gyr_ok, acc_ok, gap=core.gaps_in(dts[:k], p, xp=np),
+                           reacquiring=pending, xp=np)
     var = core.output_var(x[X.P].reshape(NE, NE), False, 0.0, p, xp=np)
     quat = np.tile(x[X.q], (k, 1))
     variances = np.tile(var, (k, 1))
