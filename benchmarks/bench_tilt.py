@@ -1,12 +1,13 @@
 """Throughput of the tilt filter (verticality.estimators.tilt) against vqf in the same run.
 
-- batch: ``tilt.run`` on one BROAD trial (or a synthetic recording if the data are absent) vs
+- batch: ``tilt.estimate`` (``TiltFilter.run`` from the start) on one BROAD trial (or a synthetic recording if the data are absent) vs
   ``vqf.VQF(Ts).updateBatch`` (C++), samples per second, best of several repetitions (the two
   alternate), compile excluded (one compiled shape serves every recording); also the time of the
-  compiled chunks alone, the rest of ``tilt.run``'s time being the host side;
+  compiled chunks alone, the rest of the run's time being the host side;
 - streaming, one call per sample as a 1 kHz robot loop would, samples per second:
-  ``tilt_stream.Stream.step`` (plain Python/NumPy twin of the filter, the real-time path) and the
-  jitted packed JAX step ``tilt.make_step()`` (bounded by JAX's per-call cost).
+  ``tilt_stream.Stream.step`` (the plain Python/NumPy reference implementation of the filter, the
+  real-time path) and the jitted packed JAX step ``tilt.make_step()`` (bounded by JAX's per-call
+  cost).
 
 Run: ``python benchmarks/bench_tilt.py [--reps 5]``.
 """
@@ -60,28 +61,29 @@ def _best_interleaved(fns, reps):
 
 def _device_time(gyr, acc, dt, reps):
     """Time of the compiled chunks alone (``tilt_kernels.run_chunk`` chained on the device, as
-    in ``tilt.run``, inputs already packed): ``tilt.run``'s time minus this is the host side
+    in the batch run, inputs already packed): the run's time minus this is the host side
     (packing, transfers, writing the result arrays)."""
-    from verticality.estimators import tilt_kernels
+    from verticality.estimators import tilt_batch, tilt_core, tilt_kernels
+    from verticality.estimators.tilt_layout import HEAD, SAMPLE
 
-    chunk = tilt.CHUNK_BLOCKS * tilt.BLOCK
+    chunk = tilt_batch.CHUNK_BLOCKS * tilt.BLOCK
     n = gyr.shape[0]
     nch = -(-n // chunk)
-    data = np.zeros((nch * chunk, 7))
-    data[:n, 0:3], data[:n, 3:6] = gyr, acc
-    data[:n, 6] = dt
-    data[n:, 6] = np.nan
+    data = np.zeros((nch * chunk, SAMPLE.size))
+    data[:n, SAMPLE.gyr], data[:n, SAMPLE.acc] = gyr, acc
+    data[:n, SAMPLE.dt] = dt
+    data[n:, SAMPLE.dt] = np.nan
     parts = [jax.device_put(data[i * chunk:(i + 1) * chunk]) for i in range(nch)]
-    x0 = jax.device_put(tilt.pack_state(tilt._default_init()._replace(
-        initialized=np.bool_(True), quat_E_S=tilt._quat_from_acc_np(acc[0]))))
-
     p = tilt.DEFAULT_PARAMS
+    x0 = jax.device_put(tilt_core.initialize(tilt.TiltFilter().init().x, acc[0], p, xp=np))
+    head = jax.device_put(HEAD.pack(xp=np, sums0=np.asarray(tilt_core.empty_sums(xp=np)),
+                                    n_update=tilt_batch.CHUNK_BLOCKS))
     p_vec = jax.device_put(np.asarray(p, dtype=np.float64))
 
     def chunks():
         x = x0
         for part in parts:
-            x, outs = tilt_kernels.run_chunk(x, part, p_vec, tilt.BLOCK, p._fields)
+            x, _, outs = tilt_kernels.run_chunk(x, head, part, p_vec, tilt.BLOCK, p._fields)
         jax.block_until_ready((x, outs))
 
     chunks()
@@ -99,7 +101,7 @@ def main() -> int:
     n = gyr.shape[0]
     print(f"data: {name}, {n} samples")
 
-    tilt.run(gyr, acc, dt)  # compile
+    tilt.estimate(gyr, acc, dt)  # compile
     try:
         from vqf import VQF
     except ImportError:
@@ -107,12 +109,12 @@ def main() -> int:
         print("note: vqf not installed (pip install 'verticality[peers]'): no peer ratio")
     # ours and vqf alternate (best of reps each), so that a change of the machine's load during
     # the benchmark affects both alike
-    fns = {"ours": lambda: tilt.run(gyr, acc, dt)}
+    fns = {"ours": lambda: tilt.estimate(gyr, acc, dt)}
     if VQF is not None:
         fns["vqf"] = lambda: VQF(dt).updateBatch(gyr, acc)
     best = _best_interleaved(fns, args.reps)
     t_ours, t_vqf = best["ours"], best.get("vqf")
-    rows = [("verticality tilt.run (batch)", n / t_ours)]
+    rows = [("verticality tilt.estimate (batch)", n / t_ours)]
     if t_vqf is not None:
         rows.append(("vqf VQF.updateBatch (C++)", n / t_vqf))
     t_dev, n_chunks = _device_time(gyr, acc, dt, args.reps)
@@ -149,7 +151,7 @@ def main() -> int:
     print(f"{'implementation':45s} {'samples/s':>14s}")
     for label, sps in rows:
         print(f"{label:45s} {sps:14,.0f}")
-    print(f"tilt.run: {1e3 * t_ours:.2f} ms, of which {n_chunks} compiled chunks "
+    print(f"tilt.estimate: {1e3 * t_ours:.2f} ms, of which {n_chunks} compiled chunks "
           f"{1e3 * t_dev:.2f} ms ({1e9 * t_dev / n:.0f} ns/sample), host side "
           f"{1e3 * (t_ours - t_dev):.2f} ms")
     if t_vqf is not None:

@@ -97,7 +97,7 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
         g.attrs["sampling_rate"] = f.attrs["sampling_rate"]
     trial = broad.load_trial(tmp_path / "slice.hdf5")
     assert trial.movement.sum() > 2000
-    out = tilt.run(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+    out = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
     rmse = broad.inclination_rmse_deg(out.quat_E_S, trial)
     assert rmse < 1.0
     assert cli.main(["evaluate", "broad", str(tmp_path), "--json", "--filters", "verticality"]) == 0

@@ -62,7 +62,7 @@ def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
                      "--sigma"]) == 0
     assert "tilt σ outside re-acquisitions: median" in capsys.readouterr().out
     table = imu.read_estimate_csv(out_csv)
-    ref = tilt.run(rec.gyr_rad_s, rec.acc_m_s2, imu.dt_from_t(rec.t_s))
+    ref = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, imu.dt_from_t(rec.t_s))
     np.testing.assert_allclose(table.tilt_sigma_rad, tilt.tilt_sigma_rad(ref.var), rtol=1e-15)
     np.testing.assert_allclose(table.t_s, rec.t_s, rtol=1e-15)
     np.testing.assert_allclose(table.roll_rad, ref.roll_rad, atol=1e-12)
@@ -99,7 +99,7 @@ def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
 def test_estimate_plot_has_one_labelled_row_per_flag_that_occurs():
     import matplotlib.pyplot as plt
 
-    from verticality.commands.estimate import _plot_flags
+    from verticality.analysis.tilt_plot import plot_flags
     from verticality.estimators import tilt
 
     t = np.arange(100) * 0.01
@@ -107,13 +107,13 @@ def test_estimate_plot_has_one_labelled_row_per_flag_that_occurs():
     flags[40] |= tilt.DT_GAP
     flags[40:50] |= tilt.REACQUIRING
     fig, ax = plt.subplots()
-    _plot_flags(ax, t, flags)
+    plot_flags(ax, t, flags)
     labels = [lab.get_text() for lab in ax.get_yticklabels()]
     assert labels == ["gap in the time stamps (32): 1", "re-acquiring (128): 10"]
     gap_bar, reacq_bar = ax.collections  # per row, one bar per run of flagged samples
     np.testing.assert_allclose(np.asarray(gap_bar.get_segments()), [[[t[40], 0], [t[40], 0]]])
     np.testing.assert_allclose(np.asarray(reacq_bar.get_segments()), [[[t[40], 1], [t[49], 1]]])
-    _plot_flags(ax2 := fig.add_subplot(2, 1, 2), t, np.zeros(100, dtype=np.int32))
+    plot_flags(ax2 := fig.add_subplot(2, 1, 2), t, np.zeros(100, dtype=np.int32))
     assert ax2.get_title() == "flags: none"
     plt.close(fig)
 
@@ -131,14 +131,14 @@ def test_fast_csv_parser_agrees_with_the_general_one(body, fast):
     """read_imu_csv parses clean files with NumPy's C parser and everything else with the general
     parser; where the fast one answers, both give the same values and time type (ns stamps stay
     int64, exact)."""
-    from verticality.io import imu_layout
+    from verticality.io import imu_layout, imu_rows
 
     rows = body.splitlines()
     lay = imu_layout.locate(",".join(imu.IMU_COLUMNS))
-    got = imu._parse_clean_rows(rows, lay)
+    got = imu_rows.parse_clean_rows(rows, lay)
     assert (got is not None) == fast
     try:
-        ref = imu._parse_rows(rows, list(range(2, len(rows) + 2)), lay, "f.csv")
+        ref = imu_rows.parse_rows(rows, list(range(2, len(rows) + 2)), lay, "f.csv")
     except InputError as exc:
         assert not fast and "beyond int64" in str(exc)
         return

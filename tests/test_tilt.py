@@ -1,12 +1,14 @@
 """3-D otolith–canal tilt filter (verticality.estimators.tilt) on synthetic recordings with known
 truth: static tilts, constant rotation with a known gyro bias, linear acceleration, NaN, gaps,
-irregular time steps, and step-by-step vs batch equivalence."""
+irregular time steps; the error-state Jacobian against autodiff; the two batch kernels. The paths
+of the filter against each other: tests/test_tilt_reference.py."""
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from verticality import so3
+from verticality.errors import InputError
 from verticality.estimators import tilt
 
 G = 9.81
@@ -32,7 +34,7 @@ def _static(roll, pitch, n=1500, dt=0.01, seed=0, gyr_sigma=1e-3, acc_sigma=0.02
 @pytest.mark.parametrize("roll_deg,pitch_deg", [(0.0, 0.0), (20.0, -35.0), (120.0, 10.0)])
 def test_static_tilt_converges_to_truth(roll_deg, pitch_deg):
     gyr, acc, dt, up = _static(np.radians(roll_deg), np.radians(pitch_deg))
-    out = tilt.run(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, dt)
     assert _tilt_err_deg(up, out.up_S[-1]) < 0.2
     assert abs(np.degrees(out.roll_rad[-1]) - roll_deg) < 0.3
     assert abs(np.degrees(out.pitch_rad[-1]) - pitch_deg) < 0.3
@@ -53,7 +55,7 @@ def _tumbling(bias, n=6000, dt=0.01, rate=0.4, seed=1):
 def test_constant_rotation_recovers_known_gyro_bias():
     bias = np.array([0.01, -0.008, 0.006])
     gyr, acc, dt, up = _tumbling(bias)
-    out = tilt.run(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, dt)
     assert np.max(np.abs(out.bias_S_rad_s[-1] - bias)) < 1.5e-3
     # and the bias variance shrank from its prior (0.01 rad/s)²
     assert np.all(out.var[-1, 4:] < 0.2 * 0.01**2)
@@ -72,7 +74,7 @@ def test_linear_acceleration_rejected_as_translation():
     rng = np.random.default_rng(2)
     acc = np.column_stack([a_x, np.zeros(n), np.full(n, G)]) + rng.normal(0, 0.02, (n, 3))
     gyr = rng.normal(0, 1e-3, (n, 3))
-    out = tilt.run(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, dt)
     err = _tilt_err_deg(np.array([0.0, 0.0, 1.0]), out.up_S)
     naive = np.degrees(np.arctan(1.0 / G))
     assert np.max(err) < 0.5 * naive
@@ -87,7 +89,7 @@ def test_nan_samples_are_skipped_and_flagged():
     dts[700] = np.nan
     dts[701] = -0.01
     acc[:5] = np.nan  # no estimate before the first accelerometer sample
-    out = tilt.run(gyr, acc, dts)
+    out = tilt.estimate(gyr, acc, dts)
     for field in out:
         assert np.all(np.isfinite(np.asarray(field))), "a NaN sample leaked into the estimate"
     assert np.all(out.flags[:5] & tilt.ACC_MISSING)
@@ -112,45 +114,13 @@ def test_irregular_time_steps_and_gap_use_true_dt():
     R = np.asarray(so3.exp(np.outer(t, [rate, 0.0, 0.0])))
     acc = G * _up_S(R) + rng.normal(0, 0.02, (t.size, 3))
     gyr = np.tile([rate, 0.0, 0.0], (t.size, 1)) + rng.normal(0, 1e-3, (t.size, 3))
-    out = tilt.run(gyr, acc, dts)
+    out = tilt.estimate(gyr, acc, dts)
     err = _tilt_err_deg(_up_S(R), out.up_S)
     assert np.sqrt(np.mean(err[500:] ** 2)) < 0.3
     assert np.flatnonzero(out.flags & tilt.DT_GAP).tolist() == [1500]
     # same data but a wrong constant dt (the mean step ignoring the gap) goes wrong at the gap
-    bad = tilt.run(gyr, acc, float(np.median(dts)))
+    bad = tilt.estimate(gyr, acc, float(np.median(dts)))
     assert np.max(_tilt_err_deg(_up_S(R), bad.up_S)[1500:1600]) > 5 * np.max(err[1500:1600])
-
-
-def test_run_equals_streaming_steps():
-    gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=300)
-    acc[:2] = np.nan  # no estimate before the first accelerometer sample: the variance says so
-    acc[3:5] = np.nan
-    gyr[40] = np.nan
-    dts = np.full(gyr.shape[0], dt)
-    dts[60] = 0.0
-    dts[100] = 0.5  # a gap: flagged DT_GAP on every path, then re-acquired 1 s later
-    batch = tilt.run(gyr, acc, dts)
-    state = tilt.init()
-    rows = []
-    for k in range(gyr.shape[0]):
-        state, out = tilt.step_jit(state, gyr[k], acc[k], dts[k], tilt.DEFAULT_PARAMS, tilt.BLOCK)
-        rows.append(out)
-    for name in tilt.TiltOutput._fields:
-        ref = np.stack([np.asarray(getattr(o, name)) for o in rows])
-        np.testing.assert_allclose(np.asarray(getattr(batch, name)), ref, atol=1e-12, err_msg=name)
-    assert np.flatnonzero(batch.flags & tilt.DT_GAP).tolist() == [100]
-    _assert_reacquired_once_after(batch.flags, 100)
-    assert np.all(np.degrees(tilt.tilt_sigma_rad(batch.var[:3])) > 45.0)
-    # nothing ever initializes the filter: no estimate anywhere, and σ says so (not P0's 4°)
-    never = tilt.run(gyr[:50], np.full((50, 3), np.nan), dts[:50])
-    assert not np.any(never.flags & tilt.INIT)
-    assert np.all(np.degrees(tilt.tilt_sigma_rad(never.var)) > 45.0)
-    # continuing from a mid-block state gives the same as one run over everything
-    out1, st1 = tilt.run(gyr[:70], acc[:70], dts[:70], return_state=True)
-    assert int(st1.blk_count) == 0  # run closes a trailing partial block
-    np.testing.assert_allclose(out1.quat_E_S, batch.quat_E_S[:70], atol=1e-12)
-    out2 = tilt.run(gyr[70:], acc[70:], dts[70:], state=st1)
-    assert np.all(np.isfinite(out2.quat_E_S)) and not np.any(out2.flags & tilt.INIT)
 
 
 def _assert_reacquired_once_after(flags, k_gap):
@@ -167,11 +137,14 @@ def test_init_with_given_state_and_quaternion_helper():
     q = tilt.quat_from_acc(jnp.array([0.0, 0.0, -G]))  # upside down
     up = np.asarray(so3.matrix_from_quat(q))[2]
     np.testing.assert_allclose(up, [0.0, 0.0, -1.0], atol=1e-12)
-    with pytest.raises(ValueError):
-        tilt.init(P0=np.eye(5))
+    filt = tilt.TiltFilter()
+    with pytest.raises(InputError, match="P0 must be"):
+        filt.init(P0=np.eye(5))
+    with pytest.raises(InputError, match="x0 must be"):
+        filt.init((np.zeros(4), np.zeros(3)))
     gyr, acc, dt, up_true = _static(0.2, 0.1, n=300)
     q0 = so3.quat_from_rpy_radians(0.2, 0.1, 0.0)
-    out = tilt.run(gyr, acc, dt, state=tilt.init((q0, np.zeros(3))))
+    _, out = filt.run(filt.init((q0, np.zeros(3))), gyr, acc, dt)
     assert not np.any(out.flags & tilt.INIT)
     assert np.max(_tilt_err_deg(up_true, out.up_S)) < 0.3
 
@@ -188,7 +161,7 @@ def test_start_in_motion_is_reacquired():
     acc = np.column_stack([a_x, np.zeros(t.size), np.full(t.size, G)])
     acc += rng.normal(0, 0.02, acc.shape)
     gyr = rng.normal(0, 1e-3, acc.shape)
-    out = tilt.run(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, dt)
     err = _tilt_err_deg(np.array([0.0, 0.0, 1.0]), out.up_S)
     k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
     assert out.flags[0] & tilt.INIT and err[0] > 20.0
@@ -198,7 +171,8 @@ def test_start_in_motion_is_reacquired():
     k15 = int(round(1.5 / dt))
     assert err[k15] < 2.0 and np.degrees(np.sqrt(out.var[k15, 0])) > err[k15]
     assert np.max(err[-200:]) < 0.2 and err[-1] < 0.05
-    trusted = tilt.run(gyr, acc, dt, state=tilt.init((tilt.quat_from_acc(acc[0]), np.zeros(3))))
+    filt = tilt.TiltFilter()
+    _, trusted = filt.run(filt.init((tilt.quat_from_acc(acc[0]), np.zeros(3))), gyr, acc, dt)
     err_trusted = _tilt_err_deg(np.array([0.0, 0.0, 1.0]), trusted.up_S)
     assert err_trusted[k15] > 5 * err[k15]
 
@@ -207,7 +181,7 @@ def test_start_at_rest_reacquires_precisely():
     """Started at rest, every block before the re-acquisition is quiet: the mean specific force is
     then as good as the rest velocity prior says (vel_rest_m_s), not the moving one."""
     gyr, acc, dt, up = _static(np.radians(20.0), np.radians(-35.0), n=300)
-    out = tilt.run(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, dt)
     k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
     assert np.degrees(np.sqrt(out.var[k_re, 0])) < 0.2
     assert np.max(_tilt_err_deg(up, out.up_S[k_re:])) < 0.2
@@ -219,7 +193,7 @@ def test_tilt_sigma_spans_the_start_and_rests_on_the_calibration_floor():
     calibration error allows (atan(c/g)) and not far above it; the errors stay inside it; a larger
     calibration error raises the floor, the estimate is unchanged."""
     gyr, acc, dt, up = _static(np.radians(20.0), np.radians(-35.0), n=1000)
-    out = tilt.run(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, dt)
     sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
     floor = np.degrees(tilt.DEFAULT_PARAMS.acc_calib_m_s2 / tilt.DEFAULT_PARAMS.g_m_s2)
     assert sigma[0] > 45.0
@@ -227,7 +201,7 @@ def test_tilt_sigma_spans_the_start_and_rests_on_the_calibration_floor():
     assert np.all(sigma[k_re:] >= floor) and np.all(sigma[k_re:] < 1.5 * floor)
     assert np.all(_tilt_err_deg(up, out.up_S) <= sigma)
     wide = tilt.DEFAULT_PARAMS._replace(acc_calib_m_s2=0.5)
-    out_wide = tilt.run(gyr, acc, dt, params=wide)
+    out_wide = tilt.estimate(gyr, acc, dt, params=wide)
     np.testing.assert_array_equal(out_wide.quat_E_S, out.quat_E_S)
     assert np.degrees(tilt.tilt_sigma_rad(out_wide.var[-1], wide)) > 2.5
 
@@ -244,7 +218,7 @@ def test_start_in_motion_on_broad():
     assert path.is_file(), f"BROAD data missing: {path}"
     trial = broad.load_trial(path)
     k0, n = 15_000, int(10 / trial.dt_s)
-    out = tilt.run(trial.gyr_rad_s[k0:k0 + n], trial.acc_m_s2[k0:k0 + n], trial.dt_s)
+    out = tilt.estimate(trial.gyr_rad_s[k0:k0 + n], trial.acc_m_s2[k0:k0 + n], trial.dt_s)
     err = broad.inclination_error_deg(out.quat_E_S, trial.quat_E_S_opt[k0:k0 + n])
     assert err[0] > 40.0
     sel = slice(int(1.5 / trial.dt_s), n)
@@ -255,96 +229,25 @@ def test_start_in_motion_on_broad():
     assert np.all(err[fin] <= 2 * sigma[fin])
 
 
-def _stream_outputs(gyr, acc, dts):
-    from verticality.estimators.tilt_stream import Stream
-
-    s = Stream()
-    rows, sigma = [], []
-    for k in range(gyr.shape[0]):
-        rows.append(s.step(gyr[k], acc[k], dts[k]))
-        sigma.append(s.tilt_sigma_rad)
-    return {"roll_rad": np.array([r[0] for r in rows]), "pitch_rad": np.array([r[1] for r in rows]),
-            "up_S": np.array([r[2] for r in rows]), "quat_E_S": np.array([r[3] for r in rows]),
-            "bias_S_rad_s": np.array([r[4] for r in rows]), "flags": np.array([r[5] for r in rows]),
-            "tilt_sigma_rad": np.array(sigma)}
-
-
-def _assert_stream_equals_run(gyr, acc, dts):
-    ref = tilt.run(gyr, acc, dts)
-    got = _stream_outputs(gyr, acc, dts)
-    sigma_ref = tilt.tilt_sigma_rad(ref.var)
-    for name, val in got.items():
-        want = sigma_ref if name == "tilt_sigma_rad" else getattr(ref, name)
-        np.testing.assert_allclose(val, want, rtol=0, atol=1e-9, err_msg=name)
-    return ref
-
-
-def test_plain_python_stream_equals_batch_run_on_broad_slice():
-    from pathlib import Path
-
-    from verticality.io import broad
-
-    path = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad" / \
-        "06_undisturbed_fast_rotation_A.hdf5"
-    assert path.is_file(), f"BROAD data missing: {path}"
-    trial = broad.load_trial(path)
-    k0, n = 20_000, 2500  # a fast-rotation stretch
-    dts = np.broadcast_to(trial.dt_s, trial.gyr_rad_s.shape[:1])[k0:k0 + n]
-    ref = _assert_stream_equals_run(trial.gyr_rad_s[k0:k0 + n], trial.acc_m_s2[k0:k0 + n], dts)
-    assert np.max(np.abs(ref.bias_S_rad_s[-1])) > 0  # the block updates really ran
-
-
-def test_plain_python_stream_equals_batch_run_with_nans_and_irregular_dt():
-    rng = np.random.default_rng(5)
-    gyr, acc, _, _ = _tumbling(np.array([0.01, -0.005, 0.0]), n=2000)
-    dts = rng.uniform(0.005, 0.015, gyr.shape[0])
-    acc[:3] = np.nan
-    acc[300:420] = np.nan
-    gyr[700:710] = np.nan
-    dts[900] = np.nan
-    dts[901] = -0.01
-    dts[1200] = 1.5  # gap
-    ref = _assert_stream_equals_run(gyr, acc, dts)
-    assert ref.flags[3] & tilt.INIT and ref.flags[900] & tilt.BAD_DT
-    assert np.flatnonzero(ref.flags & tilt.DT_GAP).tolist() == [1200]  # the sample ending the gap
-    _assert_reacquired_once_after(ref.flags, 1200)
-
-
-def test_large_rotations_use_exact_exponential():
-    """|ω|Δt = 0.4 rad per sample is beyond the Taylor range of the batch kernel: the exact
-    fallback must give the same numbers as the sample-by-sample filter; and the Taylor series
-    matches the exact exponential to rounding over its whole range."""
+def test_taylor_exponential_matches_the_exact_one():
+    """The batch kernel's Taylor series of the quaternion exponential matches so3's exact
+    exponential to rounding over its whole range (beyond it the kernel falls back to the exact
+    one: the large_rotations case of tests/test_tilt_reference.py); and so3's component form
+    equals its array form."""
     from verticality.estimators import tilt_kernels as tk
 
-    gyr, acc, dt, _ = _tumbling(np.zeros(3), n=400, dt=0.05, rate=8.0)
-    _assert_stream_equals_run(gyr, acc, np.full(400, dt))
     v = np.random.default_rng(6).normal(size=(1000, 3))
     v *= (np.sqrt(tk.SMALL_TH2) * np.random.default_rng(7).uniform(0, 1, 1000)
           / np.linalg.norm(v, axis=1))[:, None]
-    exact = np.stack(tk.qexp_exact_c(v[:, 0], v[:, 1], v[:, 2]), 1)
-    taylor = np.stack(tk.qexp_taylor_c(v[:, 0], v[:, 1], v[:, 2]), 1)
+    v[0] = 0.0
+    v[1] = [1e-7, 0.0, 0.0]  # inside the exact formula's small-angle branch
+    exact = np.stack(so3.quat_exp_components(v[:, 0], v[:, 1], v[:, 2]), 1)
+    taylor = np.stack(tk.quat_exp_taylor(v[:, 0], v[:, 1], v[:, 2]), 1)
     np.testing.assert_allclose(taylor, exact, rtol=0, atol=3e-16)
-
-
-def test_jitted_packed_stepper_equals_step():
-    gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=200)
-    acc[2] = np.nan
-    dts = np.full(gyr.shape[0], dt)
-    dts[50] = 0.5  # a gap, re-acquired 1 s later
-    stepper = tilt.make_step()
-    z = stepper.init()
-    state = tilt.init()
-    flags = []
-    for k in range(gyr.shape[0]):
-        z, o = stepper.step(z, gyr[k], acc[k], dts[k])
-        state, r = tilt.step_jit(state, gyr[k], acc[k], dts[k], tilt.DEFAULT_PARAMS, tilt.BLOCK)
-        assert bool(int(o[-1]) & tilt.DT_GAP) == (k == 50)
-        flags.append(int(o[-1]))
-        ref = np.concatenate([[r.roll_rad, r.pitch_rad], r.up_S, r.quat_E_S, r.bias_S_rad_s,
-                              [r.flags]])
-        np.testing.assert_allclose(np.asarray(o), ref, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(stepper.unpack(z).P, state.P, atol=1e-15)
-    _assert_reacquired_once_after(np.array(flags), 50)
+    np.testing.assert_array_equal(exact, np.asarray(so3.quat_exp(v)))
+    q = np.asarray(so3.quat_exp(v * 30.0))  # also large rotations
+    r = np.stack(so3.quat_rotate_components(tuple(q.T), tuple(v.T)), 1)
+    np.testing.assert_allclose(r, np.asarray(so3.quat_rotate(q, v)), rtol=0, atol=1e-15)
 
 
 def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path, capsys):
@@ -362,7 +265,7 @@ def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path,
     up = _up_S(np.asarray(so3.exp(np.outer(roll, [1.0, 0.0, 0.0]))))
     acc = G * up + rng.normal(0, 0.02, (t.size, 3))
     gyr = rng.normal(0, 1e-3, (t.size, 3))
-    out = tilt.run(gyr, acc, np.diff(t, prepend=-0.01))
+    out = tilt.estimate(gyr, acc, np.diff(t, prepend=-0.01))
     err = _tilt_err_deg(up, out.up_S)
     k = int(np.searchsorted(t, 11.0))
     assert np.flatnonzero(out.flags & tilt.DT_GAP).tolist() == [k]
@@ -385,14 +288,14 @@ def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path,
 
 
 def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
-    """tilt.run uses the batch kernel without gap handling, in long chunks, where no gap and no
+    """The batch run uses the kernel without gap handling, in long chunks, where no gap and no
     re-acquisition is in reach (it is faster), and short chunks with gap handling elsewhere (the
     initialization, which is re-acquired too, and the gaps); on a recording with a gap near its
     start and one near its end, that equals the kernel with gap handling everywhere, to
     rounding."""
-    from verticality.estimators import tilt_kernels
+    from verticality.estimators import tilt_batch, tilt_kernels
 
-    n = 2 * tilt.CHUNK_BLOCKS * tilt.BLOCK + 3000
+    n = 2 * tilt_batch.CHUNK_BLOCKS * tilt.BLOCK + 3000
     gyr, acc, dt, _ = _tumbling(np.array([0.01, -0.005, 0.002]), n=n)
     acc[100:150] = np.nan
     dts = np.full(n, dt)
@@ -402,20 +305,20 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     real = tilt_kernels.run_chunk
 
     def spy(*args, gaps=True, **kw):
-        used.append((gaps, args[1].shape[0] // tilt.BLOCK))
+        used.append((gaps, args[2].shape[0] // tilt.BLOCK))
         return real(*args, gaps=gaps, **kw)
 
     monkeypatch.setattr(tilt_kernels, "run_chunk", spy)
-    fast = tilt.run(gyr, acc, dts)
-    short, long = (True, tilt.GAP_CHUNK_BLOCKS), (False, tilt.CHUNK_BLOCKS)
+    fast = tilt.estimate(gyr, acc, dts)
+    short, long = (True, tilt_batch.GAP_CHUNK_BLOCKS), (False, tilt_batch.CHUNK_BLOCKS)
     assert set(used) == {short, long}
     # one short chunk covers the initialization and the first gap; two long chunks follow (the
     # second gap, in block 558, is beyond the reach of the one starting at block 288); short
     # chunks from block 544 to the end (1975 samples; a tail this short takes them anyway)
-    assert tilt.GAP_CHUNK_BLOCKS == 32 and tilt.CHUNK_BLOCKS == 256
+    assert tilt_batch.GAP_CHUNK_BLOCKS == 32 and tilt_batch.CHUNK_BLOCKS == 256
     assert used == [short, long, long, short, short]
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
-    ref = tilt.run(gyr, acc, dts)
+    ref = tilt.estimate(gyr, acc, dts)
     for name in tilt.TiltOutput._fields:
         np.testing.assert_allclose(getattr(fast, name), getattr(ref, name), rtol=0, atol=1e-12,
                                    err_msg=name)
@@ -423,10 +326,10 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
 
 
 def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
-    """``tilt._blocks_needing_gaps`` tells from the data alone which blocks need the kernel's gap
+    """``tilt_batch.blocks_needing_gaps`` tells from the data alone which blocks need the kernel's gap
     handling. Against the kernel's own flag (the kernel with gap handling everywhere): every block
     that starts pending or holds a gap is marked, plus at most one block per re-acquisition."""
-    from verticality.estimators import tilt_kernels
+    from verticality.estimators import tilt_batch, tilt_kernels
 
     gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=3000)
     dts = np.full(3000, dt)
@@ -434,7 +337,7 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
     acc[1500:1700] = np.nan  # no accelerometer: the re-acquisition after 1450 waits
     real = tilt_kernels.run_chunk
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
-    out = tilt.run(gyr, acc, dts)
+    out = tilt.estimate(gyr, acc, dts)
     fl = out.flags[1:]  # blocks start after the sample that initializes
     nb = -(-fl.size // tilt.BLOCK)
     pad = np.zeros(nb * tilt.BLOCK, dtype=fl.dtype)
@@ -442,8 +345,104 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
     blocks = pad.reshape(nb, tilt.BLOCK)
     truth = (blocks[:, 0] & tilt.REACQUIRING > 0) | np.any(blocks & tilt.DT_GAP > 0, axis=1)
     # pending from the start: the initializing sample is re-acquired too
-    need = tilt._blocks_needing_gaps(dts, acc, 1, tilt.BLOCK, tilt.DEFAULT_PARAMS, True, 0.0)
+    need = tilt_batch.blocks_needing_gaps(dts, acc, 1, tilt.BLOCK, tilt.DEFAULT_PARAMS, True, 0.0)
     assert need.shape == truth.shape and np.all(need[truth]) and truth[0]
     n_reacq = int(np.count_nonzero(out.flags & tilt.REACQUIRED))
     assert n_reacq == 3 and np.count_nonzero(need & ~truth) <= n_reacq
     assert truth[(1600 - 1) // tilt.BLOCK]  # still pending inside the accelerometer dropout
+
+
+def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
+    """The block's error flow: the true state is the estimate perturbed by the error ``e``
+    (``tilt_layout.E``: ``R_true = exp([δ, 0]) R_est``, ``v_true = v_est + ṽ``, ``b_true = b_est
+    + b̃``); the truth turns at ``omega_rad_s`` (sensor frame) without translating, so its gyro
+    reads ``ω + b_true`` and its accelerometer gravity; the estimate pre-integrates those samples
+    with the core and predicts the block (``tilt_core.block_prediction``); the result is the
+    error at the block's end. Also returns the nominal block end and the block's inputs."""
+    import jax
+
+    from verticality.estimators import tilt_core as core
+    from verticality.estimators.tilt_layout import NE, E, X
+
+    p = tilt.DEFAULT_PARAMS
+    q_true = so3.quat_multiply(so3.quat_exp(jnp.concatenate([e[E.tilt], jnp.zeros(1)])), q_hat0)
+    gyr = omega_rad_s + b_hat + e[E.bias]
+
+    def body(c, _):
+        q, sums = c
+        q = so3.quat_multiply(q, so3.quat_exp(omega_rad_s * dt))
+        acc = so3.quat_rotate(so3.quat_conjugate(q), jnp.array([0.0, 0.0, p.g_m_s2]))
+        t = core.sample_terms(gyr, acc, jnp.asarray(dt), p)
+        return (q, core.accumulate(sums, t)), None
+
+    (q_true, sums), _ = jax.lax.scan(body, (q_true, core.empty_sums()), None, length=n)
+    x_hat = X.pack(q=q_hat0, b=b_hat, v=jnp.zeros(2), P=jnp.eye(NE).reshape(-1), acc_dev_var=0.0,
+                   rest_s=0.0, reacquire=0.0, reacq_f_E=jnp.zeros(3), reacq_t=0.0)
+    c = core.block_inputs(sums, p)
+    q_end, _, v_end = core.block_prediction(x_hat, c)
+    err = so3.quat_log(so3.quat_multiply(q_true, so3.quat_conjugate(q_end)))
+    return jnp.concatenate([err[:2], e[E.vel] - v_end, e[E.bias]]), (q_end, c)
+
+
+@pytest.mark.parametrize("omega,b_hat", [(np.zeros(3), np.zeros(3)),
+                                         ([0.5, -0.3, 0.8], [0.01, -0.02, 0.005])])
+def test_error_transition_is_the_jacobian_of_the_block_prediction(omega, b_hat):
+    """The hand-derived error-state transition the core uses (``tilt_core.error_transition``)
+    against ``jax.jacfwd`` of the error flow (perturb the state by the error → pre-integrate the
+    block's samples and predict with the core → difference), at a block of 32 samples of 3.5 ms.
+
+    Sensor still, bias known: equal to rounding, except that the velocity's response to a bias
+    error is larger by 1 + 1/N: the pre-integration rotates each sample's force by the rotation
+    at the sample's end, a right Riemann sum of ∫ t dt = T²/2. Sensor turning at |ω| = 1 rad/s:
+    ``F`` holds the block-end rotation over the block (F = exp(F_c T) with R frozen), so they
+    differ at first order in |ω|T: by less than |ω|T / 2 of F's largest entry."""
+    import jax
+
+    from verticality.estimators import tilt_core as core
+    from verticality.estimators.tilt_layout import C, E
+
+    n, dt = 32, 0.0035
+    omega, b_hat = jnp.asarray(omega, dtype=float), jnp.asarray(b_hat, dtype=float)
+    q0 = so3.quat_from_rpy_radians(0.3, -0.2, 0.5)
+
+    def flow(e):
+        return _error_flow(e, q0, b_hat, omega, n, dt)
+
+    F_auto = np.asarray(jax.jacfwd(lambda e: flow(e)[0])(jnp.zeros(7)))
+    q_end, c = flow(jnp.zeros(7))[1]
+    F = np.array(core.error_transition(so3.matrix_from_quat(q_end), c[C.T],
+                                       tilt.DEFAULT_PARAMS.g_m_s2))
+    assert np.max(np.abs(F[E.vel, E.bias])) > 0.01 and np.max(np.abs(F[E.tilt, E.bias])) > 0.05
+    F[E.vel, E.bias] *= 1.0 + 1.0 / n
+    off = np.max(np.abs(F - np.eye(7)))
+    if not np.any(omega):
+        np.testing.assert_allclose(F_auto, F, rtol=0, atol=1e-12)
+    else:
+        wT = float(np.linalg.norm(omega)) * n * dt
+        assert 1e-4 * off < np.max(np.abs(F_auto - F)) < 0.5 * wT * off
+
+
+def test_the_filter_is_an_estimator_value_with_named_state():
+    """TiltFilter follows the project's estimator interface; its state reads by name the flat
+    vectors the kernels use, through one layout per vector."""
+    from verticality.estimators.base import Estimator
+    from verticality.estimators.tilt_layout import NE, Packed, S, X
+
+    filt = tilt.TiltFilter()
+    assert isinstance(filt, Estimator)
+    assert tilt.TiltFilter(block=16) != filt and hash(tilt.TiltFilter()) == hash(filt)
+    q0 = np.asarray(so3.quat_from_rpy_radians(0.2, -0.1, 0.4))
+    P0 = np.diag(np.arange(1.0, NE + 1))
+    state = filt.init((2.0 * q0, [0.01, 0.02, 0.03]), P0)
+    np.testing.assert_allclose(state.quat_E_S, q0, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(state.bias_S_rad_s, [0.01, 0.02, 0.03])
+    np.testing.assert_array_equal(state.P, P0)
+    assert state.x.shape == (X.size,) and state.sums.shape == (S.size,)
+    assert bool(state.initialized) and int(state.count) == 0 and not bool(state.reacquire)
+    assert X.size == 65 and S.size == 21 and X.P == slice(9, 58) and X.reacq_t == 64
+    L = Packed([("a", 2), ("b", None)])
+    np.testing.assert_array_equal(L.pack(xp=np, b=3.0, a=(1.0, 2.0)), [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="missing"):
+        L.pack(xp=np, a=(1.0, 2.0))
+    with pytest.raises(ValueError, match="expected 2"):
+        L.pack(xp=np, a=np.zeros(3), b=0.0)

@@ -279,3 +279,36 @@ def roll_pitch_from_up(up_B):
     roll = jnp.arctan2(u[..., 1], u[..., 2])
     pitch = jnp.arctan2(-u[..., 0], jnp.sqrt(u[..., 1] ** 2 + u[..., 2] ** 2))
     return roll, pitch
+
+
+# --- component-tuple forms (structure-of-arrays kernels: each component a separate array) ---
+
+def quat_exp_components(vx, vy, vz):
+    """:func:`quat_exp` on the components of the rotation vector (arrays of any one shape, or
+    floats): returns ``(w, x, y, z)``, the same formula, for kernels that keep quaternions as
+    separate component arrays (:func:`quat_multiply_components`)."""
+    th2 = vx * vx + vy * vy + vz * vz
+    theta = jnp.where(th2 > 0.0, jnp.sqrt(jnp.where(th2 > 0.0, th2, 1.0)), 0.0)
+    small = theta < _SMALL_ANGLE
+    theta_s = jnp.where(small, 1.0, theta)
+    k = jnp.where(small, 0.5 - theta * theta / 48.0, jnp.sin(0.5 * theta_s) / theta_s)
+    return jnp.cos(0.5 * theta), k * vx, k * vy, k * vz
+
+
+def quat_rotate_components(q, v):
+    """:func:`quat_rotate` on component tuples: ``R(q) v`` for a unit ``q = (w, x, y, z)`` and
+    ``v = (vx, vy, vz)`` (``v + w t + u × t``, ``t = 2 u × v``). Pure arithmetic (NumPy, JAX or
+    floats)."""
+    w, ux, uy, uz = q
+    tx = 2.0 * (uy * v[2] - uz * v[1])
+    ty = 2.0 * (uz * v[0] - ux * v[2])
+    tz = 2.0 * (ux * v[1] - uy * v[0])
+    return (v[0] + w * tx + (uy * tz - uz * ty), v[1] + w * ty + (uz * tx - ux * tz),
+            v[2] + w * tz + (ux * ty - uy * tx))
+
+
+def quat_normalize_components(q):
+    """A quaternion given as a component tuple divided by its norm. Pure arithmetic except the
+    square root (JAX)."""
+    n = jnp.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return tuple(c / n for c in q)

@@ -39,10 +39,26 @@ def peer_status() -> dict[str, str | None]:
     return status
 
 
+def choose_filters(requested=None) -> tuple[list[str], list[str]]:
+    """``(filters, notes)``: the ``requested`` filter names (checked), or ours and every installed
+    peer; a note for each wanted peer that is not installed."""
+    status = peer_status()
+    if requested is None:
+        filters = [OURS] + [p for p in PEERS if status[p] is None]
+    else:
+        filters = list(requested)
+        for f in filters:
+            if f != OURS and f not in PEERS:
+                raise InputError(f"unknown filter {f!r}; choose from {OURS}, {', '.join(PEERS)}")
+    notes = [f"note: skipping {p}: {status[p]}" for p in PEERS
+             if status[p] is not None and p in (requested or PEERS)]
+    return filters, notes
+
+
 def _ours(gyr, acc, dt_s):
     from verticality.estimators import tilt
 
-    out = tilt.run(gyr, acc, dt_s)
+    out = tilt.estimate(gyr, acc, dt_s)
     return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
 
 

@@ -25,23 +25,14 @@ def run_broad(args) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from verticality.analysis.broad_eval import OURS, PEERS, evaluate_trials, peer_status
-    from verticality.errors import InputError
+    from verticality.analysis.broad_eval import OURS, choose_filters, evaluate_trials
     from verticality.io import broad
 
     err = Console(stderr=True)
     paths = broad.list_trials(args.directory)
-    status = peer_status()
-    if args.filters is None:
-        filters = [OURS] + [p for p in PEERS if status[p] is None]
-    else:
-        filters = list(args.filters)
-        for f in filters:
-            if f != OURS and f not in PEERS:
-                raise InputError(f"unknown filter {f!r}; choose from {OURS}, {', '.join(PEERS)}")
-    for p in PEERS:
-        if status[p] is not None and p in (args.filters or PEERS):
-            err.print(f"note: skipping {p}: {status[p]}")
+    filters, notes = choose_filters(args.filters)
+    for note in notes:
+        err.print(note)
     res = evaluate_trials(paths, filters, progress=lambda msg: err.print(f"running {msg} …"))
     if args.json:
         json.dump({"trials": res["trials"], "mean": res["mean"]}, sys.stdout, indent=2)

@@ -1,12 +1,15 @@
-"""Real-time twin of :mod:`verticality.estimators.tilt` in plain Python/NumPy.
+"""Plain-Python/NumPy reference implementation of the 3-D tilt filter, for real-time loops.
 
 A jitted JAX step costs ~90 µs per call on a CPU (dispatch plus ~50 small XLA kernels), too slow
-for a 1 kHz robot loop within 5 % of a core. This module runs the SAME filter (the equations of
-``tilt.step``; the every-``block``-samples Kalman update is ``tilt._block_update``) with scalar
-``math`` for the per-sample pre-integration and NumPy for the block update. It is tested to equal
-the JAX batch ``tilt.run`` to ≤ 1e-9 on a BROAD slice and on synthetic data with NaNs and
-irregular Δt (tests/test_tilt.py). Use it for sample-by-sample loops; use ``tilt.run`` for
-recordings.
+for a 1 kHz robot loop within 5 % of a core. This module runs the filter of
+:mod:`verticality.estimators.tilt` (the equations of ``tilt_core.step``; the every-``block``-samples
+Kalman update is ``tilt_core.block_update``) with scalar ``math`` for the per-sample
+pre-integration and NumPy for the block update. It is deliberately written apart from the JAX
+core, sharing nothing with it but the constants (flag bits, default parameters), as PyVQF stands
+beside VQF's C++: each checks the other. tests/test_tilt_reference.py compares the two on a
+BROAD slice and on synthetic recordings with NaNs in every channel, irregular Δt, gaps, dropouts
+and a start in motion, to ≤ 1e-9. Use it for sample-by-sample loops; use ``TiltFilter.run`` (or
+``tilt.estimate``) for recordings.
 """
 
 from __future__ import annotations
@@ -15,8 +18,24 @@ import math
 
 import numpy as np
 
-ACC_MISSING, GYR_MISSING, BAD_DT, ACC_DISTURBED, INIT, DT_GAP, REACQUIRED, REACQUIRING = (
-    1, 2, 4, 8, 16, 32, 64, 128)
+from verticality.estimators.tilt_flags import (
+    ACC_DISTURBED,
+    ACC_MISSING,
+    BAD_DT,
+    DT_GAP,
+    GYR_MISSING,
+    INIT,
+    REACQUIRED,
+    REACQUIRING,
+)
+from verticality.estimators.tilt_params import (
+    BLOCK,
+    DEFAULT_P0,
+    DEFAULT_PARAMS,
+    MAX_ACC_M_S2,
+    MAX_DT_S,
+    MAX_RATE_RAD_S,
+)
 
 
 def _qmul(p, q):
@@ -49,7 +68,7 @@ def _rotate(q, v):
 
 
 def _tilt_error_from_force(f):
-    """``tilt_kernels.tilt_error_from_force`` in plain Python."""
+    """``tilt_core.tilt_error_from_force`` in plain Python."""
     n = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
     u = (f[0] / n, f[1] / n, f[2] / n) if n > 0 else (0.0, 0.0, 1.0)
     s = math.hypot(u[0], u[1])
@@ -58,7 +77,7 @@ def _tilt_error_from_force(f):
 
 
 def _kf(P, i0, m, z, r):
-    """Joseph-form update for z = x[i0:i0+m] + n, n ~ N(0, r I) (as ``tilt._kf_update``)."""
+    """Joseph-form update for z = x[i0:i0+m] + n, n ~ N(0, r I) (as ``tilt_core.joseph_update``)."""
     H = np.zeros((m, 7))
     H[np.arange(m), i0 + np.arange(m)] = 1.0
     PHt = P[:, i0:i0 + m]
@@ -71,7 +90,7 @@ def _kf(P, i0, m, z, r):
 
 def _widen_tilt(P, var_rad2):
     """A copy of ``P`` with ``var_rad2`` added to both tilt variances
-    (``tilt_kernels.add_tilt_variance`` in NumPy)."""
+    (``tilt_core.add_tilt_variance`` in NumPy)."""
     P = P.copy()
     P[0, 0] += var_rad2
     P[1, 1] += var_rad2
@@ -81,15 +100,13 @@ def _widen_tilt(P, var_rad2):
 class Stream:
     """Sample-by-sample tilt filter: ``s = Stream()``, ``out = s.step(gyr, acc, dt)`` with
     ``out = (roll, pitch, up(3), quat(4), bias(3), flags)`` — the per-sample outputs of
-    ``tilt.step`` (variances in :attr:`P`, the tilt's standard deviation in
-    :attr:`tilt_sigma_rad`). ``params`` is a ``tilt.TiltParams``."""
+    ``TiltFilter.step`` (variances in :attr:`P`, the tilt's standard deviation in
+    :attr:`tilt_sigma_rad`). ``params`` is a ``TiltParams``."""
 
-    def __init__(self, params=None, block: int = 32, P0=None, x0=None):
-        from verticality.estimators import tilt
-
-        self.p = tilt.DEFAULT_PARAMS if params is None else params
+    def __init__(self, params=None, block: int = BLOCK, P0=None, x0=None):
+        self.p = DEFAULT_PARAMS if params is None else params
         self.block = block
-        self.P = np.array(tilt.DEFAULT_P0 if P0 is None else P0, dtype=np.float64)
+        self.P = np.array(DEFAULT_P0 if P0 is None else P0, dtype=np.float64)
         if x0 is None:
             self.q, self.b, self.initialized = (1.0, 0.0, 0.0, 0.0), [0.0, 0.0, 0.0], False
         else:
@@ -105,14 +122,14 @@ class Stream:
 
     @property
     def tilt_sigma_rad(self) -> float:
-        """Standard deviation of the tilt (rad) at the last step: ``tilt.tilt_sigma_rad`` of
-        :attr:`P`'s diagonal (the value ``tilt.run`` reports for that sample) with what gyro
-        dropouts and gaps have added since the block's start; before the initialization, when
-        there is no estimate yet, the initialization's."""
-        from verticality.estimators import tilt
-
-        widen = self.qmiss if self.initialized else self.p.init_tilt_rad**2
-        return float(tilt.tilt_sigma_rad(np.diagonal(_widen_tilt(self.P, widen)), self.p))
+        """Standard deviation of the tilt (rad) at the last step, ``sqrt(var_δx + var_δy +
+        (acc_calib_m_s2 / g)²)`` (``tilt.tilt_sigma_rad``, the value ``TiltFilter.run`` reports
+        for that sample) with what gyro dropouts and gaps have added since the block's start;
+        before the initialization, when there is no estimate yet, the initialization's."""
+        p = self.p
+        widen = self.qmiss if self.initialized else p.init_tilt_rad**2
+        P = _widen_tilt(self.P, widen)
+        return math.sqrt(P[0, 0] + P[1, 1] + (p.acc_calib_m_s2 / p.g_m_s2) ** 2)
 
     def _zero(self):
         self.dq = (1.0, 0.0, 0.0, 0.0)
@@ -128,10 +145,11 @@ class Stream:
         gx, gy, gz = float(gyr[0]), float(gyr[1]), float(gyr[2])
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
         dt = float(dt)
-        dt_ok = math.isfinite(dt) and dt > 0
-        gyr_ok = dt_ok and math.isfinite(gx) and math.isfinite(gy) and math.isfinite(gz)
-        acc_fin = math.isfinite(ax) and math.isfinite(ay) and math.isfinite(az)
-        n2 = ax * ax + ay * ay + az * az if acc_fin else 0.0
+        dt_ok = 0.0 < dt < MAX_DT_S
+        gyr_ok = dt_ok and abs(gx) < MAX_RATE_RAD_S and abs(gy) < MAX_RATE_RAD_S \
+            and abs(gz) < MAX_RATE_RAD_S
+        acc_in = abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
+        n2 = ax * ax + ay * ay + az * az if acc_in else 0.0
         acc_ok = dt_ok and n2 > 1e-6
         dts = dt if dt_ok else 0.0
         if not gyr_ok:
@@ -189,7 +207,7 @@ class Stream:
                 tuple(self.b), fl)
 
     def _update(self) -> tuple[bool, bool]:
-        """``tilt._block_update`` (T eq. 2, 7–13 in 3-D) in NumPy; (disturbed, re-acquired)."""
+        """The block update (T eq. 2, 7–13 in 3-D) in NumPy; (disturbed, re-acquired)."""
         p = self.p
         g = p.g_m_s2
         b = np.array(self.b)

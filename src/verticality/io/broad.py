@@ -19,6 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from verticality import so3
 from verticality.errors import InputError
 
 REQUIRED = ("imu_gyr", "imu_acc", "opt_quat", "movement")
@@ -98,15 +99,6 @@ def list_trials(directory) -> list[Path]:
     return files
 
 
-def _quat_mul(p, q):
-    pw, px, py, pz = np.moveaxis(p, -1, 0)
-    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
-                     pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw], axis=-1)
-
-
 def inclination_error_deg(quat_est_wxyz, quat_ref_wxyz) -> np.ndarray:
     """Official BROAD inclination error per sample (deg): ``e = q_est ⊗ q_ref⁻¹``,
     ``2·arccos(sqrt(e_w² + e_z²))``. Quaternions are normalized first; NaN rows give NaN."""
@@ -115,7 +107,8 @@ def inclination_error_deg(quat_est_wxyz, quat_ref_wxyz) -> np.ndarray:
     qe = qe / np.linalg.norm(qe, axis=-1, keepdims=True)
     qr = qr / np.linalg.norm(qr, axis=-1, keepdims=True)
     qr_inv = qr * np.array([1.0, -1.0, -1.0, -1.0])
-    e = _quat_mul(qe, qr_inv)
+    e = np.stack(so3.quat_multiply_components(tuple(np.moveaxis(qe, -1, 0)),
+                                              tuple(np.moveaxis(qr_inv, -1, 0))), axis=-1)
     c = np.sqrt(e[..., 0] ** 2 + e[..., 3] ** 2)
     return np.degrees(2.0 * np.arccos(np.clip(c, -1.0, 1.0)))
 

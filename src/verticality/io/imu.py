@@ -25,6 +25,7 @@ import numpy as np
 
 from verticality.errors import InputError
 from verticality.io import imu_layout as layout
+from verticality.io import imu_rows
 
 IMU_COLUMNS = layout.IMU_COLUMNS
 ESTIMATE_COLUMNS = ("t", "roll_rad", "pitch_rad", "gx", "gy", "gz", "bias_x", "bias_y", "bias_z",
@@ -162,11 +163,22 @@ def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = 
     rows, line_numbers = layout.data_lines(lines)
     if not rows:
         raise InputError(f"{path}: no data rows")
-    fast = _parse_clean_rows(rows, lay)
+    return recording_from_rows(rows, line_numbers, lay, source, gyr_units, acc_units)
+
+
+def recording_from_rows(rows: list[str], line_numbers: list[int], lay: layout.Layout,
+                        source: str = "input", gyr_units: str | None = None,
+                        acc_units: str | None = None) -> ImuRecording:
+    """The :class:`ImuRecording` of data rows (their 1-based ``line_numbers``, for messages) of a
+    file with layout ``lay``, read and checked as :func:`read_imu_csv` reads a file: cells parsed
+    (:func:`verticality.io.imu_rows.parse_clean_rows`, else :func:`~verticality.io.imu_rows.
+    parse_rows`), time steps checked and converted to seconds, units checked
+    (:func:`check_units`). ``verticality stream`` reads its first second with it."""
+    fast = imu_rows.parse_clean_rows(rows, lay)
     if fast is not None:
         data, t_raw = fast
     else:
-        data, t_raw = _parse_rows(rows, line_numbers, lay, source)
+        data, t_raw = imu_rows.parse_rows(rows, line_numbers, lay, source)
     layout.check_time_steps(t_raw, line_numbers, lay.time_unit, source, lay.time_label)
     unit = lay.time_unit or "s"
     t_s, t0 = layout.time_to_seconds(t_raw, unit)
@@ -175,46 +187,6 @@ def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = 
     gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=source,
                            dt_s=dt_from_t(t_s))
     return ImuRecording(t_s, gyr, acc, t0, unit)
-
-
-def _parse_clean_rows(rows: list[str], lay) -> tuple[np.ndarray, np.ndarray] | None:
-    """The fast path of :func:`read_imu_csv` (NumPy's C parser, ~3× faster than
-    :func:`_parse_rows`): ``(data, t_raw)`` when every cell is a number (``nan`` included) and
-    every row has the header's number of columns, with the values :func:`_parse_rows` would give;
-    None otherwise (empty cells, text, ragged rows, a time column that is not all finite), and then
-    :func:`_parse_rows` reads the file, with its messages."""
-    try:
-        data = np.loadtxt(rows, delimiter=",", comments="#", dtype=np.float64, ndmin=2)
-    except ValueError:
-        return None
-    k = lay.index["t"]
-    if data.shape[1] != lay.n_columns or not np.all(np.isfinite(data[:, k])):
-        return None
-    t = data[:, k]
-    if not np.all(t == np.round(t)):  # some stamp is not an integer: float64, as _parse_rows
-        return data, t
-    try:  # integer stamps stay exact (ns since 1970 do not survive float64)
-        t_int = np.loadtxt(rows, delimiter=",", comments="#", dtype=np.int64, usecols=k, ndmin=1)
-    except (ValueError, OverflowError):  # "5.0", "1e3", beyond int64: _parse_rows decides
-        return None
-    return data, t_int
-
-
-def _parse_rows(rows: list[str], line_numbers: list[int], lay, source: str):
-    """``(data, t_raw)`` of data rows of any form: empty and non-numeric cells become NaN (the
-    time column's are refused, naming their lines), ragged rows are refused."""
-    try:
-        data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, filling_values=np.nan,
-                             invalid_raise=True, ndmin=2)
-    except ValueError as exc:
-        raise InputError(f"{source}: malformed CSV ({str(exc).splitlines()[0]})") from None
-    if data.size == 0:
-        raise InputError(f"{source}: no data rows")
-    if data.shape[1] != lay.n_columns:
-        raise InputError(f"{source}: {data.shape[1]} values per row but {lay.n_columns} header "
-                         "columns")
-    t_cells = [r.split("#", 1)[0].split(",")[lay.index["t"]].strip() for r in rows]
-    return data, layout.parse_time_cells(t_cells, line_numbers, source, lay.time_label)
 
 
 def write_imu_csv(path, rec: ImuRecording) -> Path:
@@ -234,21 +206,30 @@ def write_estimate_csv(path, t_s, out, tilt_sigma_rad=None) -> Path:
     grav = -np.asarray(out.up_S)
     data = np.column_stack([np.asarray(t_s), np.asarray(out.roll_rad), np.asarray(out.pitch_rad),
                             grav, np.asarray(out.bias_S_rad_s)])
-    columns = ESTIMATE_COLUMNS
+    sigma = tilt_sigma_rad is not None
     flags = np.asarray(out.flags).astype(np.int64)
-    fmt = ",".join(["%.17g"] * data.shape[1]) + ",%d"
-    cells = np.empty((data.shape[0], data.shape[1] + 1 + (tilt_sigma_rad is not None)),
+    fmt = estimate_row_format(sigma)
+    cells = np.empty((data.shape[0], data.shape[1] + 1 + sigma),
                      dtype=object)  # Python floats and ints, one %-format per row
     cells[:, :data.shape[1]] = data
     cells[:, data.shape[1]] = flags
-    if tilt_sigma_rad is not None:
-        columns = columns + (SIGMA_COLUMN,)
+    if sigma:
         cells[:, -1] = np.asarray(tilt_sigma_rad, dtype=np.float64)
-        fmt += ",%.17g"
     body = [fmt % tuple(row) for row in cells.tolist()]
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(",".join(columns) + "\n" + "\n".join(body) + "\n", encoding="utf-8")
+    path.write_text(estimate_header(sigma) + "\n" + "\n".join(body) + "\n", encoding="utf-8")
     return path
+
+
+def estimate_header(sigma: bool = False) -> str:
+    """The estimate CSV's header line (without the newline); ``sigma``: with the σ column."""
+    return ",".join(ESTIMATE_COLUMNS + ((SIGMA_COLUMN,) if sigma else ()))
+
+
+def estimate_row_format(sigma: bool = False) -> str:
+    """The %-format of one estimate row: ``t, roll, pitch, gx, gy, gz, bias (3)`` as ``%.17g``
+    (every float64 round-trips), ``flags`` as ``%d``, then σ when ``sigma``."""
+    return ",".join(["%.17g"] * 9) + ",%d" + (",%.17g" if sigma else "")
 
 
 class EstimateTable(NamedTuple):

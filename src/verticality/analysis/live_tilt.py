@@ -1,0 +1,68 @@
+"""Live tilt estimation on a stream of IMU CSV rows (``verticality stream``): one estimate row out
+per row in, flushed at once, so that a logger, a serial reader or a robot's driver can be piped
+through it.
+
+The filter is the plain-Python :class:`~verticality.estimators.tilt_stream.Stream` (equal to the
+batch run to 1e-9; a jitted JAX call per sample would be too slow for 1 kHz). The rows are read
+by :class:`~verticality.io.imu_rows.RowReader`: the first second (at most 500 rows) is held back
+and read and checked as ``verticality estimate`` reads a whole file
+(:func:`verticality.io.imu.recording_from_rows`: layout, time unit, units, increasing time); then
+rows pass one by one, and a row that cannot be read is written with its samples flagged and named
+on the warning stream.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TextIO
+
+from verticality.estimators.tilt_stream import Stream
+from verticality.io import imu, imu_layout
+from verticality.io.imu_rows import RowReader
+
+
+def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin",
+                     columns: dict[str, str] | None = None, time_unit: str | None = None,
+                     gyr_units: str | None = None, acc_units: str | None = None,
+                     sigma: bool = False) -> None:
+    """Read IMU CSV rows from ``fh`` (a header line, then data rows; any layout
+    :func:`verticality.io.imu.read_imu_csv` reads, ``columns`` and ``time_unit`` as there) and
+    write the estimate CSV (``io.imu.estimate_header``; with ``sigma`` the tilt's σ column) to
+    ``out``, one row per data row, flushed after each. Notes and warnings go to ``err``. A problem
+    in the first second raises :class:`~verticality.errors.InputError` before any row is
+    written."""
+    header = fh.readline().removeprefix("\ufeff")  # a byte-order mark, as files are read
+    lay = imu_layout.locate(header.rstrip("\r\n"), columns, time_unit, source)
+    reader = RowReader(lay, source, warn_to=err)
+    head = imu.recording_from_rows(*reader.read_head(fh), lay, source, gyr_units, acc_units)
+    reader.set_origin(head.t0_stamp, imu.GYR_UNITS[gyr_units or "rad/s"],
+                      imu.ACC_UNITS[acc_units or "m/s2"])
+    out.write(imu.estimate_header(sigma) + "\n")
+    out.flush()
+    if head.t0_stamp is not None:
+        print(f"t is in seconds from the input's first time stamp, {head.t0_stamp} "
+              f"{head.time_unit}", file=err)
+    s = Stream()
+    fmt = imu.estimate_row_format(sigma)
+
+    def emit(t_s, g, a, dt):
+        roll, pitch, up, _, bias, flags = s.step(g, a, dt)
+        row = (t_s, roll, pitch, -up[0], -up[1], -up[2], *bias, flags)
+        if sigma:
+            row += (s.tilt_sigma_rad,)
+        out.write(fmt % row + "\n")
+        out.flush()
+
+    dt_head = head.dt_s
+    for k in range(head.t_s.size):
+        emit(float(head.t_s[k]), head.gyr_rad_s[k], head.acc_m_s2[k], float(dt_head[k]))
+    t_last = float(head.t_s[-1])
+    for text in reader.lines(fh):
+        t_s, g, a = reader.sample(text.strip())
+        dt = t_s - t_last if math.isfinite(t_s) else math.nan
+        if dt > 0:
+            t_last = t_s
+        elif dt <= 0:
+            reader.warn(f"time {t_s:.9g} s does not follow {t_last:.9g} s")
+        emit(t_s, g, a, dt)
+    reader.summary()

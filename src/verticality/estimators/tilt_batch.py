@@ -1,0 +1,299 @@
+"""The host side of the tilt filter's batch run (``TiltFilter.run``): the samples before the
+initialization, the chunks of the batch kernel (:func:`verticality.estimators.tilt_kernels.
+run_chunk`), which of the two compiled kernels each chunk needs, and the result arrays.
+
+Every number comes from the filter's core (:mod:`verticality.estimators.tilt_core`): the kernel on
+the device, and on the host the same core functions run on NumPy arrays (``xp=np``) for the few
+samples before the initialization and for the scheduling. The result equals the core's ``step``
+applied sample by sample, to rounding (tests/test_tilt_reference.py).
+"""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+
+from verticality.errors import InputError
+from verticality.estimators import tilt_core as core
+from verticality.estimators import tilt_kernels
+from verticality.estimators.tilt_flags import DT_GAP, INIT, REACQUIRING, accelerometer_used
+from verticality.estimators.tilt_layout import HEAD, NE, ROW, SAMPLE, SOA, E, S, X
+from verticality.estimators.tilt_params import MAX_RATE_RAD_S
+
+CHUNK_BLOCKS = 256
+GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: it costs ~1.4x per sample
+
+
+def _acc_ok(acc, dts):
+    """``tilt_core.masks``' acc_ok: a usable accelerometer sample (its gyro argument does not
+    enter acc_ok, so the accelerometer stands in for it)."""
+    return core.masks(acc.T, acc.T, dts, xp=np)[2]
+
+
+def empty_output(n: int, alloc=np.zeros) -> core.TiltOutput:
+    """A :class:`~verticality.estimators.tilt_core.TiltOutput` of ``n`` samples to be filled
+    (``alloc=np.empty`` when every sample will be written)."""
+    return core.TiltOutput(alloc(n), alloc(n), alloc((n, 3)), alloc((n, 4)), alloc((n, 3)),
+                           alloc((n, NE)), alloc(n, dtype=np.int32), alloc(n, dtype=bool))
+
+
+def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s):
+    """Filter a recording from ``state``: gyro (N, 3) rad/s, accelerometer (N, 3) m/s², ``dt_s`` a
+    scalar or (N,) (``dt_s[k]`` the time from sample k−1 to k). Returns ``(final_state,
+    TiltOutput)`` of NumPy arrays, as the core's ``step`` applied sample by sample would."""
+    gyr = np.asarray(gyr_rad_s, dtype=np.float64)
+    acc = np.asarray(acc_m_s2, dtype=np.float64)
+    if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
+        raise InputError(f"gyr and acc must both have shape (N, 3); got {gyr.shape}, {acc.shape}")
+    n = gyr.shape[0]
+    dt = np.asarray(dt_s, dtype=np.float64)
+    if dt.ndim > 1 or (dt.ndim == 1 and dt.shape[0] != n):
+        raise InputError(f"dt must be a scalar or have shape ({n},); got {dt.shape}")
+    dts = np.broadcast_to(dt, (n,)).copy()
+    x = np.array(state.x, dtype=np.float64)
+    sums = np.array(state.sums, dtype=np.float64)
+    count, initialized = int(state.count), bool(state.initialized)
+    res = empty_output(n, np.empty)  # every sample is written below (by the samples before the
+    k = 0                             # initialization and by the chunks)
+    if not initialized:
+        k, x = _before_initialization(res, params, x, sums, gyr, acc, dts)
+        initialized = k > 0 and bool(res.flags[k - 1] & INIT)
+    if k < n:
+        x, sums, count = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k)
+    res.measured[:] = accelerometer_used(res.flags)
+    return core.TiltState(x, sums, np.int32(count), np.bool_(initialized)), res
+
+
+def first_usable(acc, dts, k0: int = 0) -> int:
+    """The index of the first sample from ``k0`` on with a usable accelerometer sample (finite,
+    non-zero, with a valid Δt; ``tilt_core.masks``), or ``len(acc)``: searched in growing windows
+    (usually it is the first sample)."""
+    n, lo, span = acc.shape[0], k0, 256
+    while lo < n:
+        hi = min(n, lo + span)
+        ok = _acc_ok(acc[lo:hi], dts[lo:hi])
+        if ok.any():
+            return lo + int(np.argmax(ok))
+        lo, span = hi, 4 * span
+    return n
+
+
+def _before_initialization(res, p, x, sums, gyr, acc, dts):
+    """The outputs of the samples up to the one that initializes the filter (the first usable
+    accelerometer sample), as ``step`` gives them: the filter does not change before it, and that
+    sample sets the tilt (``tilt_core.initialize``). Returns the number of samples done and the
+    filter after them."""
+    n = acc.shape[0]
+    j = first_usable(acc, dts)
+    k = min(n, j + 1)
+    dt_ok, gyr_ok, acc_ok, _ = core.masks(gyr[:k].T, acc[:k].T, dts[:k], xp=np)
+    pending = (x[X.reacquire] > 0.5) | (sums[S.gap] > 0)
+    flags = core.flag_bits(dt_ok, gyr_ok, acc_ok, gap=core.gaps_in(dts[:k], p, xp=np),
+                           reacquiring=pending, xp=np)
+    var = core.output_var(x[X.P].reshape(NE, NE), False, 0.0, p, xp=np)
+    quat = np.tile(x[X.q], (k, 1))
+    variances = np.tile(var, (k, 1))
+    if j < n:  # the initialization
+        x = core.initialize(x, acc[j], p, xp=np)
+        quat[j] = x[X.q]
+        variances[j] = core.output_var(x[X.P].reshape(NE, NE), True, 0.0, p, xp=np)
+        flags[j] |= INIT | REACQUIRING
+    up, roll, pitch = core.up_roll_pitch(tuple(quat.T), xp=np)
+    res.quat_E_S[:k] = quat
+    res.up_S[:k] = np.stack(up, axis=1)
+    res.roll_rad[:k], res.pitch_rad[:k] = roll, pitch
+    res.bias_S_rad_s[:k] = x[X.b]
+    res.var[:k] = variances
+    res.flags[:k] = flags
+    return k, x
+
+
+_HEADS: dict = {}
+
+
+def _head(sums0, n_update: int, nb: int):
+    """The chunk header (``HEAD``); the usual one (no sums carried in: ``sums0`` None or empty;
+    every block updated) is put on the device once per chunk size."""
+    if n_update == nb and (sums0 is None or np.array_equal(sums0, _EMPTY_SUMS)):
+        if nb not in _HEADS:
+            _HEADS[nb] = jax.device_put(HEAD.pack(xp=np, sums0=_EMPTY_SUMS, n_update=nb))
+        return _HEADS[nb]
+    return HEAD.pack(xp=np, sums0=_EMPTY_SUMS if sums0 is None else sums0, n_update=n_update)
+
+
+_EMPTY_SUMS = np.asarray(core.empty_sums(xp=np))
+
+
+def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k):
+    """Samples ``k`` to the end through the batch kernel, from the filter ``x`` and the current
+    block's ``sums0`` of ``count`` samples. Returns the filter, the sums and the count after the
+    last sample."""
+    n = gyr.shape[0]
+    pad = count  # the block began before sample k: its samples are in sums0
+    base = k - pad  # sample index of virtual position 0 (the current block's start)
+    nv = pad + n - k
+    # dispatch every chunk first (asynchronous, the state stays on the device), then copy the
+    # outputs: the host copies overlap the device work of the later chunks
+    p_vec = jax.device_put(np.asarray(p, dtype=np.float64))  # once per recording
+    # the kernel without gap handling serves chunks with no gap and no re-acquisition in them
+    # (the same numbers, faster)
+    need = blocks_needing_gaps(dts, acc, k, block, p, bool(x[X.reacquire] > 0.5),
+                               float(x[X.reacq_t]), pad=pad, gap0=bool(sums0[S.gap] > 0))
+    pending, j, v = [], 0, 0
+    while v < nv:
+        # a gap or a re-acquisition (after a gap, and after the initialization) within a chunk's
+        # reach: short chunks with gap handling until it is past; and for a tail of at most half
+        # a long chunk (less padding)
+        gaps = bool(need[j:j + CHUNK_BLOCKS].any()) or 2 * (nv - v) <= CHUNK_BLOCKS * block
+        nb = GAP_CHUNK_BLOCKS if gaps else CHUNK_BLOCKS
+        size = nb * block
+        # the chunk's samples as SAMPLE rows (packed chunk by chunk, while the device works on
+        # the previous one); positions without a sample (the current block's samples before k,
+        # the padding after the last sample) are skipped samples (dt = NaN: BAD_DT), so that
+        # every chunk has one of the two compiled shapes
+        m = min(size, nv - v)
+        lead = pad if v == 0 else 0
+        data = np.empty((size, SAMPLE.size))
+        data[:lead, :] = 0.0
+        data[:lead, SAMPLE.dt] = np.nan
+        lo, hi = base + v + lead, base + v + m
+        data[lead:m, SAMPLE.gyr] = gyr[lo:hi]
+        data[lead:m, SAMPLE.acc] = acc[lo:hi]
+        data[lead:m, SAMPLE.dt] = dts[lo:hi]
+        if m < size:
+            data[m:, :] = 0.0
+            data[m:, SAMPLE.dt] = np.nan
+        n_update = m // block if v + m == nv else nb
+        x, current, outs = tilt_kernels.run_chunk(x, _head(sums0 if v == 0 else None, n_update,
+                                                           nb),
+                                                  data, p_vec, block, p._fields, gaps=gaps)
+        pending.append((lo, lead, m, size, outs))
+        v += m
+        j += nb
+    for lo, lead, m, size, outs in pending:
+        gap0 = bool(sums0[S.gap] > 0) if lo == k else False
+        if lead == 0 and m == size:
+            put_chunk(res, lo, outs, block)
+        else:  # a chunk with positions without a sample: through a temporary
+            tmp = empty_output(size, np.empty)
+            put_chunk(tmp, 0, outs, block, gap0=gap0)
+            for dst, src in zip(res, tmp, strict=True):
+                dst[lo:lo + m - lead] = src[lead:m]
+    _add_dropout_variance(res.var, gyr, acc, dts, k, pad, float(sums0[S.qmiss]), block, p)
+    count = nv % block
+    sums = np.asarray(current) if count else _EMPTY_SUMS.copy()
+    return np.asarray(x), sums, count
+
+
+def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p):
+    """Within each block, add to the tilt variances what gyro dropouts and gaps have added since
+    the block's start (``tilt_core.output_var``: the kernel gives the block-start variances; the
+    block's last sample already has the updated ones). Samples from ``k`` on, the first block
+    having begun ``pad`` samples before ``k`` with ``qmiss0`` in its sums. In place; nothing to do
+    on a recording without dropouts."""
+    g = gyr[k:]
+    if (qmiss0 == 0.0 and np.max(g, initial=0.0) < MAX_RATE_RAD_S
+            and np.min(g, initial=0.0) > -MAX_RATE_RAD_S and not np.any(dts[k:] > p.gap_flag_s)):
+        return  # every gyro sample valid (a NaN fails the test) and no gap: the usual case
+    t = core.sample_terms(gyr[k:].T, acc[k:].T, dts[k:], p, xp=np)
+    m = t.dts.shape[0]
+    q = np.zeros(-(-(pad + m) // block) * block)
+    q[pad:pad + m] = t.sums["qmiss"]
+    q[0] += qmiss0
+    q = np.cumsum(q.reshape(-1, block), axis=1)
+    q[:, -1] = 0.0
+    var[k:, E.tilt] += q.reshape(-1)[pad:pad + m, None]
+
+
+def blocks_needing_gaps(dts, acc, k, block, p, pending, t_sum, pad: int = 0,
+                        gap0: bool = False):
+    """Per block from sample ``k − pad`` on (a block boundary): True where the block holds a gap
+    or starts while the tilt is to be re-acquired after a gap (or the start): there the batch
+    kernel needs its gap handling. A host twin of the kernel's state from the data alone (the gap
+    samples and each block's accelerometer time, ``tilt_core.sample_terms``); it holds the flag one
+    block longer than the kernel, so that rounding in the sums cannot make it clear first, and
+    ignores the accelerometer time of the ``pad`` samples of the first block before ``k`` (they
+    can only delay the re-acquisition it foresees). ``pending``, ``t_sum``: the re-acquisition
+    state at the first block's start; ``gap0``: the first block already holds a gap."""
+    n = dts.shape[0]
+    base = k - pad
+    nb = -(-(n - base) // block)
+    need = np.zeros(nb, dtype=bool)
+    if p.gap_flag_s >= 0:  # a gap is a valid Δt above gap_flag_s: test the few candidates
+        cand = np.flatnonzero(dts[k:] > p.gap_flag_s)
+        gap = np.zeros(n - k, dtype=bool)
+        gap[cand] = core.gaps_in(dts[k:][cand], p, xp=np)
+    else:
+        gap = core.gaps_in(dts[k:], p, xp=np)
+    gap_blocks = np.unique(np.concatenate([[0] if gap0 else [],
+                                           (np.flatnonzero(gap) + pad) // block])).astype(int)
+    j = 0
+    while j < nb:
+        if not pending:  # jump to the next block with a gap
+            i = int(np.searchsorted(gap_blocks, j))
+            if i == gap_blocks.size:
+                break
+            j, pending, t_sum = int(gap_blocks[i]), True, 0.0
+            need[j] = True
+            j += 1
+            continue
+        # pending from block j: the accelerometer time of the next blocks, a window at a time
+        hi_b = min(nb, j + 64)
+        lo, hi = max(k, base + j * block), min(n, base + hi_b * block)
+        ok = _acc_ok(acc[lo:hi], dts[lo:hi])
+        w = np.zeros((hi_b - j) * block)
+        off = lo - (base + j * block)
+        w[off:off + hi - lo] = np.where(ok, dts[lo:hi], 0.0)
+        t_blk = t_sum + np.cumsum(w.reshape(-1, block).sum(axis=1))
+        g = int(np.searchsorted(gap_blocks, j))
+        g = int(gap_blocks[g]) if g < gap_blocks.size and gap_blocks[g] < hi_b else hi_b
+        done = np.flatnonzero(t_blk[:g - j] >= p.reacquire_s)
+        if done.size:  # the kernel re-acquires at block c
+            c = j + int(done[0])
+            need[j:min(nb, c + 2)] = True
+            pending, j = False, c + 1
+        elif g < hi_b:  # a gap first: pending again from the block after it
+            need[j:g + 1] = True
+            t_sum, j = 0.0, g + 1
+        else:
+            need[j:hi_b] = True
+            t_sum, j = float(t_blk[-1]), hi_b
+    return need
+
+
+def put_chunk(res, k0: int, outs, block: int, gap0: bool = False):
+    """Write the outputs of one ``tilt_kernels.run_chunk`` (all its samples) into ``res`` from
+    sample ``k0`` on: one transposing copy per field, bias and variances broadcast per block.
+    ``gap0``: the chunk's first block holds a gap before the chunk."""
+    soa, rows, fl = (np.asarray(o) for o in outs)
+    nb = soa.shape[2]
+    n = nb * block
+
+    def dst(a):  # (n, ...) rows of a from k0 as a (nb, block, ...) view
+        return a[k0:k0 + n].reshape((nb, block) + a.shape[1:], copy=False)
+
+    dst(res.quat_E_S)[...] = soa[SOA.quat].T
+    dst(res.up_S)[...] = soa[SOA.up].T
+    dst(res.roll_rad)[...] = soa[SOA.roll].T
+    dst(res.pitch_rad)[...] = soa[SOA.pitch].T
+    for a, start, end in ((res.bias_S_rad_s, rows[:, ROW.b0], rows[:, ROW.b1]),
+                          (res.var, rows[:, ROW.var0], rows[:, ROW.var1])):
+        v = dst(a)
+        v[:, :-1] = start[:, None, :]
+        v[:, -1] = end
+    fl_dst = dst(res.flags)
+    fl_dst[...] = fl.T
+    # REACQUIRING (x.reacquire or a gap in the block so far; rare: after a gap or the start),
+    # which the kernel leaves to the host
+    pend_start, pend_end = rows[:, ROW.reacquire0] > 0.5, rows[:, ROW.reacquire1] > 0.5
+    pend_start[0] |= gap0
+    # a block holding a gap is pending after it (its update, if the chunk applied it, says so too)
+    rare = np.flatnonzero(pend_start | pend_end | np.any(fl & DT_GAP, axis=0))
+    if rare.size:
+        # a block pending at its start is flagged from its first sample; one that only turns
+        # pending (it holds a gap) from its gap on; the last sample as the state after the update
+        first = np.where(pend_start[rare], 0, np.argmax((fl[:, rare] & DT_GAP) > 0, axis=0))
+        kk = np.arange(block)[None, :]
+        on = (kk >= first[:, None]) & (kk < block - 1)
+        on[:, -1] = pend_end[rare]
+        fl_dst[rare] |= np.where(on, REACQUIRING, 0).astype(fl_dst.dtype)

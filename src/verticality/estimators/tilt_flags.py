@@ -1,0 +1,28 @@
+"""Flag bits of the 3-D tilt filter's outputs (``TiltOutput.flags``, the ``flags`` column of
+``verticality estimate`` and ``verticality stream``): the one definition, used by the filter core,
+its batch kernel, the plain-Python reference, the command line and docs/tilt.md.
+
+A sample's flags are the bitwise OR of the bits below that apply to it.
+"""
+
+from __future__ import annotations
+
+ACC_MISSING = 1  # accelerometer sample non-finite or zero: predict only
+GYR_MISSING = 2  # gyroscope sample non-finite: orientation held, covariance inflated
+BAD_DT = 4  # Δt non-finite or <= 0: sample skipped entirely
+ACC_DISTURBED = 8  # inertial acceleration estimate large: accelerometer strongly down-weighted
+INIT = 16  # the sample that initialized the filter from the accelerometer
+DT_GAP = 32  # Δt above gap_flag_s: a gap in the recording (motion inside it is not seen)
+REACQUIRED = 64  # the tilt was re-acquired from the accelerometer after a gap or the start
+REACQUIRING = 128  # from a gap (or the start) to its re-acquisition: the estimate may be off
+
+FLAG_NAMES = {ACC_MISSING: "accelerometer missing", GYR_MISSING: "gyro missing",
+              BAD_DT: "bad time step", ACC_DISTURBED: "accelerometer disturbed",
+              INIT: "initialization", DT_GAP: "gap in the time stamps",
+              REACQUIRED: "tilt re-acquired", REACQUIRING: "re-acquiring"}
+
+
+def accelerometer_used(flags):
+    """Whether each sample's accelerometer reading entered the filter (``TiltOutput.measured``):
+    neither missing nor on a skipped sample. Works on ints and on NumPy or JAX integer arrays."""
+    return (flags & (ACC_MISSING | BAD_DT)) == 0

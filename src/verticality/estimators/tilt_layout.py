@@ -1,0 +1,105 @@
+"""The flat vectors of the 3-D tilt filter, field by field: one layout per vector, used by every
+reader (``v[X.P]``, ``v[..., S.tau]``) and every writer (``X.pack(q=..., b=..., ...)``), so that no
+code holds an offset.
+
+The kernels keep the filter in flat float64 vectors (a ``lax.scan`` carry, a chunk's rows, the
+real-time stepper's state), because XLA on a CPU runs one flat vector faster than a tree of small
+arrays. The layouts:
+
+* :data:`E` the error state (7): tilt error ``δ`` about Earth's horizontal axes, horizontal
+  velocity error ``ṽ``, gyro bias error ``b̃``; the rows and columns of ``P``.
+* :data:`X` the filter at a block boundary (``TiltState.x``): ``q`` = ``q_E_S`` (wxyz), ``b`` the
+  gyro bias (rad/s), ``v`` the horizontal velocity ``v_E`` (m/s), ``P`` (7 × 7, row-major), the
+  low-passed ``(|f| − g)²`` ``acc_dev_var``, the time at rest ``rest_s``, and the re-acquisition
+  after a gap or the start: ``reacquire`` (1.0 while pending), ``reacq_f_E`` (Σ R f Δt since the
+  gap, Earth) and ``reacq_t`` (its Σ Δt).
+* :data:`S` the sums of the samples of the current block (``TiltState.sums``, the per-sample
+  pre-integration): ``dquat`` the raw gyro rotation since the block start, ``tau`` the time
+  integrated by a valid gyro, ``f`` Σ f Δt (block-start sensor frame) over valid accelerometer
+  samples, ``t_acc`` their Σ Δt, ``dev2`` Σ (|f| − g)² Δt, ``w2`` Σ |ω|² Δt, ``t`` Σ Δt, ``qmiss``
+  Σ (ω_missing Δt)² over gyro dropouts and gaps, ``gsum`` Σ ω Δt, ``asum`` Σ f Δt (sensor frame),
+  ``a2`` Σ |f|² Δt, ``gap`` the number of gap samples.
+* :data:`C` the per-block inputs of the block update that do not depend on the filter state
+  (computed for all the blocks of a chunk before the scan over blocks).
+* :data:`Z` the real-time stepper's state: ``x``, ``sums``, ``count`` (samples in the block),
+  ``initialized`` (1.0 or 0.0).
+* :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input, a chunk's rows).
+* :data:`OUT` the stepper's output ``[roll, pitch, up (3), quat (4), bias (3), flags]``.
+* :data:`ROW` the batch kernel's row per block: the state at its start (``q0``, ``b0``, ``var0``
+  the diagonal of ``P``) and after its update (``q1``, ``b1``, ``var1``), whether the update found
+  the accelerometer disturbed and re-acquired the tilt, and ``reacquire`` before and after.
+* :data:`SOA` the batch kernel's per-sample outputs, along the leading axis.
+* :data:`HEAD` the batch kernel's chunk header: the sums the chunk's first block starts from and
+  the number of blocks whose update the chunk applies.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+
+class Packed:
+    """Named fields of a flat vector: ``(name, size)`` pairs in order, ``size`` None for a scalar.
+
+    Each name is an attribute holding its index: an int for a scalar field, a slice otherwise
+    (read ``v[L.name]`` or ``v[..., L.name]``; along the leading axis ``v[L.name]`` too).
+    :meth:`pack` writes a vector from all its fields by name."""
+
+    def __init__(self, fields):
+        self.fields = tuple(fields)
+        offset = 0
+        for name, size in self.fields:
+            if name in ("fields", "size", "pack") or name.startswith("_"):
+                raise ValueError(f"field name {name!r} is reserved")
+            setattr(self, name, offset if size is None else slice(offset, offset + size))
+            offset += 1 if size is None else size
+        self.size = offset
+
+    def pack(self, xp=jnp, axis: int = -1, **values):
+        """The vector (or, with leading axes, the stack of vectors along ``axis``) holding
+        ``values``: every field by name; a vector field as an array with its size along ``axis``
+        or as a tuple of its components; scalars are cast to float64. ``xp`` is ``jax.numpy`` or
+        ``numpy``."""
+        names = [n for n, _ in self.fields]
+        if set(values) != set(names):
+            missing = [n for n in names if n not in values]
+            extra = [n for n in values if n not in names]
+            raise ValueError(f"pack: missing {missing}, unknown {extra}")
+        parts = []
+        for name, size in self.fields:
+            v = values[name]
+            if size is None:
+                v = xp.expand_dims(xp.asarray(v, dtype=xp.float64), axis)
+            elif isinstance(v, tuple | list):
+                if len(v) != size:
+                    raise ValueError(f"pack: {name} has {len(v)} components, expected {size}")
+                v = xp.stack([xp.asarray(c, dtype=xp.float64) for c in v], axis=axis)
+            else:
+                v = xp.asarray(v, dtype=xp.float64)
+                if v.shape[axis] != size:
+                    raise ValueError(f"pack: {name} has size {v.shape[axis]}, expected {size}")
+            parts.append(v)
+        return xp.concatenate(parts, axis=axis)
+
+
+NE = 7  # error-state dimension
+E = Packed([("tilt", 2), ("vel", 2), ("bias", 3)])
+X = Packed([("q", 4), ("b", 3), ("v", 2), ("P", NE * NE), ("acc_dev_var", None),
+            ("rest_s", None), ("reacquire", None), ("reacq_f_E", 3), ("reacq_t", None)])
+P_DIAG = slice(X.P.start, X.P.stop, NE + 1)  # the diagonal of the packed P
+S = Packed([("dquat", 4), ("tau", None), ("f", 3), ("t_acc", None), ("dev2", None),
+            ("w2", None), ("t", None), ("qmiss", None), ("gsum", 3), ("asum", 3), ("a2", None),
+            ("gap", None)])
+C = Packed([("dquat", 4), ("tau", None), ("f", 3), ("T", None), ("has_acc", None),
+            ("q_gyr", None), ("q_vel", None), ("qb", None), ("alpha", None), ("dev2", None),
+            ("g_mean", 3), ("quiet0", None), ("r_vel", None), ("r_vel_rest", None),
+            ("r_b", None), ("gap", None), ("t_acc", None)])
+Z = Packed([("x", X.size), ("sums", S.size), ("count", None), ("initialized", None)])
+SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None)])
+OUT = Packed([("roll", None), ("pitch", None), ("up", 3), ("quat", 4), ("bias", 3),
+              ("flags", None)])
+ROW = Packed([("q0", 4), ("b0", 3), ("var0", NE), ("q1", 4), ("b1", 3), ("var1", NE),
+              ("disturbed", None), ("reacquired", None), ("reacquire0", None),
+              ("reacquire1", None)])
+SOA = Packed([("quat", 4), ("up", 3), ("roll", None), ("pitch", None)])
+HEAD = Packed([("sums0", S.size), ("n_update", None)])

@@ -1,0 +1,77 @@
+"""Parameters of the 3-D tilt filter (:mod:`verticality.estimators.tilt`): one set for every
+recording, physically motivated (docs/tilt.md, "The filter"), and the default prior covariance and
+block length. Constants only, so that the plain-Python reference
+(:mod:`verticality.estimators.tilt_stream`) can share them without sharing any arithmetic.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+G_M_S2 = 9.81
+
+
+class TiltParams(NamedTuple):
+    """One parameter set for all recordings (physically motivated; see docs/tilt.md).
+
+    Spectral densities, so that the filter behaves the same at any sampling rate:
+    ``gyr_noise`` gyro white noise (rad/s/√Hz, T's δ_c); ``bias_walk`` gyro bias random walk
+    (rad/s/√s, T's δ_drift, eq. 2); ``acc_noise`` accelerometer white noise entering the integrated
+    velocity (m/s²/√Hz, T's δ_a). Velocity prior: ``vel_m_s`` typical speed of the motion with
+    correlation time ``vel_corr_s``; ``vel_rest_m_s`` at rest. ``acc_missing_m_s2``: unknown
+    acceleration assumed while the accelerometer drops out; ``acc_tau_s``: low-pass of ``(|f|−g)²``
+    used for the ACC_DISTURBED flag. ``omega_missing_rad_s``: unknown rate assumed while the gyro
+    drops out. ``gap_flag_s``: a step Δt above it is a gap in the recording (flag ``DT_GAP``):
+    the rotation inside it is unknown (``omega_missing_rad_s`` over the gap); after it the filter
+    averages the specific force for ``reacquire_s`` and re-acquires the tilt from that mean
+    (flag ``REACQUIRED``). ``init_tilt_rad``: when the accelerometer initializes the filter (no
+    ``x0``), the tilt standard deviation added for that sample's unknown inertial acceleration;
+    the tilt is then re-acquired after ``reacquire_s`` as after a gap, so a start in motion is
+    caught (flag ``REACQUIRING`` until then).
+    ``acc_calib_m_s2``: the accelerometer's calibration error (bias, scale, misalignment), which
+    gravity alone cannot reveal; it does not change the estimate, only the reported uncertainty
+    (``tilt.tilt_sigma_rad``).
+    ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. ``gyr_scale_noise`` (√s):
+    gyro errors that grow with the rate (scale factor, axis misalignment), process noise density
+    ``(k |ω|)²``. Rest (T eq. 1 with ω = 0, so the canal signal is the drift): when for
+    ``rest_min_s`` every block has gyro deviation below ``rest_gyr_rad_s`` and accelerometer
+    deviation below ``rest_acc_m_s2``, the block-mean gyro measures the bias, with the residual
+    motion ``rest_motion_rad_s`` as extra noise.
+    """
+
+    gyr_noise: float = 1e-3
+    bias_walk: float = 1e-4
+    acc_noise: float = 0.05
+    vel_m_s: float = 0.5
+    vel_corr_s: float = 1.0
+    vel_rest_m_s: float = 0.01
+    acc_missing_m_s2: float = 5.0
+    acc_tau_s: float = 0.5
+    gyr_scale_noise: float = 0.005
+    rest_gyr_rad_s: float = 0.035
+    rest_acc_m_s2: float = 0.5
+    rest_min_s: float = 1.5
+    rest_motion_rad_s: float = 0.002
+    omega_missing_rad_s: float = 1.0
+    acc_disturbed_m_s2: float = 1.0
+    g_m_s2: float = G_M_S2
+    gap_flag_s: float = 0.1
+    reacquire_s: float = 1.0
+    init_tilt_rad: float = 1.0
+    acc_calib_m_s2: float = 0.05
+
+
+DEFAULT_PARAMS = TiltParams()
+# prior covariance of the error state (δx, δy [rad], ṽx, ṽy [m/s], b̃x, b̃y, b̃z [rad/s])
+DEFAULT_P0 = np.diag([0.05**2, 0.05**2, 0.1**2, 0.1**2, 0.01**2, 0.01**2, 0.01**2])
+BLOCK = 32  # samples per Kalman update (the canal signal is integrated in between)
+
+# Validity limits of a sample: far beyond any IMU (MEMS gyros read up to ~35 rad/s, accelerometers
+# up to ~2000 m/s²) and far below where the filter's sums and covariance would overflow. A gyro or
+# accelerometer component beyond them is taken as missing, a step beyond MAX_DT_S as a bad step, so
+# that no finite input turns the estimate non-finite.
+MAX_RATE_RAD_S = 1e4
+MAX_ACC_M_S2 = 1e6
+MAX_DT_S = 1e6

@@ -1,0 +1,164 @@
+"""IMU CSV data rows: parsing a file's rows at once (a fast and a general parser), and reading a
+stream row by row (``verticality stream``): the held-back first second, then one sample per row,
+unreadable rows named and counted rather than dropped.
+
+The layout (which column is which, the time unit) is :mod:`verticality.io.imu_layout`'s; the
+checks of a whole recording are :func:`verticality.io.imu.recording_from_rows`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import numpy as np
+
+from verticality.errors import InputError
+from verticality.io import imu_layout as layout
+
+HEAD_S = 1.0  # a stream's first second is held back and checked as a file is
+HEAD_ROWS = 500  # ... at most this many rows
+WARN_ROWS = 5  # unreadable rows named one by one, then counted
+
+
+def parse_clean_rows(rows: list[str], lay) -> tuple[np.ndarray, np.ndarray] | None:
+    """The fast path of :func:`verticality.io.imu.read_imu_csv` (NumPy's C parser, ~3× faster than
+    :func:`parse_rows`): ``(data, t_raw)`` when every cell is a number (``nan`` included) and
+    every row has the header's number of columns, with the values :func:`parse_rows` would give;
+    None otherwise (empty cells, text, ragged rows, a time column that is not all finite), and then
+    :func:`parse_rows` reads the file, with its messages."""
+    try:
+        data = np.loadtxt(rows, delimiter=",", comments="#", dtype=np.float64, ndmin=2)
+    except ValueError:
+        return None
+    k = lay.index["t"]
+    if data.shape[1] != lay.n_columns or not np.all(np.isfinite(data[:, k])):
+        return None
+    t = data[:, k]
+    if not np.all(t == np.round(t)):  # some stamp is not an integer: float64, as parse_rows
+        return data, t
+    try:  # integer stamps stay exact (ns since 1970 do not survive float64)
+        t_int = np.loadtxt(rows, delimiter=",", comments="#", dtype=np.int64, usecols=k, ndmin=1)
+    except (ValueError, OverflowError):  # "5.0", "1e3", beyond int64: parse_rows decides
+        return None
+    return data, t_int
+
+
+def parse_rows(rows: list[str], line_numbers: list[int], lay, source: str):
+    """``(data, t_raw)`` of data rows of any form: empty and non-numeric cells become NaN (the
+    time column's are refused, naming their lines), ragged rows are refused."""
+    try:
+        data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, filling_values=np.nan,
+                             invalid_raise=True, ndmin=2)
+    except ValueError as exc:
+        raise InputError(f"{source}: malformed CSV ({str(exc).splitlines()[0]})") from None
+    if data.size == 0:
+        raise InputError(f"{source}: no data rows")
+    if data.shape[1] != lay.n_columns:
+        raise InputError(f"{source}: {data.shape[1]} values per row but {lay.n_columns} header "
+                         "columns")
+    t_cells = [r.split("#", 1)[0].split(",")[lay.index["t"]].strip() for r in rows]
+    return data, layout.parse_time_cells(t_cells, line_numbers, source, lay.time_label)
+
+
+
+def parse_number(cell: str) -> float:
+    """A cell as a float; NaN when it is not a number (as the file parsers make it)."""
+    try:
+        return float(cell)
+    except ValueError:
+        return math.nan
+
+
+class RowReader:
+    """Reads the data rows of an IMU CSV stream with layout ``lay`` one by one: the cells of the
+    layout's columns as floats (a cell that is not a number is NaN, as the file parser makes it),
+    the time in seconds. Unreadable rows and times that do not increase are named on ``warn_to``
+    (a text stream; the first :data:`WARN_ROWS`) and counted. ``line_no`` is the number of the
+    last line read."""
+
+    def __init__(self, lay: layout.Layout, source: str = "input", warn_to=None):
+        self.lay, self.source, self.warn_to = lay, source, warn_to
+        self.k_t = lay.index["t"]
+        self.cols = [lay.index[c] for c in layout.IMU_COLUMNS[1:]]
+        self.bad = 0
+        self.line_no = 1  # the header
+        self.per_s = layout.TIME_UNITS[lay.time_unit or "s"]  # stamps per second
+        self.origin, self.gyr_scale, self.acc_scale = None, 1.0, 1.0
+
+    def lines(self, fh) -> Iterator[str]:
+        """The data lines of ``fh`` from where it stands (blank and ``#`` lines skipped, as files
+        are read), counting ``line_no``."""
+        for line in fh:
+            self.line_no += 1
+            text = line.strip()
+            if text and not text.startswith("#"):
+                yield line.rstrip("\r\n")
+
+    def read_head(self, fh, head_s: float = HEAD_S, head_rows: int = HEAD_ROWS
+                  ) -> tuple[list[str], list[int]]:
+        """The rows of the first ``head_s`` seconds (at most ``head_rows``) and their line
+        numbers, to be read and checked as a file (:func:`verticality.io.imu.recording_from_rows`)
+        before the first output row."""
+        rows, numbers, first_t = [], [], None
+        for line in self.lines(fh):
+            rows.append(line)
+            numbers.append(self.line_no)
+            t_cell = self._time_cell(line)
+            if first_t is None:
+                first_t = t_cell
+            if len(rows) >= head_rows or (t_cell is not None and first_t is not None
+                                          and self._seconds(t_cell, first_t) >= head_s):
+                break
+        if not rows:
+            raise InputError(f"{self.source}: no data rows")
+        return rows, numbers
+
+    def _time_cell(self, line: str):
+        cells = line.split("#", 1)[0].split(",")
+        return cells[self.k_t].strip() if len(cells) == self.lay.n_columns else None
+
+    def _seconds(self, cell: str, first: str) -> float:
+        """Time since ``first`` in seconds, for the head's length."""
+        try:
+            return (float(cell) - float(first)) / self.per_s
+        except ValueError:
+            return 0.0
+
+    def set_origin(self, origin, gyr_scale: float = 1.0, acc_scale: float = 1.0):
+        """The first stamp (None for seconds, which are kept as written; else the
+        ``ImuRecording.t0_stamp`` of the head) and the unit conversions of the head."""
+        self.origin, self.gyr_scale, self.acc_scale = origin, gyr_scale, acc_scale
+
+    def sample(self, text: str) -> tuple[float, np.ndarray, np.ndarray]:
+        """``(t_s, gyr, acc)`` of the row just read: NaN where a cell is not a number, all NaN
+        (and named) for a row with the wrong number of cells."""
+        cells = text.split("#", 1)[0].split(",")
+        if len(cells) != self.lay.n_columns:
+            self.warn(f"{len(cells)} cells, the header has {self.lay.n_columns}")
+            return math.nan, np.full(3, np.nan), np.full(3, np.nan)
+        values = np.array([parse_number(cells[j]) for j in self.cols])
+        t_cell = cells[self.k_t].strip()
+        if self.origin is None:
+            t_s = parse_number(t_cell)
+        elif layout.is_integer_cell(t_cell):  # exact, as the file parser converts stamps
+            t_s = (int(t_cell) - self.origin) / self.per_s
+        else:
+            t_s = (parse_number(t_cell) - self.origin) / self.per_s
+        if not math.isfinite(t_s):
+            self.warn(f"time {t_cell!r} is not a number")
+        return t_s, values[:3] * self.gyr_scale, values[3:] * self.acc_scale
+
+    def warn(self, what: str):
+        """Name the row just read (the first :data:`WARN_ROWS`), count it."""
+        self.bad += 1
+        if self.bad <= WARN_ROWS and self.warn_to is not None:
+            print(f"warning: {self.source} line {self.line_no}: {what}; written with its samples "
+                  "flagged (missing or bad time step)", file=self.warn_to)
+
+    def summary(self):
+        """The count of unreadable rows beyond those named."""
+        if self.bad > WARN_ROWS and self.warn_to is not None:
+            print(f"warning: {self.source}: {self.bad} unreadable rows in all (the first "
+                  f"{WARN_ROWS} named above), each written with its samples flagged",
+                  file=self.warn_to)
