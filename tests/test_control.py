@@ -5,6 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import so3
+from verticality.analysis.model_checks import nonlinear_loop_jacobian
 from verticality.control import (
     global_stabilizer,
     head_torque_from_motor_torques,
@@ -13,7 +14,6 @@ from verticality.control import (
     tilt_pd_closed_loop_matrix,
     tilt_pd_linearized,
 )
-from verticality.experiments.model_checks import nonlinear_loop_jacobian
 from verticality.integrate import rk4_step
 from verticality.models import gimbal
 from verticality.models.head import FreeHead, HeadInput, HeadState

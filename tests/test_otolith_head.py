@@ -12,7 +12,6 @@ import pytest
 from verticality import so3
 from verticality.models import base, planar
 from verticality.models import otolith_head as oh
-from verticality.models.base import EuclideanState, model_dataclass
 from verticality.models.head import FreeHead, HeadInput, HeadState
 from verticality.models.kinematics import RigidMotion, still
 from verticality.models.pendulum import Pendulum, PendulumState
@@ -117,7 +116,7 @@ def test_pendulum_on_free_head_dissipates_through_damping_only():
 
 
 def _planar_params(p, hp):
-    return planar.PlanarParams(m_kg=p.m_kg, l_m=p.l_m, J_kg_m2=p.J_pivot_S[0], beta_Nms=p.beta_Nms,
+    return planar.PlanarHead(m_kg=p.m_kg, l_m=p.l_m, J_kg_m2=p.J_pivot_S[0], beta_Nms=p.beta_Nms,
                                K_kg_m2=hp.J_H[0], g_m_s2=G_M_S2)
 
 
@@ -133,8 +132,8 @@ def test_medial_restricted_to_the_coronal_plane_is_the_planar_model():
         x = oh.OtolithHeadState((PendulumState(so3.rot_x(th_s), w_s * ex),),
                                 HeadState(so3.rot_x(th_h), w_h * ex))
         dx = m.dynamics(x, HeadInput(tau * ex, jnp.array([0.0, ah, az])))
-        ref = planar.dynamics(planar.PlanarState(th_s, w_s, th_h, w_h),
-                              planar.PlanarInput(tau, ah, az), pp)
+        ref = pp.dynamics(planar.PlanarState(th_s, w_s, th_h, w_h),
+                                 planar.PlanarInput(tau, ah, az))
         np.testing.assert_allclose(dx.pendula[0].omega_S_rad_s, [ref.omega_S_rad_s, 0, 0],
                                    rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(dx.head.omega_H_rad_s, [ref.omega_H_rad_s, 0, 0], rtol=1e-13)
@@ -353,21 +352,8 @@ def _planar_vs_3d(which, n=2000):
     return tuple(np.asarray(a) for a in run())
 
 
-@model_dataclass
-class _PlanarMedial(EuclideanState):
-    """models.planar's head + pendulum (F p. 36) as a value, for the comparison."""
-
-    params: planar.PlanarParams
-
-    def dynamics(self, x, u):
-        return planar.dynamics(x, u, self.params)
-
-    def output(self, x, u=None):
-        return planar.inclinometer_reading(x)
-
-
 def base_planar_model(pp):
-    return _PlanarMedial(pp)
+    return pp
 
 
 @pytest.mark.parametrize("which", ["medial", "lateral"])
@@ -380,13 +366,13 @@ def test_planar_equals_3d_restricted_to_plane(which):
 def test_planar_lateral_pivot_acceleration_signs():
     """Left pivot (+r on y) sees the centripetal −r ω² along y and +r ω̇ along z (head level)."""
     r = 0.05
-    m = oh.PlanarLateral(planar.PlanarParams(), r)
+    m = oh.PlanarLateral(planar.PlanarHead(), r)
     x = oh.PlanarLateralState(*(jnp.asarray(v) for v in (0.0, 0.0, 0.0, 0.0, 0.0, 2.0)))
     u = planar.PlanarInput(jnp.asarray(0.0), jnp.asarray(0.0), jnp.asarray(0.0))
     np.testing.assert_allclose(m.pivot_acceleration_I(1.0, x, u, 3.0), (-r * 4.0, r * 3.0), atol=1e-15)
     np.testing.assert_allclose(m.pivot_acceleration_I(-1.0, x, u, 3.0), (r * 4.0, -r * 3.0), atol=1e-15)
     # F 2.19 (simplified): only the centripetal term
-    f219 = oh.PlanarLateral(planar.PlanarParams(), r, euler=0.0)
+    f219 = oh.PlanarLateral(planar.PlanarHead(), r, euler=0.0)
     np.testing.assert_allclose(f219.pivot_acceleration_I(1.0, x, u, 3.0), (-r * 4.0, 0.0), atol=1e-15)
     assert float(m.dynamics(x, u).omega_L_rad_s) != 0.0
     np.testing.assert_allclose(m.output(x._replace(theta_L_rad=jnp.asarray(0.2))), [0.2, 0.0])

@@ -75,7 +75,6 @@ from verticality.control import (
 )
 from verticality.integrate import rk4_step
 from verticality.models import otolith_head, planar
-from verticality.models.base import EuclideanState, model_dataclass
 from verticality.models.head import FreeHead, HeadInput, HeadState
 from verticality.models.kinematics import RigidMotion, tabulate
 from verticality.models.pendulum import Pendulum, PendulumState
@@ -365,10 +364,10 @@ def planar_inputs(t):
     return tau, 2.0 * jnp.sin(3.0 * t), 1.5 * jnp.cos(2.0 * t)
 
 
-def planar_params() -> planar.PlanarParams:
+def planar_params() -> planar.PlanarHead:
     """The P13 plant in the plane (about x)."""
     p = P13_PENDULUM
-    return planar.PlanarParams(m_kg=p.m_kg, l_m=p.l_m, J_kg_m2=p.J_pivot_S[0], beta_Nms=p.beta_Nms,
+    return planar.PlanarHead(m_kg=p.m_kg, l_m=p.l_m, J_kg_m2=p.J_pivot_S[0], beta_Nms=p.beta_Nms,
                                K_kg_m2=P13_HEAD.J_H[0], g_m_s2=G_M_S2)
 
 
@@ -385,24 +384,10 @@ def _in_plane(R, w):
     return R, w * jnp.array([1.0, 0.0, 0.0])
 
 
-@model_dataclass
-class PlanarMedial(EuclideanState):
-    """The planar head carrying its pendulum (F p. 36), :func:`verticality.models.planar.dynamics`
-    as a value (``models/planar.py`` holds it as a function)."""
-
-    params: planar.PlanarParams
-
-    def dynamics(self, x, u):
-        return planar.dynamics(x, u, self.params)
-
-    def output(self, x, u=None):
-        return planar.inclinometer_reading(x)
-
-
 @functools.partial(jax.jit, static_argnames=("n",))
 def _planar_medial(n):
     x0p = planar.PlanarState(*(jnp.asarray(v) for v in (TH_S0, W_S0, TH_H0, W_H0)))
-    _, yp = run_model(PlanarMedial(planar_params()), x0p, _planar_input, DT_S, n,
+    _, yp = run_model(planar_params(), x0p, _planar_input, DT_S, n,
                       output=lambda t, x: jnp.stack([x.theta_S_rad, x.theta_H_rad]))
     model = otolith_head.medial(P13_PENDULUM, P13_HEAD)
     x03 = otolith_head.OtolithHeadState(

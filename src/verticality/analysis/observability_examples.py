@@ -85,7 +85,7 @@ class RatePendulum(EuclideanState):
     """A planar pendulum (:func:`verticality.models.planar.pendulum_angular_acceleration`, still
     pivot) with state ``(θ, θ̇)``, measured by its angular velocity."""
 
-    params: planar.PlanarParams
+    params: planar.PlanarHead
 
     def dynamics(self, x, u):
         q, w = x
@@ -97,7 +97,7 @@ class RatePendulum(EuclideanState):
 
 def pendulum_from_rate(g_over_l: float = 9.81, damping: float = 0.3) -> Problem:
     """θ̈ = −(g/l) sin θ − b θ̇: unit mass, length and inertia, ``g = g/l``, ``β = b``."""
-    params = planar.PlanarParams(m_kg=1.0, l_m=1.0, J_kg_m2=1.0, beta_Nms=damping, g_m_s2=g_over_l)
+    params = planar.PlanarHead(m_kg=1.0, l_m=1.0, J_kg_m2=1.0, beta_Nms=damping, g_m_s2=g_over_l)
     return Problem(model=RatePendulum(params), state=jnp.zeros(2), leaf_names=("q",),
                    quantities={"angle": lambda x, th: x[0]})
 

@@ -18,12 +18,9 @@ import numpy as np
 
 from verticality import so3
 from verticality.analysis import model_checks as mc
-from verticality.analysis.model_checks import nonlinear_loop_jacobian
 from verticality.experiments import Result, check, register
 
-__all__ = ["TOL", "figures", "nonlinear_loop_jacobian", "run"]
-# nonlinear_loop_jacobian lives in analysis/model_checks.py; named here only until
-# tests/test_control.py imports it from there.
+__all__ = ["TOL", "figures", "run"]
 
 TOL = mc.TOL
 

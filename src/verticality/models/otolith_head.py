@@ -228,7 +228,7 @@ class PlanarLateral(EuclideanState):
     equals the full 3-D :func:`lateral` model restricted to the plane (in the sagittal plane the
     lateral model equals the medial one: ``ω_H ∥ y ∥ r`` makes both transport terms vanish)."""
 
-    params: planar.PlanarParams
+    params: planar.PlanarHead
     r_m: float = LATERAL_R_M
     euler: float = 1.0
     centripetal: float = 1.0

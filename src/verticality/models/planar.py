@@ -159,13 +159,3 @@ class WithHeadFrameInput(EuclideanState):
 def inclinometer_reading(x: PlanarState):
     """Pendulum angle relative to the head (F 2.8 in the plane; P11's measured tilt)."""
     return x.theta_S_rad - x.theta_H_rad
-
-
-PlanarParams = PlanarHead
-"""Former name of :class:`PlanarHead` (its fields were the parameters of :func:`dynamics`)."""
-
-
-def dynamics(x: PlanarState, u: PlanarInput, p: PlanarHead) -> PlanarState:
-    """``p.dynamics(x, u)``, in the argument order of the functions that take a model's
-    parameters last."""
-    return p.dynamics(x, u)
