@@ -1,24 +1,33 @@
-"""The estimator contract (estimators/base.py) for the linear estimators and the Newton observer:
-``run`` equals ``step`` sample by sample, a measurement with no finite component gives exactly
-``predict`` and is flagged per component, a non-finite input never makes a finite estimate
-non-finite, and partial measurements are flagged per component."""
+"""The estimator contract (estimators/base.py), for every estimator of the project: the Kalman
+filter (time-varying, steady-state, continuous), the Luenberger observer, the extended disturbance
+observer, the Newton observer, the multiplicative EKF and the 3-D tilt filter. ``run`` equals
+``step`` sample by sample, a measurement with no finite component gives exactly ``predict`` and is
+flagged, a non-finite input never makes a finite estimate non-finite, and partial measurements are
+flagged per component (or for the whole sample, where the estimator uses a sample all or
+nothing)."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality.estimators import disturbance, luenberger, newton, otolith_canal
+from verticality import so3
+from verticality.estimators import base, disturbance, ekf, luenberger, newton, otolith_canal
 from verticality.estimators.kalman import (
     continuous_observer,
     kalman_filter,
     steady_state_kalman_filter,
 )
+from verticality.estimators.tilt import TiltFilter
 from verticality.experiments.separation import linear_model
+from verticality.models import head
 from verticality.models import lissajous_plant as lp
 from verticality.models.body import HUMAN_TWO_SEGMENT, upright
 from verticality.models.linearize import linearize
+from verticality.models.otolith_head import OtolithHeadState
+from verticality.models.pendulum import PendulumState
 from verticality.models.planar import HeadInput, PlanarState
+from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM
 
 DT = 0.01
 N = 30
@@ -48,6 +57,18 @@ def _case(name):
         est = disturbance.extended_disturbance_observer(lin, (-6.0, -7.0, -8.0, -9.0, -10.0, -11.0, -12.0))
         us = rng.normal(size=(N, 2))
         return est, jnp.zeros(7), None, us, rng.normal(size=(N, 6)) * 0.01, DT
+    if name == "ekf":
+        est = ekf.medial_filter(P13_EKF_PENDULUM, P13_EKF_HEAD, (1e-3, 0.3, 1e-3, 0.03))
+        x0 = OtolithHeadState(
+            (PendulumState(so3.exp(jnp.array([0.1, -0.2, 0.3])), jnp.array([0.3, 0.1, -0.2])),),
+            head.HeadState(so3.exp(jnp.array([0.2, 0.1, 0.4])), jnp.array([0.5, -0.3, 1.0])))
+        us = head.HeadInput(jnp.asarray(rng.normal(scale=0.01, size=(N, 4, 3))),
+                            jnp.asarray(rng.normal(scale=1.0, size=(N, 4, 3))))
+        return est, x0, 0.01 * jnp.eye(ekf.N_ERR), us, rng.normal(scale=0.1, size=(N, ekf.N_Y)), 0.02
+    if name == "tilt":
+        x0 = (np.array([0.99, 0.1, -0.05, 0.0]), np.array([0.01, -0.02, 0.0]))
+        acc = np.array([0.5, -0.3, 9.8]) + rng.normal(scale=0.05, size=(N, 3))
+        return TiltFilter(), x0, None, rng.normal(scale=0.1, size=(N, 3)), acc, DT
     # the Newton observer on the P11 plant, window 4 so that it solves within the sequence
     z = jnp.zeros(25)
     est = newton.NewtonObserver(lp.observer_model(lp.p11_head(), 5), HeadInput(z, z, z),
@@ -62,7 +83,9 @@ def _case(name):
     return est, x0, None, us, ys, 0.025
 
 
-NAMES = ["time-varying", "steady-state", "continuous", "luenberger", "disturbance", "newton"]
+NAMES = ["time-varying", "steady-state", "continuous", "luenberger", "disturbance", "newton", "ekf",
+         "tilt"]
+WHOLE_SAMPLE = {"tilt"}  # estimators that use a sample all or nothing (one flag per sample)
 
 
 def _at(us, k):
@@ -73,9 +96,18 @@ def _u(us, k):
     return 0.0 if us is None else _at(us, k)
 
 
+def _leaves(tree):
+    return np.concatenate([np.ravel(np.asarray(a, dtype=float)) for a in jax.tree_util.tree_leaves(tree)])
+
+
 def _estimate(state):
-    return np.concatenate([np.ravel(np.asarray(a)) for a in
-                           jax.tree_util.tree_leaves(state.x_hat if hasattr(state, "x_hat") else state.x)])
+    """The estimate a state holds (the Newton observer's data buffers are not part of it)."""
+    return _leaves(state.x_hat if hasattr(state, "x_hat") else state.x)
+
+
+def test_every_estimator_is_an_estimator():
+    for name in NAMES:
+        assert isinstance(_case(name)[0], base.Estimator), name
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -85,14 +117,17 @@ def test_run_is_repeated_step(name):
     ys[5] = np.nan  # a sample with nothing measured
     ys[9, -1] = np.nan  # and one with a component missing
     s0 = est.init(x0, P0)
-    final, outs = jax.jit(est.run)(s0, us, ys, dt)
-    step = jax.jit(est.step)
+    final, outs = est.run(s0, us, ys, dt) if name == "tilt" else jax.jit(est.run)(s0, us, ys, dt)
+    step = est.step if name == "tilt" else jax.jit(est.step)
     s = s0
     for k in range(N):
         s, o = step(s, _u(us, k), ys[k], dt)
-    np.testing.assert_allclose(_estimate(s), _estimate(final), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(_leaves(s), _leaves(final), rtol=1e-10, atol=1e-12, equal_nan=True)
     assert not np.any(np.asarray(outs.measured)[5])
-    assert np.asarray(outs.measured)[9].tolist() == [True] * (ys.shape[1] - 1) + [False]
+    if name in WHOLE_SAMPLE:
+        assert not bool(np.asarray(outs.measured)[9]) and bool(np.all(np.asarray(outs.measured)[10:]))
+    else:
+        assert np.asarray(outs.measured)[9].tolist() == [True] * (ys.shape[1] - 1) + [False]
     assert np.all(np.isfinite(_estimate(final)))
     if name == "newton":
         assert bool(np.any(np.asarray(outs.solved)))
@@ -102,13 +137,14 @@ def test_run_is_repeated_step(name):
 def test_no_measurement_is_predict_and_finite_stays_finite(name):
     est, x0, P0, us, ys, dt = _case(name)
     s0 = est.init(x0, P0)
-    s_nan, out = jax.jit(est.step)(s0, _u(us, 0), jnp.full(np.shape(ys)[1], jnp.nan), dt)
-    s_pred = jax.jit(est.predict)(s0, _u(us, 0), dt)
+    jit = (lambda f: f) if name == "tilt" else jax.jit
+    s_nan, out = jit(est.step)(s0, _u(us, 0), jnp.full(np.shape(ys)[1], jnp.nan), dt)
+    s_pred = jit(est.predict)(s0, _u(us, 0), dt)
     for a, b in zip(jax.tree_util.tree_leaves(s_nan), jax.tree_util.tree_leaves(s_pred), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert not np.any(np.asarray(out.measured))
     # a non-finite input: the estimate stays finite (the previous one is kept)
     u_bad = jax.tree_util.tree_map(lambda a: jnp.full_like(jnp.asarray(a, dtype=float), jnp.nan),
                                    _u(us, 0))
-    s_bad, _ = jax.jit(est.step)(s0, u_bad, jnp.asarray(ys[0]), dt)
+    s_bad, _ = jit(est.step)(s0, u_bad, jnp.asarray(ys[0]), dt)
     assert np.all(np.isfinite(_estimate(s_bad)))
