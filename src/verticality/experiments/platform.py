@@ -250,6 +250,8 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
         ax2 = ax.twinx()
         ax2.plot(t, s[f"{k}/a"], color="C2", lw=0.7, label="a [m/s²]")
         ax2.set_ylim(-3, 3)
+        ax.set_ylabel("motor torque u [N·m]")
+        ax2.set_ylabel("base acceleration a [m/s²]")
         ax.set_xlabel("t [s]  (base swing | translation)")
     axes[0, 0].legend(fontsize=7, loc="lower left")
     axes[1, 0].legend(fontsize=7)

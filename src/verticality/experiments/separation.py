@@ -283,6 +283,7 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
             e = result.metrics[key][feed][ref_name]
             ax.set_title(f"{feed}, {cond}, ref {ref:g}: max err {e:.3f} rad", fontsize=9)
             ax.set_ylim(-0.2, 1.6)
+            ax.set_ylabel("tilt [rad]")
     axes[0, 0].legend(fontsize=7)
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
