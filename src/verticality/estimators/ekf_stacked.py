@@ -22,7 +22,7 @@ from typing import Any
 import jax.numpy as jnp
 
 from verticality.estimators import ekf
-from verticality.models.base import Discretized, EuclideanState, model_dataclass
+from verticality.models.base import Discretized, EuclideanState, OnModel, model_dataclass
 from verticality.models.head import HeadState
 from verticality.models.otolith_head import OtolithHeadState, medial
 from verticality.models.pendulum import PendulumState
@@ -32,7 +32,7 @@ N_STATE = 24
 
 
 @model_dataclass
-class Unprojected:
+class Unprojected(OnModel):
     """``model`` integrated in the embedding: the same dynamics, output and tangent maps, and no
     projection back onto the manifold after a step."""
 
@@ -40,15 +40,6 @@ class Unprojected:
 
     def dynamics(self, x, u):
         return self.model.dynamics(x, u)
-
-    def output(self, x, u=None):
-        return self.model.output(x, u)
-
-    def retract(self, x, dx):
-        return self.model.retract(x, dx)
-
-    def difference(self, x1, x0):
-        return self.model.difference(x1, x0)
 
     def project(self, x):
         return x

@@ -113,8 +113,27 @@ def step_rk4(model: Model, x, u, h):
     return rk4_step(lambda t, xx: model.dynamics(xx, u), 0.0, x, h, project=model.project)
 
 
+class OnModel:
+    """For a value that wraps another model value ``self.model`` — a discretization, another kind
+    of input, another integration — and keeps its state: the output and the state's manifold
+    (``retract``, ``difference``, ``project``) are the wrapped model's. A wrapper overrides what it
+    changes."""
+
+    def output(self, x, u=None):
+        return self.model.output(x, u)
+
+    def retract(self, x, dx):
+        return self.model.retract(x, dx)
+
+    def difference(self, x1, x0):
+        return self.model.difference(x1, x0)
+
+    def project(self, x):
+        return self.model.project(x)
+
+
 @model_dataclass
-class Discretized:
+class Discretized(OnModel):
     """The discrete-time model of a continuous :class:`Model` (the EKF's and Newton observer's
     ``F``): over one sample of length ``dt`` it takes ``n`` RK4 sub-steps of ``dt / n``, sub-step
     ``i`` with input ``u[i]`` held (``u`` a pytree whose leaves have a leading axis ``n``: the input
@@ -137,15 +156,6 @@ class Discretized:
             return step_rk4(self.model, xx, uu, h), None
 
         return jax.lax.scan(body, x, u)[0]
-
-    def output(self, x, u):
-        return self.model.output(x, u)
-
-    def retract(self, x, dx):
-        return self.model.retract(x, dx)
-
-    def difference(self, x1, x0):
-        return self.model.difference(x1, x0)
 
 
 def tangent_dim(model, x) -> int:

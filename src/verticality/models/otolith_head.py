@@ -32,7 +32,7 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 
 from verticality.models import planar
-from verticality.models.base import EuclideanState, model_dataclass, static_field
+from verticality.models.base import EuclideanState, OnModel, model_dataclass, static_field
 from verticality.models.head import FreeHead, HeadInput, HeadState, state_from_motion
 from verticality.models.kinematics import RigidMotion
 from verticality.models.pendulum import Pendulum
@@ -161,7 +161,7 @@ class HeadFrameInput(NamedTuple):
 
 
 @model_dataclass
-class HeadFrameAcceleration:
+class HeadFrameAcceleration(OnModel):
     """``model`` (an :class:`OtolithHead`) driven by a :class:`HeadFrameInput`: ``ᴵa = R_IH ᴴa``
     with the state's own ``R_IH`` (for an estimator, its estimate). Everything else is the
     model's."""
@@ -177,15 +177,6 @@ class HeadFrameAcceleration:
 
     def output(self, x, u=None):
         return self.model.output(x)
-
-    def retract(self, x, dx):
-        return self.model.retract(x, dx)
-
-    def difference(self, x1, x0):
-        return self.model.difference(x1, x0)
-
-    def project(self, x):
-        return self.model.project(x)
 
     @property
     def angle_outputs(self) -> tuple[int, ...]:

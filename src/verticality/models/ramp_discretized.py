@@ -20,7 +20,7 @@ import jax.numpy as jnp
 
 from verticality.errors import InputError
 from verticality.integrate import rk4_step_staged
-from verticality.models.base import model_dataclass, static_field
+from verticality.models.base import OnModel, model_dataclass, static_field
 
 
 def ramp_moments(u_block, substeps: int):
@@ -41,7 +41,7 @@ def ramp_moments(u_block, substeps: int):
 
 
 @model_dataclass
-class RampDiscretized:
+class RampDiscretized(OnModel):
     """The discrete model ``F(x, u_block, dt)`` of a continuous ``model`` over one sample of
     length ``dt``: ``substeps`` RK4 steps of ``dt / substeps``, each fed its fast-rate inputs as a
     ramp (module docstring) under ``lax.scan`` (XLA compiles one RK4 step well; a chain of
@@ -65,15 +65,3 @@ class RampDiscretized:
             return rk4_step_staged(f, ends, xx, h, project=self.model.project)[0], None
 
         return jax.lax.scan(body, x, (u_mean, u_ramp))[0]
-
-    def output(self, x, u):
-        return self.model.output(x, u)
-
-    def retract(self, x, dx):
-        return self.model.retract(x, dx)
-
-    def difference(self, x1, x0):
-        return self.model.difference(x1, x0)
-
-    def project(self, x):
-        return self.model.project(x)
