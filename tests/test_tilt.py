@@ -7,15 +7,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from imu_cases import G, tumbling
+from imu_cases import up_S as _up_S
 from verticality import so3
 from verticality.errors import InputError
 from verticality.estimators import tilt
-
-G = 9.81
-
-
-def _up_S(R_E_S):
-    return np.asarray(R_E_S)[..., 2, :]
 
 
 def _tilt_err_deg(up_true, up_est):
@@ -42,14 +38,8 @@ def test_static_tilt_converges_to_truth(roll_deg, pitch_deg):
 
 
 def _tumbling(bias, n=6000, dt=0.01, rate=0.4, seed=1):
-    """Constant rotation about the sensor x axis, which starts 25° off the vertical plane."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * dt
-    R0 = np.asarray(so3.rot_y(np.radians(25.0)))
-    R = np.einsum("ij,njk->nik", R0, np.asarray(so3.exp(np.outer(t, [rate, 0.0, 0.0]))))
-    acc = G * _up_S(R) + rng.normal(0, 0.02, (n, 3))
-    gyr = np.array([rate, 0.0, 0.0]) + bias + rng.normal(0, 1e-3, (n, 3))
-    return gyr, acc, dt, _up_S(R)
+    gyr, acc, up = tumbling(bias, n, dt, rate, seed)
+    return gyr, acc, dt, up
 
 
 def test_constant_rotation_recovers_known_gyro_bias():

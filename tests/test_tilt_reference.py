@@ -12,7 +12,7 @@ import jax
 import numpy as np
 import pytest
 
-from verticality import so3
+from imu_cases import G, tumbling
 from verticality.estimators import tilt, tilt_core
 from verticality.estimators.base import scan_steps
 from verticality.estimators.tilt_flags import (
@@ -26,23 +26,13 @@ from verticality.estimators.tilt_flags import (
 )
 from verticality.estimators.tilt_stream import Stream
 
-G = 9.81
 N = 1600  # every case has this many samples: the sequential reference compiles once
 BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 
 
-def _up_S(R_E_S):
-    return np.asarray(R_E_S)[..., 2, :]
-
 
 def _tumbling(bias, n=N, dt=0.01, rate=0.4, seed=1):
-    """Constant rotation about the sensor x axis, which starts 25° off the vertical plane."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * dt
-    R0 = np.asarray(so3.rot_y(np.radians(25.0)))
-    R = np.einsum("ij,njk->nik", R0, np.asarray(so3.exp(np.outer(t, [rate, 0.0, 0.0]))))
-    acc = G * _up_S(R) + rng.normal(0, 0.02, (n, 3))
-    gyr = np.array([rate, 0.0, 0.0]) + bias + rng.normal(0, 1e-3, (n, 3))
+    gyr, acc, _ = tumbling(bias, n, dt, rate, seed)
     return gyr, acc, np.full(n, dt)
 
 
