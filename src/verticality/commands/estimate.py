@@ -55,16 +55,13 @@ def run(args) -> int:
     from verticality.analysis.broad_eval import OURS
     from verticality.analysis.imu_estimate import estimate_imu, gap_warning, sigma_summary
     from verticality.io import imu
-    from verticality.io.output import check_writable_file
+    from verticality.io.paths import check_input_file, check_paths
     from verticality.io.recording import load_imu
 
-    if not args.input.is_file():
-        raise InputError(f"{args.input}: no such file")
+    check_input_file(args.input)
     if args.sigma and args.filter != OURS:
         raise InputError(f"--sigma: filter {args.filter} reports no uncertainty; use --filter {OURS}")
-    check_writable_file(args.out, "--out")
-    if args.plot is not None:
-        check_writable_file(args.plot, "--plot")
+    check_paths({"--out": args.out, "--plot": args.plot}, [args.input], figures=["--plot"])
 
     # a spinner on a terminal (nothing otherwise): a long recording takes a while to read and write
     with Console(stderr=True).status(f"reading {args.input} …") as status:

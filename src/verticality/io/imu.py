@@ -26,6 +26,7 @@ import numpy as np
 from verticality.errors import InputError
 from verticality.io import imu_layout as layout
 from verticality.io import imu_rows
+from verticality.io.paths import check_input_file
 
 IMU_COLUMNS = layout.IMU_COLUMNS
 ESTIMATE_COLUMNS = ("t", "roll_rad", "pitch_rad", "gx", "gy", "gz", "bias_x", "bias_y", "bias_z",
@@ -155,8 +156,7 @@ def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = 
     as written. Gyro and accelerometer go through :func:`check_units` whatever the layout."""
     path = Path(path)
     source = str(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    check_input_file(path)
     with open(path, encoding="utf-8-sig") as fh:
         lines = fh.read().splitlines()
     lay = layout.locate(lines[0] if lines else "", columns, time_unit, source)
@@ -246,8 +246,7 @@ def read_estimate_csv(path) -> EstimateTable:
     """Read what :func:`write_estimate_csv` wrote (with or without the ``tilt_sigma_rad``
     column)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    check_input_file(path)
     with open(path, encoding="utf-8") as fh:
         header = tuple(fh.readline().strip().split(","))
     if header not in (ESTIMATE_COLUMNS, ESTIMATE_COLUMNS + (SIGMA_COLUMN,)):

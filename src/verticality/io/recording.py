@@ -14,6 +14,7 @@ import numpy as np
 
 from verticality.errors import InputError
 from verticality.io import broad, imu, imu_layout
+from verticality.io.paths import check_input_file
 
 
 class ImuInput(NamedTuple):
@@ -48,8 +49,7 @@ def load_imu(path, units: Iterable[str] = (), columns: str | dict[str, str] | No
     ``time_unit`` describe CSV files only and are refused with an HDF5 file. A CSV needs at least
     two rows (a time step)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    check_input_file(path)
     gyr_u, acc_u = parse_units(units)
     if broad.is_broad_file(path):
         given = [o for o, v in (("--columns", columns), ("--time-unit", time_unit)) if v is not None]
