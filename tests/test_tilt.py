@@ -446,3 +446,58 @@ def test_the_filter_is_an_estimator_value_with_named_state():
         L.pack(xp=np, a=(1.0, 2.0))
     with pytest.raises(ValueError, match="expected 2"):
         L.pack(xp=np, a=np.zeros(3), b=0.0)
+
+
+@pytest.mark.parametrize("where,value", [("gyr", 1e308), ("gyr", 1e10), ("gyr", -np.inf),
+                                         ("gyr", 80.0), ("acc", 1e308), ("acc", 600.0),
+                                         ("acc", np.inf)])
+def test_one_corrupt_sample_is_flagged_and_skipped_on_every_path(where, value):
+    """A component beyond the sensor's physical range is a missing sample flagged OUT_OF_RANGE:
+    the batch run, the per-sample step, the stepper and the reference Stream give what they give
+    with that component missing (NaN), and everything after it is finite and unflagged by it."""
+    from verticality.estimators.tilt_stream import Stream
+
+    gyr, acc = _tumbling(np.array([0.01, -0.02, 0.005]), n=700)[:2]
+    k = 400
+    bad_g, bad_a, nan_g, nan_a = gyr.copy(), acc.copy(), gyr.copy(), acc.copy()
+    (bad_g if where == "gyr" else bad_a)[k, 1] = value
+    (nan_g if where == "gyr" else nan_a)[k, 1] = np.nan
+    out = tilt.estimate(bad_g, bad_a, 0.01)
+    ref = tilt.estimate(nan_g, nan_a, 0.01)
+    assert out.flags[k] & tilt.OUT_OF_RANGE and not np.any(np.delete(out.flags, k)
+                                                            & tilt.OUT_OF_RANGE)
+    assert out.flags[k] & (tilt.GYR_MISSING if where == "gyr" else tilt.ACC_MISSING)
+    np.testing.assert_array_equal(out.flags & ~tilt.OUT_OF_RANGE, ref.flags)
+    np.testing.assert_allclose(out.quat_E_S, ref.quat_E_S, rtol=0, atol=1e-12)
+    assert np.all(np.isfinite(out.quat_E_S)) and np.all(np.isfinite(out.var))
+    filt = tilt.TiltFilter()
+    s = filt.init()
+    stepper = tilt.make_step()
+    z = stepper.init()
+    stream = Stream()
+    for j in range(k - 40, k + 40):
+        if j == k - 40:
+            s = filt.run(s, bad_g[:j], bad_a[:j], 0.01)[0]
+            for i in range(j):
+                z = stepper.step(z, bad_g[i], bad_a[i], 0.01)[0]
+                stream.step(bad_g[i], bad_a[i], 0.01)
+        s, o = filt.step(s, bad_g[j], bad_a[j], 0.01)
+        z, packed = stepper.step(z, bad_g[j], bad_a[j], 0.01)
+        fl_stream = stream.step(bad_g[j], bad_a[j], 0.01)[5]
+        assert int(o.flags) == int(out.flags[j]) == int(np.asarray(packed)[-1]) == fl_stream
+        np.testing.assert_allclose(np.asarray(o.quat_E_S), out.quat_E_S[j], atol=1e-9)
+
+
+def test_a_regular_10_hz_clock_is_no_gap():
+    """Steps of a 10 Hz clock that rounding puts a hair above the gap threshold (0.1 s) are no
+    gap: no DT_GAP flag, no re-acquisition after the start's."""
+    t = np.arange(300) * 0.1 + 1.7e5  # float stamps: diffs of 0.1 ± 3e-11
+    dt = np.diff(t, prepend=t[0] - 0.1)
+    assert np.any(dt > 0.1)
+    gyr = np.zeros((300, 3))
+    acc = np.tile([0.0, 0.0, 9.81], (300, 1))
+    out = tilt.estimate(gyr, acc, dt)
+    assert not np.any(out.flags & tilt.DT_GAP)
+    gap = dt.copy()
+    gap[150] = 0.1 + 2e-6
+    assert tilt.estimate(gyr, acc, gap).flags[150] & tilt.DT_GAP

@@ -75,6 +75,7 @@ from verticality.estimators.tilt_flags import (  # noqa: F401  (the flags, for u
     FLAG_NAMES,
     GYR_MISSING,
     INIT,
+    OUT_OF_RANGE,
     REACQUIRED,
     REACQUIRING,
 )

@@ -16,7 +16,13 @@ import numpy as np
 from verticality.errors import InputError
 from verticality.estimators import tilt_core as core
 from verticality.estimators import tilt_kernels
-from verticality.estimators.tilt_flags import DT_GAP, INIT, REACQUIRING, accelerometer_used
+from verticality.estimators.tilt_flags import (
+    DT_GAP,
+    INIT,
+    OUT_OF_RANGE,
+    REACQUIRING,
+    accelerometer_used,
+)
 from verticality.estimators.tilt_layout import HEAD, NE, ROW, SAMPLE, SOA, E, S, X
 from verticality.estimators.tilt_params import MAX_RATE_RAD_S
 
@@ -60,6 +66,7 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s):
         initialized = k > 0 and bool(res.flags[k - 1] & INIT)
     if k < n:
         x, sums, count = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k)
+    res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
     res.measured[:] = accelerometer_used(res.flags)
     return core.TiltState(x, sums, np.int32(count), np.bool_(initialized)), res
 
