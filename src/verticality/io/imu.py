@@ -36,6 +36,15 @@ G_M_S2 = 9.81
 GYR_UNITS = {"rad/s": 1.0, "deg/s": np.pi / 180.0}
 ACC_UNITS = {"m/s2": 1.0, "m/s^2": 1.0, "g": G_M_S2}
 MAX_PLAUSIBLE_RATE_RAD_S = 35.0  # ~2000 deg/s: the largest range of common MEMS gyros
+# At rest a gyro reads its bias. MEMS turn-on offsets reach ±20 °/s (0.35 rad/s) on the cheapest
+# parts; a rest rate above this is none, but a deg/s reading (a bias of 0.5 °/s read as 0.5 rad/s
+# is a 29 °/s "bias" that tilts the estimate by tens of degrees within seconds).
+MAX_REST_RATE_RAD_S = 0.5
+REST_WINDOW_S = 0.5  # the still stretches: windows this long ...
+REST_ACC_STD_M_S2 = 0.1  # ... whose accelerometer varies by less than this (per axis, RMS) ...
+REST_ACC_NORM_M_S2 = 1.0  # ... with a norm within this of g ...
+REST_GYR_STD_RAD_S = 0.5  # ... and a gyro steadier than this (a bias is constant; a turn is not)
+REST_MIN_S = 1.0  # ... at least this long in all
 
 
 class ImuRecording(NamedTuple):
@@ -77,7 +86,8 @@ def check_units(gyr, acc, *, gyr_units: str | None = None, acc_units: str | None
             raise InputError(f"unknown accelerometer unit {acc_units!r}; use one of "
                              f"{', '.join(ACC_UNITS)}")
         acc = acc * ACC_UNITS[acc_units]
-    acc_norm = np.linalg.norm(acc, axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e308: its norm is inf, left out
+        acc_norm = np.linalg.norm(acc, axis=1)
     acc_norm = acc_norm[np.isfinite(acc_norm)]
     if acc_norm.size == 0:
         raise InputError(f"{source}: no finite accelerometer sample")
@@ -92,11 +102,59 @@ def check_units(gyr, acc, *, gyr_units: str | None = None, acc_units: str | None
     if gyr_units is None and rate.size and np.mean(rate > MAX_PLAUSIBLE_RATE_RAD_S) > 0.01:
         raise InputError(f"{source}: gyro rates above {MAX_PLAUSIBLE_RATE_RAD_S:.0f} rad/s in "
                          "more than 1% of samples: this looks like deg/s; pass --units deg/s "
-                         "(or gyr_units='deg/s') to convert")
-    if gyr_units is None and dt_s is not None and looks_like_deg_s(gyr, acc, dt_s):
-        raise InputError(f"{source}: the accelerometer direction turns as the gyro would in deg/s, "
-                         "not rad/s; pass --units deg/s (or gyr_units='deg/s') to convert")
+                         "(or gyr_units='deg/s') to convert, or --units rad/s if the sensor "
+                         "really spun that fast")
+    if gyr_units is None and dt_s is not None:
+        check_gyro_units_in_motion(gyr, acc, dt_s, source)
     return gyr, acc
+
+
+def check_gyro_units_in_motion(gyr, acc, dt_s, source: str = "input") -> None:
+    """Refuse a gyro (as rad/s) that looks like deg/s from how it moves with the accelerometer
+    over steps ``dt_s`` (s): the accelerometer direction turns as the gyro would in deg/s
+    (:func:`looks_like_deg_s`), or while the accelerometer is still the gyro reads more than any
+    turn-on bias (:func:`rest_rate_rad_s`). The messages name ``--units deg/s`` and the override
+    ``--units rad/s``."""
+    if looks_like_deg_s(gyr, acc, dt_s):
+        raise InputError(f"{source}: the accelerometer direction turns as the gyro would in "
+                         "deg/s, not rad/s; pass --units deg/s (or gyr_units='deg/s') to "
+                         "convert, or --units rad/s to keep rad/s")
+    rest = rest_rate_rad_s(gyr, acc, dt_s)
+    if rest is not None and rest > MAX_REST_RATE_RAD_S:
+        raise InputError(f"{source}: while the accelerometer is still the gyro reads "
+                         f"{rest:.3g} rad/s, beyond any gyro's turn-on bias "
+                         f"({MAX_REST_RATE_RAD_S:g} rad/s): this looks like deg/s; pass "
+                         "--units deg/s (or gyr_units='deg/s') to convert, or --units rad/s "
+                         "if the sensor really turned about the vertical")
+
+
+def rest_rate_rad_s(gyr, acc, dt_s) -> float | None:
+    """The gyro's reading at rest, which is its bias: the median of ``|mean ω|`` over the still
+    stretches (windows of ``REST_WINDOW_S`` whose accelerometer varies by less than
+    ``REST_ACC_STD_M_S2`` RMS per axis with a norm within ``REST_ACC_NORM_M_S2`` of g, whose gyro
+    varies by less than ``REST_GYR_STD_RAD_S``, every sample finite); None when they last less
+    than ``REST_MIN_S`` in all. The accelerometer decides what is still (the gyro only excludes
+    turns), so a gyro in the wrong unit cannot hide its rest."""
+    dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
+    dt = float(np.nanmedian(dts)) if np.any(np.isfinite(dts)) else np.nan
+    if not np.isfinite(dt) or dt <= 0:
+        return None
+    w = max(5, int(round(REST_WINDOW_S / dt)))
+    nw = gyr.shape[0] // w
+    if nw * w * dt < REST_MIN_S:
+        return None
+    g = gyr[:nw * w].reshape(nw, w, 3)
+    a = acc[:nw * w].reshape(nw, w, 3)
+    with np.errstate(over="ignore", invalid="ignore"):
+        finite = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(a), axis=(1, 2))
+        a_std = np.sqrt(np.mean(np.var(a, axis=1), axis=1))
+        a_norm = np.linalg.norm(np.mean(a, axis=1), axis=1)
+        g_std = np.sqrt(np.mean(np.var(g, axis=1), axis=1))
+        still = (finite & (a_std < REST_ACC_STD_M_S2) & (g_std < REST_GYR_STD_RAD_S)
+                 & (np.abs(a_norm - G_M_S2) < REST_ACC_NORM_M_S2))
+        if np.count_nonzero(still) * w * dt < REST_MIN_S:
+            return None
+        return float(np.median(np.linalg.norm(np.mean(g[still], axis=1), axis=1)))
 
 
 def _direction_residual(gyr, acc, dt, starts, w, scale):
@@ -110,32 +168,48 @@ def _direction_residual(gyr, acc, dt, starts, w, scale):
     return float(np.median(np.arccos(np.clip(np.sum(u * v, 1), -1.0, 1.0))))
 
 
-def looks_like_deg_s(gyr, acc, dt_s, window_s: float = 0.3) -> bool:
-    """True when the accelerometer direction is explained much better by the gyro read as deg/s
-    than as rad/s (model comparison over windows where the direction turns by > 3°)."""
+def _scale_residuals(gyr, acc, dt_s, window_s: float, time_scale: float, scales):
+    """:func:`_direction_residual` for each gyro scale of ``scales`` over the windows of
+    ``window_s`` seconds (``time_scale`` × the median step each) where the accelerometer direction
+    turns by more than 3°; None when there are fewer than 5 such windows."""
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
     dt = float(np.nanmedian(dts)) if np.any(np.isfinite(dts)) else np.nan
     n = gyr.shape[0]
     if not np.isfinite(dt) or dt <= 0:
-        return False
-    w = max(2, int(round(window_s / dt)))
+        return None
+    w = max(2, int(round(window_s / (dt * time_scale))))
     if n < 2 * w + 2:
-        return False
-    ok = np.all(np.isfinite(gyr), 1) & np.all(np.isfinite(acc), 1)
+        return None
+    with np.errstate(over="ignore", invalid="ignore"):
+        ok = (np.all(np.isfinite(gyr), 1) & np.all(np.isfinite(acc), 1)
+              & (np.linalg.norm(acc, axis=1) > 0))
     starts = np.arange(0, n - w - 1, max(1, w // 2))
     good = np.array([ok[s:s + w + 1].all() for s in starts], dtype=bool)
     starts = starts[good]
     if starts.size == 0:
-        return False
+        return None
     a0 = acc[starts] / np.linalg.norm(acc[starts], axis=1, keepdims=True)
     a1 = acc[starts + w] / np.linalg.norm(acc[starts + w], axis=1, keepdims=True)
     turned = np.arccos(np.clip(np.sum(a0 * a1, 1), -1.0, 1.0)) > np.radians(3.0)
     starts = starts[turned]
     if starts.size < 5:
-        return False
-    e_rad = _direction_residual(gyr, acc, dt, starts, w, 1.0)
-    e_deg = _direction_residual(gyr, acc, dt, starts, w, np.pi / 180.0)
-    return e_deg < 0.5 * e_rad
+        return None
+    return [_direction_residual(gyr, acc, dt, starts, w, scale) for scale in scales]
+
+
+def looks_like_deg_s(gyr, acc, dt_s, window_s: float = 0.3) -> bool:
+    """True when the accelerometer direction is explained much better by the gyro read as deg/s
+    than as rad/s (model comparison over windows where the direction turns by > 3°)."""
+    e = _scale_residuals(gyr, acc, dt_s, window_s, 1.0, (1.0, np.pi / 180.0))
+    return e is not None and e[1] < 0.5 * e[0]
+
+
+def looks_like_ms(gyr, acc, dt_s, window_s: float = 0.3) -> bool:
+    """True when time steps ``dt_s`` read as seconds are milliseconds: the accelerometer direction
+    is explained much better by the gyro turning it over ``dt / 1000`` than over ``dt`` (as rad/s
+    or deg/s), over windows of ``window_s`` real seconds if the steps are ms."""
+    e = _scale_residuals(gyr, acc, dt_s, window_s, 1e-3, (1e-3, 1.0, np.pi / 180.0))
+    return e is not None and e[0] < 0.5 * min(e[1], e[2])
 
 
 def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = None,
@@ -184,8 +258,14 @@ def recording_from_rows(rows: list[str], line_numbers: list[int], lay: layout.La
     t_s, t0 = layout.time_to_seconds(t_raw, unit)
     gyr = data[:, [lay.index[k] for k in ("gyr_x", "gyr_y", "gyr_z")]]
     acc = data[:, [lay.index[k] for k in ("acc_x", "acc_y", "acc_z")]]
-    gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=source,
-                           dt_s=dt_from_t(t_s))
+    dt_s = dt_from_t(t_s)
+    gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=source)
+    if lay.time_unit is None and looks_like_ms(gyr, acc, dt_s):  # first: the time is the ruler
+        raise InputError(f"{source}: the accelerometer direction turns as the gyro would if the "
+                         "time steps were ms, not s; pass --time-unit ms (or time_unit='ms') to "
+                         "convert, or --time-unit s to keep seconds")
+    if gyr_units is None:
+        check_gyro_units_in_motion(gyr, acc, dt_s, source)
     return ImuRecording(t_s, gyr, acc, t0, unit)
 
 
