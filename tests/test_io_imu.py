@@ -207,3 +207,11 @@ def test_milliseconds_at_a_high_rate_are_not_read_as_seconds(tmp_path, swinging_
         imu.read_imu_csv(imu.write_imu_csv(tmp_path / "epoch.csv", epoch))
     # the ordinary recordings are not touched by these checks
     imu.read_imu_csv(imu.write_imu_csv(tmp_path / "ok.csv", swinging_imu(n=3000, dt_s=0.01)))
+
+
+def test_a_ragged_row_is_named_by_its_line(tmp_path):
+    path = tmp_path / "rag.csv"
+    path.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n0,0,0,0,0,0,9.81\n0.01,,0,0,0,0,9.81\n"
+                    "0.02,0,0,0,0,9.81\n0.03,0,0,0,0,0,9.81\n")
+    with pytest.raises(InputError, match="line 4: 6 values, but the header has 7 columns"):
+        imu.read_imu_csv(path)

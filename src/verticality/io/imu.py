@@ -327,7 +327,7 @@ def read_estimate_csv(path) -> EstimateTable:
     column)."""
     path = Path(path)
     check_input_file(path)
-    with open(path, encoding="utf-8") as fh:
+    with open(path, encoding="utf-8-sig") as fh:
         header = tuple(fh.readline().strip().split(","))
     if header not in (ESTIMATE_COLUMNS, ESTIMATE_COLUMNS + (SIGMA_COLUMN,)):
         raise InputError(f"{path}: expected header {','.join(ESTIMATE_COLUMNS)}"
