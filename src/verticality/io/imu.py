@@ -212,6 +212,21 @@ def looks_like_ms(gyr, acc, dt_s, window_s: float = 0.3) -> bool:
     return e is not None and e[0] < 0.5 * min(e[1], e[2])
 
 
+PIECE_ROWS = 2**20  # rows read, checked and filtered at a time (tilt_batch.PIECE_SAMPLES)
+
+
+class ImuPiece(NamedTuple):
+    """Consecutive rows of an IMU file, read and checked (:func:`iter_imu_csv`): ``dt_s[k]`` the
+    step from the row before (the first row of the file: the first piece's median step)."""
+
+    t_s: np.ndarray
+    gyr_rad_s: np.ndarray
+    acc_m_s2: np.ndarray
+    dt_s: np.ndarray
+    t0_stamp: int | float | None
+    time_unit: str
+
+
 def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = None,
                  columns: dict[str, str] | None = None, time_unit: str | None = None,
                  ) -> ImuRecording:
@@ -225,40 +240,86 @@ def read_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = 
     ``timestamp [ns]``), unless another column has exactly that name. The time unit is
     ``time_unit`` (``s``, ``ms``, ``us``, ``ns``) or a unit in brackets on the time column's
     header (EuRoC: ``[ns]``); they must agree. Without either, times are seconds and a median step
-    ≥ 1 is refused. Times in ms, µs or ns give ``t_s`` relative to the first stamp, which is kept
-    in ``t0_stamp`` (:func:`verticality.io.imu_layout.time_to_seconds`); times in seconds are kept
-    as written. Gyro and accelerometer go through :func:`check_units` whatever the layout."""
-    path = Path(path)
+    above 0.1 is refused. Times in ms, µs or ns give ``t_s`` relative to the first stamp, which is
+    kept in ``t0_stamp`` (:func:`verticality.io.imu_layout.time_to_seconds`); times in seconds are
+    kept as written. Gyro and accelerometer go through :func:`check_units` whatever the layout.
+    The pieces of :func:`iter_imu_csv`, joined."""
+    pieces = list(iter_imu_csv(path, gyr_units=gyr_units, acc_units=acc_units, columns=columns,
+                               time_unit=time_unit))
+    first = pieces[0]
+    return ImuRecording(*(np.concatenate([getattr(p, f) for p in pieces])
+                          for f in ("t_s", "gyr_rad_s", "acc_m_s2")),
+                        first.t0_stamp, first.time_unit)
+
+
+def iter_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = None,
+                 columns: dict[str, str] | None = None, time_unit: str | None = None,
+                 piece_rows: int = PIECE_ROWS):
+    """The rows of an IMU CSV (as :func:`read_imu_csv` reads them) as :class:`ImuPiece` values of
+    at most ``piece_rows`` rows, each read and checked before it is given (time steps across the
+    pieces too), so that a long file never sits in memory whole. A refusal names its line."""
+    path = check_input_file(path)
     source = str(path)
-    check_input_file(path)
     with open(path, encoding="utf-8-sig") as fh:
-        lines = fh.read().splitlines()
-    lay = layout.locate(lines[0] if lines else "", columns, time_unit, source)
-    rows, line_numbers = layout.data_lines(lines)
-    if not rows:
-        raise InputError(f"{path}: no data rows")
-    return recording_from_rows(rows, line_numbers, lay, source, gyr_units, acc_units)
+        header = fh.readline().rstrip("\r\n")
+        lay = layout.locate(header, columns, time_unit, source)
+        line_no, prev = 1, None
+        while True:
+            rows, numbers = [], []
+            for line in fh:
+                line_no += 1
+                text = line.strip()
+                if text and not text.startswith("#"):
+                    rows.append(line.rstrip("\r\n"))
+                    numbers.append(line_no)
+                    if len(rows) >= piece_rows:
+                        break
+            if not rows:
+                if prev is None:
+                    raise InputError(f"{path}: no data rows")
+                return
+            piece, t_last_raw = _piece_from_rows(rows, numbers, lay, source, gyr_units, acc_units,
+                                                 prev)
+            prev = (t_last_raw, numbers[-1], piece.t0_stamp, float(piece.t_s[-1]))
+            yield piece
 
 
 def recording_from_rows(rows: list[str], line_numbers: list[int], lay: layout.Layout,
                         source: str = "input", gyr_units: str | None = None,
                         acc_units: str | None = None) -> ImuRecording:
     """The :class:`ImuRecording` of data rows (their 1-based ``line_numbers``, for messages) of a
-    file with layout ``lay``, read and checked as :func:`read_imu_csv` reads a file: cells parsed
-    (:func:`verticality.io.imu_rows.parse_clean_rows`, else :func:`~verticality.io.imu_rows.
-    parse_rows`), time steps checked and converted to seconds, units checked
-    (:func:`check_units`). ``verticality stream`` reads its first second with it."""
+    file with layout ``lay``, read and checked as :func:`read_imu_csv` reads a file.
+    ``verticality stream`` reads its first second with it."""
+    piece = _piece_from_rows(rows, line_numbers, lay, source, gyr_units, acc_units, None)[0]
+    return ImuRecording(piece.t_s, piece.gyr_rad_s, piece.acc_m_s2, piece.t0_stamp,
+                        piece.time_unit)
+
+
+def _piece_from_rows(rows, line_numbers, lay, source, gyr_units, acc_units, prev):
+    """``(ImuPiece, last raw stamp)`` of data rows: cells parsed (:func:`verticality.io.imu_rows.
+    parse_clean_rows`, else :func:`~verticality.io.imu_rows.parse_rows`), time steps checked (from
+    the previous piece's last stamp, ``prev = (raw stamp, line, t0_stamp, t_s)``, None for the
+    first) and converted to seconds, units checked (:func:`check_units`)."""
     fast = imu_rows.parse_clean_rows(rows, lay)
     if fast is not None:
         data, t_raw = fast
     else:
         data, t_raw = imu_rows.parse_rows(rows, line_numbers, lay, source)
-    layout.check_time_steps(t_raw, line_numbers, lay.time_unit, source, lay.time_label)
     unit = lay.time_unit or "s"
-    t_s, t0 = layout.time_to_seconds(t_raw, unit)
+    if prev is None:
+        layout.check_time_steps(t_raw, line_numbers, lay.time_unit, source, lay.time_label)
+        t_s, t0 = layout.time_to_seconds(t_raw, unit)
+        dt_s = dt_from_t(t_s)
+    else:
+        raw_prev, line_prev, t0, t_s_prev = prev
+        if np.result_type(t_raw, np.asarray(raw_prev)) != t_raw.dtype:
+            t_raw = t_raw.astype(np.float64)
+        layout.check_time_steps(np.concatenate([[raw_prev], t_raw]).astype(t_raw.dtype),
+                                [line_prev, *line_numbers], lay.time_unit, source, lay.time_label)
+        t_s = layout.time_to_seconds(t_raw, unit, origin=t0)[0]
+        dt_s = np.diff(t_s, prepend=t_s_prev)
     gyr = data[:, [lay.index[k] for k in ("gyr_x", "gyr_y", "gyr_z")]]
     acc = data[:, [lay.index[k] for k in ("acc_x", "acc_y", "acc_z")]]
-    dt_s = dt_from_t(t_s)
     gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=source)
     if lay.time_unit is None and looks_like_ms(gyr, acc, dt_s):  # first: the time is the ruler
         raise InputError(f"{source}: the accelerometer direction turns as the gyro would if the "
@@ -266,7 +327,7 @@ def recording_from_rows(rows: list[str], line_numbers: list[int], lay: layout.La
                          "convert, or --time-unit s to keep seconds")
     if gyr_units is None:
         check_gyro_units_in_motion(gyr, acc, dt_s, source)
-    return ImuRecording(t_s, gyr, acc, t0, unit)
+    return ImuPiece(t_s, gyr, acc, dt_s, t0, unit), t_raw[-1]
 
 
 def write_imu_csv(path, rec: ImuRecording) -> Path:
@@ -283,9 +344,20 @@ def write_estimate_csv(path, t_s, out, tilt_sigma_rad=None) -> Path:
     ``tilt_sigma_rad`` (N,) a last column ``tilt_sigma_rad`` holds the tilt's standard deviation
     (``tilt.tilt_sigma_rad``); filters that report none (the peers) are written without it."""
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    sigma = tilt_sigma_rad is not None
+    path.write_text(estimate_header(sigma) + "\n" + estimate_rows(t_s, out, tilt_sigma_rad),
+                    encoding="utf-8")
+    return path
+
+
+def estimate_rows(t_s, out, tilt_sigma_rad=None) -> str:
+    """The data rows of :func:`write_estimate_csv` as text (each ending in a newline)."""
     grav = -np.asarray(out.up_S)
     data = np.column_stack([np.asarray(t_s), np.asarray(out.roll_rad), np.asarray(out.pitch_rad),
                             grav, np.asarray(out.bias_S_rad_s)])
+    if data.shape[0] == 0:
+        return ""
     sigma = tilt_sigma_rad is not None
     flags = np.asarray(out.flags).astype(np.int64)
     fmt = estimate_row_format(sigma)
@@ -295,10 +367,7 @@ def write_estimate_csv(path, t_s, out, tilt_sigma_rad=None) -> Path:
     cells[:, data.shape[1]] = flags
     if sigma:
         cells[:, -1] = np.asarray(tilt_sigma_rad, dtype=np.float64)
-    body = [fmt % tuple(row) for row in cells.tolist()]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(estimate_header(sigma) + "\n" + "\n".join(body) + "\n", encoding="utf-8")
-    return path
+    return "\n".join(fmt % tuple(row) for row in cells.tolist()) + "\n"
 
 
 def estimate_header(sigma: bool = False) -> str:

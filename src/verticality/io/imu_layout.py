@@ -226,7 +226,8 @@ def check_time_steps(t_raw: np.ndarray, line_numbers: list[int], unit: str | Non
                          "time column's [unit])")
 
 
-def time_to_seconds(t_raw: np.ndarray, unit: str) -> tuple[np.ndarray, int | float | None]:
+def time_to_seconds(t_raw: np.ndarray, unit: str, origin=None) -> tuple[np.ndarray,
+                                                                         int | float | None]:
     """``(t_s, t0_stamp)`` from stamps in ``unit``.
 
     Seconds are kept as written (``t0_stamp`` None). Stamps in ms, µs or ns are made relative to
@@ -236,8 +237,8 @@ def time_to_seconds(t_raw: np.ndarray, unit: str) -> tuple[np.ndarray, int | flo
     to 2.4e-7 s, hence the relative time; ``t0_stamp`` (the file's first stamp) restores it."""
     if unit == "s":
         return t_raw.astype(np.float64), None
-    t0 = t_raw[0].item()
-    rel = t_raw - t_raw[0]
+    t0 = t_raw[0].item() if origin is None else origin  # a later piece: the file's first stamp
+    rel = t_raw - t0
     return rel.astype(np.float64) / TIME_UNITS[unit], t0
 
 
