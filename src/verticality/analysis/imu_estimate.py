@@ -87,6 +87,9 @@ def gap_warning(t_s, dt_s, ours: bool = True) -> str | None:
             "sample that ends each gap")
 
 
+WRITE_ROWS = 65536  # estimate rows formatted and written at a time
+
+
 class EstimateRun(NamedTuple):
     """What :func:`estimate_file` did: the samples, the filter, the summary lines to print, and
     the output (``out`` all the outputs only when kept for a figure)."""
@@ -135,7 +138,10 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                                   time_unit=time_unit, piece_rows=piece_rows)
         filt = tilt.TiltFilter()
         state = filt.init()
-        kept: dict[str, list] = {"t": [], "dt": [], "flags": [], "sigma": [], "out": []}
+        # for the summary lines: every sample's flags and σ (6 bytes), the gaps' t and dt
+        kept: dict[str, list] = {"t": [], "dt": [], "flags": [], "sigma": [], "out": [],
+                                 "t_all": []}
+        n_done = [0]
         buf = None  # samples read but not yet filtered: (t, gyr, acc, dt)
         first = None
         with open(part, "w", encoding="utf-8") as fh:
@@ -152,12 +158,20 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                     m = tilt_batch.piece_cut(state, a, d, filt.block, final=last) or w
                     state, o = filt.run(state, g[:m], a[:m], d[:m])
                     sig = tilt.tilt_sigma_rad(o.var)
-                    fh.write(imu.estimate_rows(t[:m], o, sig if sigma else None))
-                    for key, v in (("t", t[:m]), ("dt", d[:m]), ("flags", o.flags),
-                                   ("sigma", sig)):
+                    for lo in range(0, m, WRITE_ROWS):  # the rows' text, a slice at a time
+                        hi = min(m, lo + WRITE_ROWS)
+                        part_out = tilt.TiltOutput(*(v[lo:hi] for v in o))
+                        fh.write(imu.estimate_rows(t[lo:hi], part_out,
+                                                   sig[lo:hi] if sigma else None))
+                    gaps = gaps_in(d[:m], tilt.DEFAULT_PARAMS, xp=np)  # the gap warning's rows
+                    for key, v in (("t", t[:m][gaps]), ("dt", d[:m][gaps]),
+                                   ("flags", o.flags.astype(np.int16)),
+                                   ("sigma", sig.astype(np.float32))):
                         kept[key].append(v)
+                    n_done[0] += m
                     if keep:
                         kept["out"].append(o)
+                        kept["t_all"].append(t[:m])
                     buf = tuple(v[m:] for v in buf)
 
             for piece in pieces:
@@ -167,7 +181,7 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                 buf = new if buf is None else tuple(np.concatenate([b, v])
                                                     for b, v in zip(buf, new, strict=True))
                 filter_some(final=False)
-            n_total = sum(v.size for v in kept["t"]) + (buf[0].size if buf is not None else 0)
+            n_total = n_done[0] + (buf[0].size if buf is not None else 0)
             if n_total < 2:
                 raise InputError(f"{path}: one data row; the filter needs at least two (a time "
                                  "step)")
@@ -176,10 +190,10 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     finally:
         if part.exists():
             part.unlink()
-    t_all, dt_all = np.concatenate(kept["t"]), np.concatenate(kept["dt"])
     flags, sig_all = np.concatenate(kept["flags"]), np.concatenate(kept["sigma"])
     origin = None if first.t0_stamp is None else f"{first.t0_stamp} {first.time_unit}"
     out_all = tilt.concatenate_outputs(kept["out"]) if keep else None
-    return EstimateRun(t_all.size, filter_name, sigma_summary(sig_all, flags),
-                       gap_warning(t_all, dt_all), origin, t_all if keep else None, out_all,
-                       sig_all if keep else None)
+    return EstimateRun(n_done[0], filter_name, sigma_summary(sig_all.astype(np.float64), flags),
+                       gap_warning(np.concatenate(kept["t"]), np.concatenate(kept["dt"])), origin,
+                       np.concatenate(kept["t_all"]) if keep else None, out_all,
+                       tilt.tilt_sigma_rad(out_all.var) if keep else None)

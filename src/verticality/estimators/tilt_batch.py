@@ -27,7 +27,7 @@ from verticality.estimators.tilt_layout import HEAD, NE, ROW, SAMPLE, SOA, E, S,
 from verticality.estimators.tilt_params import MAX_RATE_RAD_S
 
 CHUNK_BLOCKS = 256
-PIECE_SAMPLES = 2**20  # a long recording is filtered piece by piece (tilt.estimate, estimate's
+PIECE_SAMPLES = 2**18  # a long recording is filtered piece by piece (tilt.estimate, estimate's
 # streaming read), each piece ending at a block boundary (piece_cut), so that reading and writing
 # in pieces gives the numbers of the in-memory run bit for bit
 GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: it costs ~1.4x per sample

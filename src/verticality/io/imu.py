@@ -212,7 +212,7 @@ def looks_like_ms(gyr, acc, dt_s, window_s: float = 0.3) -> bool:
     return e is not None and e[0] < 0.5 * min(e[1], e[2])
 
 
-PIECE_ROWS = 2**20  # rows read, checked and filtered at a time (tilt_batch.PIECE_SAMPLES)
+PIECE_ROWS = 2**18  # rows read and checked at a time
 
 
 class ImuPiece(NamedTuple):
