@@ -146,3 +146,72 @@ def test_fast_csv_parser_agrees_with_the_general_one(body, fast):
         np.testing.assert_array_equal(got[0], ref[0])
         assert got[1].dtype == ref[1].dtype
         np.testing.assert_array_equal(got[1], ref[1])
+
+
+def _still_imu(n=1000, dt_s=0.01, bias_deg_s=(0.4, -0.3, 0.5), seed=0):
+    """A sensor lying still (tilted 20° about x), its gyro logged in deg/s with a turn-on bias."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt_s
+    up = np.array([0.0, np.sin(np.radians(20.0)), np.cos(np.radians(20.0))])
+    acc = 9.81 * up + rng.normal(0, 0.02, (n, 3))
+    gyr_deg_s = np.asarray(bias_deg_s) + rng.normal(0, 0.05, (n, 3))
+    return imu.ImuRecording(t, gyr_deg_s, acc)
+
+
+def test_a_still_gyro_in_deg_s_is_caught_by_its_rest_rate(tmp_path):
+    """At rest a gyro reads its bias: a still recording in deg/s read as rad/s shows a rest rate
+    of ~0.7 rad/s, beyond any turn-on offset, and is refused naming both overrides; stated as
+    deg/s it reads, and stated as rad/s it is taken as written."""
+    path = imu.write_imu_csv(tmp_path / "still.csv", _still_imu())
+    with pytest.raises(InputError, match=r"gyro reads 0.7\d* rad/s.*--units deg/s.*--units rad/s"):
+        imu.read_imu_csv(path)
+    rec = imu.read_imu_csv(path, gyr_units="deg/s")
+    assert imu.rest_rate_rad_s(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s) < 0.02
+    assert imu.read_imu_csv(path, gyr_units="rad/s").gyr_rad_s[0, 0] == pytest.approx(
+        _still_imu().gyr_rad_s[0, 0])
+    # a real rad/s gyro with a large (0.3 rad/s) turn-on bias is no deg/s gyro
+    big_bias = _still_imu(bias_deg_s=(0.3, -0.1, 0.0))
+    imu.read_imu_csv(imu.write_imu_csv(tmp_path / "b.csv", big_bias))
+
+
+def test_a_fast_spin_message_names_the_rad_s_override(tmp_path):
+    rec = _still_imu()
+    rec.gyr_rad_s[:, 2] = 40.0  # 40 rad/s about the vertical: deg/s, or a real spin
+    path = imu.write_imu_csv(tmp_path / "spin.csv", rec)
+    with pytest.raises(InputError, match="--units deg/s.*--units rad/s"):
+        imu.read_imu_csv(path)
+    assert imu.read_imu_csv(path, gyr_units="rad/s").gyr_rad_s[0, 2] == 40.0
+
+
+def test_milliseconds_at_a_high_rate_are_not_read_as_seconds(tmp_path, swinging_imu):
+    """Stamps in ms at 2 kHz (0.5 ms steps) read as seconds would be a 2 Hz recording whose every
+    step is a gap; ms at 20 kHz (0.05 steps) would pass the rate check, but the gyro turns the
+    accelerometer 1000x too far: both are refused naming --time-unit ms and --time-unit s; stated,
+    they read. ms since 1970 read as seconds are refused by their size."""
+    rec = swinging_imu(n=3000, dt_s=0.0005, seed=1)
+    ms = imu.ImuRecording(rec.t_s * 1e3, rec.gyr_rad_s, rec.acc_m_s2)
+    path = imu.write_imu_csv(tmp_path / "ms.csv", ms)
+    with pytest.raises(InputError, match="below 10 Hz.*--time-unit ms.*--time-unit s"):
+        imu.read_imu_csv(path)
+    back = imu.read_imu_csv(path, time_unit="ms")
+    np.testing.assert_allclose(np.diff(back.t_s), 0.0005, rtol=1e-9)
+    rec = swinging_imu(n=30000, dt_s=0.00005, seed=2)
+    fast = imu.ImuRecording(rec.t_s * 1e3, rec.gyr_rad_s, rec.acc_m_s2)
+    path = imu.write_imu_csv(tmp_path / "fast.csv", fast)
+    with pytest.raises(InputError, match="time steps were ms.*--time-unit ms.*--time-unit s"):
+        imu.read_imu_csv(path)
+    imu.read_imu_csv(path, time_unit="ms")
+    epoch = imu.ImuRecording(rec.t_s[:300] * 1e3 + 1.7e12, rec.gyr_rad_s[:300],
+                             rec.acc_m_s2[:300])
+    with pytest.raises(InputError, match="after the year 5000.*--time-unit"):
+        imu.read_imu_csv(imu.write_imu_csv(tmp_path / "epoch.csv", epoch))
+    # the ordinary recordings are not touched by these checks
+    imu.read_imu_csv(imu.write_imu_csv(tmp_path / "ok.csv", swinging_imu(n=3000, dt_s=0.01)))
+
+
+def test_a_ragged_row_is_named_by_its_line(tmp_path):
+    path = tmp_path / "rag.csv"
+    path.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n0,0,0,0,0,0,9.81\n0.01,,0,0,0,0,9.81\n"
+                    "0.02,0,0,0,0,9.81\n0.03,0,0,0,0,0,9.81\n")
+    with pytest.raises(InputError, match="line 4: 6 values, but the header has 7 columns"):
+        imu.read_imu_csv(path)

@@ -110,3 +110,50 @@ def test_otolith_presets_and_their_checks():
                                   ([], "planar", "model must be one of")):
         with pytest.raises(InputError, match=message):
             otolith_pendula(model, items)
+
+
+def test_stiff_or_absurd_physics_is_integrated_or_refused_never_nan(tmp_path, capsys):
+    """A short arm (a stiff spin about it) is integrated with steps from the model's fastest time
+    constant, finite on every row; a damping too large to integrate, a time stamp that jumps by
+    10⁶ s and one absurd acceleration are refused in one line (exit 2), no file written."""
+    import numpy as np
+
+    from verticality.io.motion import read_otolith_csv
+
+    m = tmp_path / "m.csv"
+    assert cli.main(["motion", "impact", "--duration", "2", "--out", str(m)]) == 0
+    out = tmp_path / "o.csv"
+    assert cli.main(["otolith", str(m), "--out", str(out), "--param", "l=0.001"]) == 0
+    cols = read_otolith_csv(out)
+    assert all(np.all(np.isfinite(v)) for v in cols.values())
+    out.unlink()
+    lines = m.read_text().splitlines()
+    jump = lines[:50] + [",".join([repr(float(r.split(",")[0]) + 1e6)] + r.split(",")[1:])
+                         for r in lines[50:]]
+    (tmp_path / "jump.csv").write_text("\n".join(jump) + "\n")
+    cells = lines[100].split(",")
+    cells[8] = "1e200"
+    (tmp_path / "huge.csv").write_text("\n".join(lines[:100] + [",".join(cells)] + lines[101:])
+                                       + "\n")
+    for argv, words in ((["--param", "beta=1000"], "too stiff"), ([], "GiB")):
+        src = m if argv else tmp_path / "jump.csv"
+        capsys.readouterr()
+        assert cli.main(["otolith", str(src), "--out", str(out), *argv]) == 2
+        err = capsys.readouterr().err.strip()
+        assert words in err and len(err.splitlines()) == 1 and not out.exists()
+    assert cli.main(["otolith", str(tmp_path / "huge.csv"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "became non-finite at row 100" in err and not out.exists()
+    assert cli.main(["stabilize", str(tmp_path / "jump.csv")]) == 2
+    assert "plant steps" in capsys.readouterr().err
+    assert cli.main(["motion", "impact", "--rate", "1e9", "--out", str(out)]) == 2
+    assert "lower --rate or --duration" in capsys.readouterr().err and not out.exists()
+
+
+def test_a_byte_order_mark_is_read_by_every_reader(tmp_path, capsys):
+    m = tmp_path / "m.csv"
+    assert cli.main(["motion", "still", "--duration", "0.5", "--out", str(m)]) == 0
+    bom = tmp_path / "bom.csv"
+    bom.write_text(m.read_text(), encoding="utf-8-sig")
+    assert cli.main(["otolith", str(bom), "--out", str(tmp_path / "o.csv")]) == 0
+    assert (tmp_path / "o.csv").read_text() != ""

@@ -5,7 +5,7 @@ import pytest
 
 from verticality import cli
 from verticality.errors import InputError
-from verticality.io.output import check_writable_file
+from verticality.io.paths import check_writable_file
 
 
 def test_check_writable_file(tmp_path):
@@ -60,3 +60,84 @@ def test_a_binary_file_is_one_line_not_a_traceback(tmp_path, capsys, command):
     assert cli.main([a.format(f=f, d=tmp_path) for a in command]) == 2
     err = capsys.readouterr().err.strip()
     assert "the input is not UTF-8 text" in err and len(err.splitlines()) == 1
+
+
+IMU_ROWS = "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n" + "".join(
+    f"{k / 100:.2f},0,0,0,0,0,9.81\n" for k in range(300))
+
+
+def _motion_csv(path):
+    path.write_text("t,qw,qx,qy,qz,wx,wy,wz,ax,ay,az\n"
+                    + "".join(f"{k / 100:.2f},1,0,0,0,0,0,0,0,0,0\n" for k in range(100)))
+
+
+@pytest.mark.parametrize("spelling", ["same", "dotdot", "symlink", "hardlink"])
+@pytest.mark.parametrize("command", [
+    ["estimate", "{inp}", "--out", "{out}"],
+    ["estimate", "{inp}", "--out", "{d}/ok.csv", "--plot", "{out}"],
+    ["otolith", "{motion}", "--out", "{out}"],
+    ["stabilize", "{motion}", "--out", "{out}"],
+    ["stabilize", "{motion}", "--plot", "{out}"],
+])
+def test_an_output_that_reaches_the_input_is_refused_before_any_work(tmp_path, capsys, spelling,
+                                                                     command):
+    """Under any spelling (the same path, ``sub/../``, a symlink, a hard link) an output that is
+    the input is refused in one line, exit 2, and the input is left byte for byte."""
+    import os
+
+    (tmp_path / "sub").mkdir()
+    inp = tmp_path / "rec.csv"
+    inp.write_text(IMU_ROWS)
+    motion = tmp_path / "motion.csv"
+    _motion_csv(motion)
+    target = motion if "{motion}" in command else inp
+    out = {"same": str(target), "dotdot": f"{tmp_path}/sub/../{target.name}",
+           "symlink": str(tmp_path / "link"), "hardlink": str(tmp_path / "hard")}[spelling]
+    if spelling == "symlink":
+        os.symlink(target, out)
+    elif spelling == "hardlink":
+        os.link(target, out)
+    before = inp.read_bytes(), motion.read_bytes()
+    argv = [a.format(inp=inp, motion=motion, out=out, d=tmp_path) for a in command]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "would destroy the input" in err, err
+    assert (inp.read_bytes(), motion.read_bytes()) == before
+    assert not (tmp_path / "ok.csv").exists()
+
+
+def test_two_outputs_on_one_file_and_an_unknown_figure_format_are_refused(tmp_path, capsys):
+    inp = tmp_path / "rec.csv"
+    inp.write_text(IMU_ROWS)
+    assert cli.main(["estimate", str(inp), "--out", str(tmp_path / "e.csv"),
+                     "--plot", f"{tmp_path}/./e.csv"]) == 2
+    assert "--out and --plot name the same file" in capsys.readouterr().err
+    assert cli.main(["estimate", str(inp), "--out", str(tmp_path / "e.csv"),
+                     "--plot", str(tmp_path / "e.xyz")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "extension .xyz, not a figure format" in err and ".png" in err
+    assert not (tmp_path / "e.csv").exists()
+
+
+def test_a_motion_recording_and_a_report_keep_their_inputs(tmp_path, capsys):
+    motion = tmp_path / "m.csv"
+    _motion_csv(motion)
+    results = tmp_path / "res"
+    results.mkdir()
+    (results / "results.json").write_text('{"experiments": {}}')
+    keep = motion.read_bytes()
+    assert cli.main(["report", str(results), "--out", str(results / "results.json")]) == 2
+    assert "would destroy the input" in capsys.readouterr().err
+    assert (results / "results.json").read_text() == '{"experiments": {}}'
+    assert cli.main(["reproduce", "--out", str(motion), "--quick", "separation"]) == 2
+    assert "is a file; give a folder" in capsys.readouterr().err
+    assert motion.read_bytes() == keep
+
+
+def test_a_directory_is_named_as_one(tmp_path, capsys):
+    for argv in (["estimate", str(tmp_path), "--out", str(tmp_path / "e.csv")],
+                 ["otolith", str(tmp_path), "--out", str(tmp_path / "o.csv")],
+                 ["stabilize", str(tmp_path)], ["stream", str(tmp_path)]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert "is a directory" in err and len(err.splitlines()) == 1, err

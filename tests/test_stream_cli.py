@@ -92,3 +92,46 @@ def test_a_byte_order_mark_on_the_pipe_is_ignored(tmp_path, capsys, monkeypatch,
     src = imu.write_imu_csv(tmp_path / "rec.csv", swinging_imu(n=300, dt_s=0.01, seed=6))
     code, out, err = _stream([], capsys, monkeypatch, "\ufeff" + src.read_text())
     assert code == 0 and err == "" and len(out.splitlines()) == 301
+
+
+def test_one_absurd_time_stamp_costs_its_own_row_only(tmp_path, capsys, monkeypatch,
+                                                      swinging_imu):
+    """A stamp of 1e300 s, one far back and one far ahead (then the clock goes on) are each
+    written flagged; the rows after them are filtered as the clean stream's are."""
+    rec = swinging_imu(n=600, dt_s=0.01, seed=5)
+    clean = imu.write_imu_csv(tmp_path / "rec.csv", rec).read_text().splitlines()
+    lines = list(clean)
+    for row, stamp in ((300, "1e300"), (350, "-7"), (420, "5e4"), (500, "1e308")):
+        lines[row + 1] = ",".join([stamp] + lines[row + 1].split(",")[1:])
+    code, out, err = _stream([], capsys, monkeypatch, "\n".join(lines) + "\n")
+    assert code == 0 and "Traceback" not in err
+    got = _table(out, tmp_path)
+    _, ref_out, _ = _stream([], capsys, monkeypatch, "\n".join(clean) + "\n")
+    ref = _table(ref_out, tmp_path)
+    assert got.t_s.size == ref.t_s.size == 600
+    for row in (300, 350, 500):
+        assert got.flags[row] & tilt.BAD_DT
+    assert got.flags[420] & tilt.DT_GAP  # a jump ahead is taken as a gap ...
+    assert got.flags[421] & tilt.BAD_DT and not got.flags[422] & tilt.BAD_DT  # ... then left
+    assert np.all(np.isfinite(got.roll_rad)) and np.all(np.isfinite(got.pitch_rad))
+    between = np.r_[301:350, 351:420]  # after a skipped row: filtered on, no flag of its own
+    assert not np.any(got.flags[between] & (tilt.BAD_DT | tilt.DT_GAP))
+    np.testing.assert_allclose(got.roll_rad[between], ref.roll_rad[between], atol=np.radians(0.5))
+    assert not np.any(got.flags[501:] & tilt.BAD_DT)
+
+
+def test_huge_values_and_garbage_rows_never_stop_the_stream(tmp_path, capsys, monkeypatch,
+                                                            swinging_imu):
+    rec = swinging_imu(n=400, dt_s=0.01, seed=6)
+    lines = imu.write_imu_csv(tmp_path / "rec.csv", rec).read_text().splitlines()
+    lines[250] = lines[250].rsplit(",", 1)[0] + ",1e308"
+    lines[260] = ",".join(lines[260].split(",")[:2] + ["1e10"] + lines[260].split(",")[3:])
+    lines[270] = "\x00\x01garbage,,,;;"
+    lines[280] = "1e999,inf,-inf,nan,1,2,3"
+    code, out, err = _stream(["--sigma"], capsys, monkeypatch, "\n".join(lines) + "\n")
+    assert code == 0
+    got = _table(out, tmp_path)
+    assert got.t_s.size == 400
+    assert got.flags[249] & tilt.OUT_OF_RANGE and got.flags[259] & tilt.OUT_OF_RANGE
+    assert got.flags[269] & tilt.BAD_DT and got.flags[279] & tilt.BAD_DT
+    assert np.all(np.isfinite(got.roll_rad)) and np.all(np.isfinite(got.tilt_sigma_rad))

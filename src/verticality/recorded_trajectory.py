@@ -144,6 +144,10 @@ def built_in_motion(name: str, rate_hz: float | None = None, start_s: float = 0.
     if not duration > 0:
         raise InputError(f"--start {start_s:g} is at or after the end of `{name}` "
                          f"({traj.duration_s:g} s)")
+    from verticality.sizing import check_work_size
+
+    check_work_size(duration * rate + 1, 11 * 8 * 4, f"rows ({duration:g} s at {rate:g} Hz)",
+                    "lower --rate or --duration")
     n = int(round(duration * rate)) + 1
     rec = record_of(traj, start_s + np.arange(n) / rate)
     return rec, f"`{name}` ({duration:g} s from {start_s:g} s at {rate:g} Hz)"

@@ -80,6 +80,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import sensors, so3
+from verticality.errors import InputError
 from verticality.integrate import rk4_step_staged
 from verticality.models import gimbal
 from verticality.models.gimbal import GimbalInput
@@ -469,7 +470,11 @@ def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendula: tuple[Pend
     """What the otolith pendulum(s) report for a recorded head motion.
 
     Between rows the inputs are interpolated linearly (the quaternion then normalized; ω̇ is the
-    slope of ω over the interval) and integrated by RK4 with ⌈Δt / max_substep_s⌉ equal sub-steps.
+    slope of ω over the interval) and integrated by RK4 with ⌈Δt / h⌉ equal sub-steps, ``h`` the
+    shorter of ``max_substep_s`` and half the pendulums' fastest time constant
+    (:func:`replay_substep_s`: a stiff model gets short steps or is refused with the reason). The
+    work is sized before anything is allocated (:func:`check_replay_size`), and a row whose
+    simulated output is not finite is refused (:class:`InputError`), never written as NaN.
     The pendulums start at rest relative to the head, along the gravito-inertial vertical of the
     first row (:meth:`Pendulum.rest_state`). ``pendula``: the :class:`Pendulum` values (one for
     the medial model; :func:`verticality.params.lateral_pendulums` for the lateral one). Returns
@@ -477,6 +482,8 @@ def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendula: tuple[Pend
     """
     t = np.asarray(t_s, float)
     q = np.array(q_I_H_wxyz, float)
+    max_substep_s = replay_substep_s(pendula, max_substep_s)
+    check_replay_size(t, max_substep_s)
     for i in range(1, len(q)):  # q and −q are one rotation: interpolate along the short arc
         if np.dot(q[i], q[i - 1]) < 0.0:
             q[i] = -q[i]
@@ -515,4 +522,71 @@ def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendula: tuple[Pend
     s_all = np.concatenate(s_out)[: total + 1]
     phi_all = np.concatenate(phi_out)[: total + 1]
     at_rows = np.concatenate([[0], np.cumsum(n_sub)]) if total else np.zeros(1, int)
-    return s_all[at_rows], phi_all[at_rows]
+    s_rows, phi_rows = s_all[at_rows], phi_all[at_rows]
+    bad = ~(np.all(np.isfinite(s_rows), axis=(1, 2)) & np.all(np.isfinite(phi_rows), axis=(1, 2)))
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise InputError(f"the simulated pendulum became non-finite at row {k + 1} (t = {t[k]:g} s): "
+                         "the head's motion is beyond what the model integrates (an acceleration "
+                         f"of {np.max(np.abs(a[:k + 1])):.3g} m/s² or a rate of "
+                         f"{np.max(np.abs(w[:k + 1])):.3g} rad/s by then); no row is written")
+    return s_rows, phi_rows
+
+
+RK4_STEPS_PER_TIME_CONSTANT = 2.0  # sub-step ≤ τ_fastest / 2: |hλ| ≤ 0.5, far inside RK4's
+# stability limit (|hλ| < 2.78 on the negative real axis) and accurate to ~1e-4 per step
+MIN_SUBSTEP_S = 1e-7
+SUBSTEP_BYTES = 112  # sub-step tables (32 B) and outputs (40 B per pendulum)
+
+
+def fastest_rate_1_s(pendula) -> float:
+    """The largest |eigenvalue| (1/s) of the pendulums' dynamics linearized at rest on a still,
+    upright head (:func:`verticality.models.linearize.linearize` of each model value): one over
+    the fastest time constant (the damped spin about the arm, β/J_zz, for the P13 pendulum)."""
+    from verticality.models.linearize import linearize
+
+    still = RigidMotion(jnp.eye(3), jnp.zeros(3), jnp.zeros(3), jnp.zeros(3))
+    rho = 0.0
+    for p in pendula:
+        A = np.asarray(linearize(p, p.rest_state(still), still).A)
+        rho = max(rho, float(np.max(np.abs(np.linalg.eigvals(A)))))
+    return rho
+
+
+def replay_substep_s(pendula, max_substep_s: float = 1e-3) -> float:
+    """The RK4 sub-step of :func:`otolith_replay`: ``max_substep_s``, shortened to half the
+    pendulums' fastest time constant (:func:`fastest_rate_1_s`) when that is shorter (a short arm
+    or a large damping makes the model stiff). A model whose time constant is not finite, or asks
+    for a sub-step below ``MIN_SUBSTEP_S``, is refused with the reason."""
+    rho = fastest_rate_1_s(pendula)
+    if not np.isfinite(rho):
+        raise InputError("the pendulum's dynamics are not finite at rest (check --param: mass, "
+                         "arm and inertias must be positive)")
+    if rho * max_substep_s <= 1.0 / RK4_STEPS_PER_TIME_CONSTANT:
+        return max_substep_s
+    h = 1.0 / (RK4_STEPS_PER_TIME_CONSTANT * rho)
+    if h < MIN_SUBSTEP_S:
+        raise InputError(f"the pendulum is too stiff to integrate: its fastest time constant is "
+                         f"{1.0 / rho:.3g} s, which needs RK4 steps of {h:.3g} s (below "
+                         f"{MIN_SUBSTEP_S:g} s); lengthen the arm or lower the damping (--param "
+                         "l=..., beta=..., Jzz=...)")
+    return h
+
+
+def check_replay_size(t_s, substep_s: float) -> None:
+    """Refuse, before anything is allocated, a replay of times ``t_s`` whose RK4 sub-steps of
+    ``substep_s`` do not fit in memory (:func:`verticality.sizing.check_work_size`; a time stamp
+    that jumps by 10⁶ s, a stiff model over a long recording), naming the size, the largest step
+    and what to change."""
+    from verticality.sizing import check_work_size
+
+    t = np.asarray(t_s, float)
+    dt = np.diff(t)
+    if dt.size == 0:
+        return
+    total = float(np.sum(np.maximum(np.ceil(dt / substep_s - 1e-9), 1.0)))
+    k = int(np.argmax(dt))
+    check_work_size(total, SUBSTEP_BYTES, f"RK4 sub-steps of {substep_s:.3g} s",
+                    f"the largest time step is {dt[k]:.6g} s (data row {k + 2}); cut the recording "
+                    "into shorter files or remove the jump, or lengthen the pendulum's time "
+                    "constants (--param)")

@@ -29,6 +29,7 @@ from verticality.io.motion import MotionRecord
 from verticality.params import P13_HEAD, P13_PENDULUM
 
 EKF_PERIOD_S = sim.DEFAULT_CONFIG.dt_estimator_s
+PLANT_STEP_S = sim.DEFAULT_CONFIG.dt_plant_s
 """The ekf-* runs' EKF period (20 ms): the simulator runs whole periods."""
 
 
@@ -79,6 +80,13 @@ def check_options(duration_s: float, seeds: int, noise: float, settle_s: float,
     if settle_s + 2 * period_s > duration_s:
         raise InputError(f"the recording lasts {duration_s:g} s, which leaves no EKF sample after the "
                          f"{settle_s:g} s settling time (shorten it with --settle)")
+    from verticality.sizing import check_work_size
+
+    # the plant's 1 ms RK4 steps of every seed are held at once (~58 B each, measured)
+    check_work_size(duration_s / PLANT_STEP_S * seeds, 64,
+                    f"plant steps ({duration_s:g} s at {PLANT_STEP_S * 1e3:g} ms × {seeds} seed(s))",
+                    "take a shorter window (--start, --duration; a time stamp that jumps makes a "
+                    "long recording) or fewer --seeds")
 
 
 def first_non_finite(series: dict, t0_s: float = 0.0):

@@ -4,12 +4,15 @@ stamps."""
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from verticality.analysis.broad_eval import OURS, run_filter
-from verticality.estimators import tilt
+from verticality.errors import InputError
+from verticality.estimators import tilt, tilt_batch
 from verticality.estimators.tilt_core import gaps_in, up_roll_pitch
 from verticality.estimators.tilt_flags import DT_GAP, INIT, REACQUIRED, REACQUIRING
 
@@ -82,3 +85,115 @@ def gap_warning(t_s, dt_s, ours: bool = True) -> str | None:
             f"(largest {dt[k]:.6g} s, ending at t = {t_s[k]:.6g} s): the gyro rate is integrated "
             f"across a gap, so motion inside one is not seen; {what}. Flag {DT_GAP} marks the "
             "sample that ends each gap")
+
+
+WRITE_ROWS = 65536  # estimate rows formatted and written at a time
+
+
+class EstimateRun(NamedTuple):
+    """What :func:`estimate_file` did: the samples, the filter, the summary lines to print, and
+    the output (``out`` all the outputs only when kept for a figure)."""
+
+    n: int
+    filter_name: str
+    sigma_line: str | None
+    gap_line: str | None
+    t_origin: str | None
+    t_s: np.ndarray | None = None
+    out: tilt.TiltOutput | None = None
+    tilt_sigma_rad: np.ndarray | None = None
+
+
+def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
+                  filter_name: str = OURS, sigma: bool = False, keep: bool = False,
+                  piece_rows: int = tilt_batch.PIECE_SAMPLES) -> EstimateRun:
+    """``verticality estimate``: filter the recording in ``path`` and write the estimate CSV to
+    ``out_path`` (through a temporary file beside it, renamed at the end: a refusal midway leaves
+    no partial file). An IMU CSV through our filter is read, filtered and written piece by piece
+    (:func:`verticality.io.imu.iter_imu_csv`, :func:`verticality.estimators.tilt.run_in_pieces`'s
+    pieces: the numbers of the in-memory run bit for bit), so that memory stays proportional to a
+    piece, not to the file; ``keep`` (a figure) also keeps every output. A BROAD HDF5 file and the
+    peers are read whole."""
+    from verticality.io import broad, imu, imu_layout
+    from verticality.io.recording import load_imu, parse_units
+
+    out_path = Path(out_path)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    part = out_path.with_name(out_path.name + ".part")
+    try:
+        if filter_name != OURS or broad.is_broad_file(path):
+            rec = load_imu(path, units, columns, time_unit)
+            est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, filter_name)
+            imu.write_estimate_csv(part, rec.t_s, est.out,
+                                   tilt_sigma_rad=est.tilt_sigma_rad if sigma else None)
+            os.replace(part, out_path)
+            s_line = (None if est.tilt_sigma_rad is None
+                      else sigma_summary(est.tilt_sigma_rad, est.out.flags))
+            return EstimateRun(rec.t_s.size, filter_name, s_line,
+                               gap_warning(rec.t_s, rec.dt_s, ours=filter_name == OURS),
+                               rec.t_origin, rec.t_s, est.out, est.tilt_sigma_rad)
+        gyr_u, acc_u = parse_units(units)
+        mapping = imu_layout.parse_columns_spec(columns) if isinstance(columns, str) else columns
+        pieces = imu.iter_imu_csv(path, gyr_units=gyr_u, acc_units=acc_u, columns=mapping,
+                                  time_unit=time_unit, piece_rows=piece_rows)
+        filt = tilt.TiltFilter()
+        state = filt.init()
+        # for the summary lines: every sample's flags and σ (6 bytes), the gaps' t and dt
+        kept: dict[str, list] = {"t": [], "dt": [], "flags": [], "sigma": [], "out": [],
+                                 "t_all": []}
+        n_done = [0]
+        buf = None  # samples read but not yet filtered: (t, gyr, acc, dt)
+        first = None
+        with open(part, "w", encoding="utf-8") as fh:
+            fh.write(imu.estimate_header(sigma) + "\n")
+
+            def filter_some(final: bool):
+                nonlocal buf, state
+                # a window that may be the last is left until the input's end is known (as
+                # run_in_pieces cuts: the last window of a recording is taken whole)
+                while buf is not None and buf[0].size and (final or buf[0].size > piece_rows):
+                    w = min(buf[0].size, piece_rows)
+                    t, g, a, d = (v[:w] for v in buf)
+                    last = final and w == buf[0].size
+                    m = tilt_batch.piece_cut(state, a, d, filt.block, final=last) or w
+                    state, o = filt.run(state, g[:m], a[:m], d[:m])
+                    sig = tilt.tilt_sigma_rad(o.var)
+                    for lo in range(0, m, WRITE_ROWS):  # the rows' text, a slice at a time
+                        hi = min(m, lo + WRITE_ROWS)
+                        part_out = tilt.TiltOutput(*(v[lo:hi] for v in o))
+                        fh.write(imu.estimate_rows(t[lo:hi], part_out,
+                                                   sig[lo:hi] if sigma else None))
+                    gaps = gaps_in(d[:m], tilt.DEFAULT_PARAMS, xp=np)  # the gap warning's rows
+                    for key, v in (("t", t[:m][gaps]), ("dt", d[:m][gaps]),
+                                   ("flags", o.flags.astype(np.int16)),
+                                   ("sigma", sig.astype(np.float32))):
+                        kept[key].append(v)
+                    n_done[0] += m
+                    if keep:
+                        kept["out"].append(o)
+                        kept["t_all"].append(t[:m])
+                    buf = tuple(v[m:] for v in buf)
+
+            for piece in pieces:
+                if first is None:
+                    first = piece
+                new = (piece.t_s, piece.gyr_rad_s, piece.acc_m_s2, piece.dt_s)
+                buf = new if buf is None else tuple(np.concatenate([b, v])
+                                                    for b, v in zip(buf, new, strict=True))
+                filter_some(final=False)
+            n_total = n_done[0] + (buf[0].size if buf is not None else 0)
+            if n_total < 2:
+                raise InputError(f"{path}: one data row; the filter needs at least two (a time "
+                                 "step)")
+            filter_some(final=True)
+        os.replace(part, out_path)
+    finally:
+        if part.exists():
+            part.unlink()
+    flags, sig_all = np.concatenate(kept["flags"]), np.concatenate(kept["sigma"])
+    origin = None if first.t0_stamp is None else f"{first.t0_stamp} {first.time_unit}"
+    out_all = tilt.concatenate_outputs(kept["out"]) if keep else None
+    return EstimateRun(n_done[0], filter_name, sigma_summary(sig_all.astype(np.float64), flags),
+                       gap_warning(np.concatenate(kept["t"]), np.concatenate(kept["dt"])), origin,
+                       np.concatenate(kept["t_all"]) if keep else None, out_all,
+                       tilt.tilt_sigma_rad(out_all.var) if keep else None)

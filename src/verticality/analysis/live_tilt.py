@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from typing import TextIO
 
+from verticality.estimators.tilt_params import MAX_DT_S
 from verticality.estimators.tilt_stream import Stream
 from verticality.io import imu, imu_layout
 from verticality.io.imu_rows import RowReader
@@ -56,13 +57,30 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
     dt_head = head.dt_s
     for k in range(head.t_s.size):
         emit(float(head.t_s[k]), head.gyr_rad_s[k], head.acc_m_s2[k], float(dt_head[k]))
-    t_last = float(head.t_s[-1])
+    t_last = t_prev = float(head.t_s[-1])
+    behind = 0  # rows in a row whose time did not follow t_last
     for text in reader.lines(fh):
         t_s, g, a = reader.sample(text.strip())
-        dt = t_s - t_last if math.isfinite(t_s) else math.nan
-        if dt > 0:
-            t_last = t_s
-        elif dt <= 0:
-            reader.warn(f"time {t_s:.9g} s does not follow {t_last:.9g} s")
+        dt, t_last, behind = next_step(t_s, t_last, t_prev, behind, reader.warn)
+        if math.isfinite(t_s):
+            t_prev = t_s
         emit(t_s, g, a, dt)
     reader.summary()
+
+
+def next_step(t_s: float, t_last: float, t_prev: float, behind: int, warn) -> tuple:
+    """``(dt, t_last, behind)`` for a row at ``t_s`` s: the step from ``t_last`` (the last time
+    taken) when it is a step the filter can use (positive, below ``MAX_DT_S``), and ``t_s`` becomes
+    the last time. One absurd stamp (1e300, a stamp far back) is not taken, so it costs its own row
+    only (written flagged, named through ``warn``); when two rows in a row go on from each other
+    but not from ``t_last`` (``t_prev`` the previous row's time; a forward glitch that was taken,
+    or a clock restarted), the stamps are followed again from there (that row is not flagged: its
+    step from the row before is known)."""
+    dt = t_s - t_last if math.isfinite(t_s) else math.nan
+    if 0.0 < dt < MAX_DT_S:
+        return dt, t_s, 0
+    if math.isfinite(t_s) and behind >= 1 and 0.0 < t_s - t_prev < MAX_DT_S:
+        return t_s - t_prev, t_s, 0
+    if math.isfinite(t_s):
+        warn(f"time {t_s:.9g} s does not follow {t_last:.9g} s by a usable step")
+    return math.nan, t_last, behind + 1

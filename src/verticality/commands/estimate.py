@@ -53,37 +53,27 @@ def run(args) -> int:
     from rich.console import Console
 
     from verticality.analysis.broad_eval import OURS
-    from verticality.analysis.imu_estimate import estimate_imu, gap_warning, sigma_summary
-    from verticality.io import imu
-    from verticality.io.output import check_writable_file
-    from verticality.io.recording import load_imu
+    from verticality.analysis.imu_estimate import estimate_file
+    from verticality.io.paths import check_input_file, check_paths
 
-    if not args.input.is_file():
-        raise InputError(f"{args.input}: no such file")
+    check_input_file(args.input)
     if args.sigma and args.filter != OURS:
         raise InputError(f"--sigma: filter {args.filter} reports no uncertainty; use --filter {OURS}")
-    check_writable_file(args.out, "--out")
-    if args.plot is not None:
-        check_writable_file(args.plot, "--plot")
+    check_paths({"--out": args.out, "--plot": args.plot}, [args.input], figures=["--plot"])
 
     # a spinner on a terminal (nothing otherwise): a long recording takes a while to read and write
-    with Console(stderr=True).status(f"reading {args.input} …") as status:
-        rec = load_imu(args.input, args.units, args.columns, args.time_unit)
-        status.update(f"filtering {rec.t_s.size} samples ({args.filter}) …")
-        est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, args.filter)
-        status.update(f"writing {args.out} …")
-        imu.write_estimate_csv(args.out, rec.t_s, est.out,
-                               tilt_sigma_rad=est.tilt_sigma_rad if args.sigma else None)
-    print(f"wrote {args.out} ({rec.t_s.size} samples, filter {args.filter})")
-    if est.tilt_sigma_rad is not None:
-        print(sigma_summary(est.tilt_sigma_rad, est.out.flags))
-    warning = gap_warning(rec.t_s, rec.dt_s, ours=args.filter == OURS)
-    if warning is not None:
-        print(warning, file=sys.stderr)
-    if rec.t_origin is not None:
-        print(f"t is in seconds from the input's first time stamp, {rec.t_origin}")
+    with Console(stderr=True).status(f"reading, filtering ({args.filter}) and writing …"):
+        run = estimate_file(args.input, args.out, args.units, args.columns, args.time_unit,
+                            args.filter, sigma=args.sigma, keep=args.plot is not None)
+    print(f"wrote {args.out} ({run.n} samples, filter {args.filter})")
+    if run.sigma_line is not None:
+        print(run.sigma_line)
+    if run.gap_line is not None:
+        print(run.gap_line, file=sys.stderr)
+    if run.t_origin is not None:
+        print(f"t is in seconds from the input's first time stamp, {run.t_origin}")
     if args.plot is not None:
         from verticality.analysis.tilt_plot import plot_estimate
 
-        print(f"wrote {plot_estimate(args.plot, rec.t_s, est.out, args.filter, est.tilt_sigma_rad)}")
+        print(f"wrote {plot_estimate(args.plot, run.t_s, run.out, args.filter, run.tilt_sigma_rad)}")
     return 0

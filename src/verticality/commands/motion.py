@@ -35,14 +35,17 @@ def register(sub):
 
 def run(args) -> int:
     from verticality.io.motion import broad_motion, write_motion_csv
-    from verticality.io.output import check_writable_file
+    from verticality.io.paths import check_input_file, check_paths
     from verticality.recorded_trajectory import built_in_motion
     from verticality.trajectories import BY_NAME
 
-    check_writable_file(args.out, "--out")
+    is_file = args.name not in BY_NAME and Path(args.name).exists()
+    if is_file:
+        check_input_file(args.name)
+    check_paths({"--out": args.out}, [args.name] if is_file else [])
     if args.name in BY_NAME:
         rec, what = built_in_motion(args.name, args.rate, args.start, args.duration)
-    elif Path(args.name).exists():
+    elif is_file:
         if args.rate is not None:
             raise InputError("--rate applies to built-in trajectories; a recording keeps its own "
                              "sampling rate")

@@ -37,10 +37,11 @@ def run(args) -> int:
 
     from verticality import simulation
     from verticality.io.motion import read_motion_csv, write_otolith_csv
-    from verticality.io.output import check_writable_file
+    from verticality.io.paths import check_input_file, check_paths
     from verticality.params import otolith_pendula
 
-    check_writable_file(args.out, "--out")
+    check_input_file(args.motion)
+    check_paths({"--out": args.out}, [args.motion])
     pendula, suffixes = otolith_pendula(args.model, args.param)
     rec = read_motion_csv(args.motion)
     err = Console(stderr=True)

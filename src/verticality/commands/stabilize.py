@@ -15,8 +15,6 @@ import json
 import sys
 from pathlib import Path
 
-from verticality.errors import InputError
-
 
 def register(sub):
     p = sub.add_parser(
@@ -60,13 +58,10 @@ def run(args) -> int:
     from verticality import recorded_trajectory as rt
     from verticality import stabilization as st
     from verticality.io.motion import load_motion, write_tilt_comparison_csv
-    from verticality.io.output import check_writable_file
+    from verticality.io.paths import check_input_file, check_paths
 
-    if not args.motion.is_file():
-        raise InputError(f"{args.motion}: no such file")
-    for option, path in (("--out", args.out), ("--plot", args.plot)):
-        if path is not None:
-            check_writable_file(path, option)
+    check_input_file(args.motion)
+    check_paths({"--out": args.out, "--plot": args.plot}, [args.motion], figures=["--plot"])
     rec = load_motion(args.motion, args.start, args.duration)
     err = Console(stderr=True)
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),

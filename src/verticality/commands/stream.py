@@ -13,8 +13,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from verticality.errors import InputError
-
 
 def register(sub):
     from verticality.commands.estimate import add_layout_options
@@ -32,12 +30,13 @@ def register(sub):
 def run(args) -> int:
     from verticality.analysis.live_tilt import stream_estimates
     from verticality.io import imu_layout
+    from verticality.io.paths import check_input_file
     from verticality.io.recording import parse_units
 
     gyr_u, acc_u = parse_units(args.units)
     mapping = imu_layout.parse_columns_spec(args.columns) if args.columns is not None else None
-    if args.input is not None and not args.input.is_file():
-        raise InputError(f"{args.input}: no such file")
+    if args.input is not None:
+        check_input_file(args.input)
     source = "stdin" if args.input is None else str(args.input)
     fh = sys.stdin if args.input is None else open(args.input, encoding="utf-8-sig")  # noqa: SIM115
     try:

@@ -75,6 +75,7 @@ from verticality.estimators.tilt_flags import (  # noqa: F401  (the flags, for u
     FLAG_NAMES,
     GYR_MISSING,
     INIT,
+    OUT_OF_RANGE,
     REACQUIRED,
     REACQUIRING,
 )
@@ -159,7 +160,38 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         out.roll_rad, out.pitch_rad, out.up_S, out.bias_S_rad_s, out.flags
     """
     filt = TiltFilter(params, block)
-    return filt.run(filt.init(), gyr_rad_s, acc_m_s2, dt_s)[1]
+    gyr = np.asarray(gyr_rad_s, dtype=np.float64)
+    acc = np.asarray(acc_m_s2, dtype=np.float64)
+    n = gyr.shape[0] if gyr.ndim == 2 else 0
+    dt = np.asarray(dt_s, dtype=np.float64)
+    if n <= tilt_batch.PIECE_SAMPLES or acc.shape != gyr.shape or dt.ndim > 1 \
+            or (dt.ndim == 1 and dt.shape[0] != n):
+        return filt.run(filt.init(), gyr, acc, dt)[1]
+    return concatenate_outputs(list(run_in_pieces(filt, filt.init(), gyr, acc,
+                                                  np.broadcast_to(dt, (n,)))))
+
+
+def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int | None = None):
+    """The outputs of ``filt.run`` over a long recording, piece by piece (each of at most
+    ``piece`` samples ending at a block boundary, :func:`~verticality.estimators.tilt_batch.
+    piece_cut`): a generator of :class:`TiltOutput` pieces, as ``estimate`` and the streaming
+    read of ``verticality estimate`` filter; ``piece`` default ``tilt_batch.PIECE_SAMPLES``).
+    Equal to one ``run`` over the whole to rounding (the batch kernel's chunks differ), and bit
+    for bit to any other reading in the same pieces."""
+    piece = tilt_batch.PIECE_SAMPLES if piece is None else piece
+    n, k = gyr.shape[0], 0
+    while k < n:
+        hi = min(n, k + piece)
+        m = tilt_batch.piece_cut(state, acc[k:hi], dts[k:hi], filt.block, final=hi == n)
+        m = m or hi - k  # no block boundary within a piece (piece < block): take it whole
+        state, out = filt.run(state, gyr[k:k + m], acc[k:k + m], dts[k:k + m])
+        yield out
+        k += m
+
+
+def concatenate_outputs(outs) -> TiltOutput:
+    """One :class:`TiltOutput` of consecutive pieces."""
+    return TiltOutput(*(np.concatenate(parts) for parts in zip(*outs, strict=True)))
 
 
 def tilt_sigma_rad(var, params: TiltParams = DEFAULT_PARAMS) -> np.ndarray:

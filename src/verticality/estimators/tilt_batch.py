@@ -16,11 +16,20 @@ import numpy as np
 from verticality.errors import InputError
 from verticality.estimators import tilt_core as core
 from verticality.estimators import tilt_kernels
-from verticality.estimators.tilt_flags import DT_GAP, INIT, REACQUIRING, accelerometer_used
+from verticality.estimators.tilt_flags import (
+    DT_GAP,
+    INIT,
+    OUT_OF_RANGE,
+    REACQUIRING,
+    accelerometer_used,
+)
 from verticality.estimators.tilt_layout import HEAD, NE, ROW, SAMPLE, SOA, E, S, X
 from verticality.estimators.tilt_params import MAX_RATE_RAD_S
 
 CHUNK_BLOCKS = 256
+PIECE_SAMPLES = 2**18  # a long recording is filtered piece by piece (tilt.estimate, estimate's
+# streaming read), each piece ending at a block boundary (piece_cut), so that reading and writing
+# in pieces gives the numbers of the in-memory run bit for bit
 GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: it costs ~1.4x per sample
 
 
@@ -60,8 +69,29 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s):
         initialized = k > 0 and bool(res.flags[k - 1] & INIT)
     if k < n:
         x, sums, count = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k)
+    res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
     res.measured[:] = accelerometer_used(res.flags)
     return core.TiltState(x, sums, np.int32(count), np.bool_(initialized)), res
+
+
+def piece_cut(state: core.TiltState, acc, dts, block: int, final: bool) -> int:
+    """How many of the next samples (``acc`` (n, 3), ``dts`` (n,)) to filter from ``state`` as one
+    piece: all when ``final`` (the recording's last piece), else the most that end at a block
+    boundary (the filter's block sums then empty, so the next piece starts as the one-piece run
+    would go on); 0 when no boundary is in reach (the caller reads more first)."""
+    n = acc.shape[0]
+    if final:
+        return n
+    if bool(state.initialized):
+        start = (block - int(state.count)) % block  # samples to the current block's end
+    else:
+        j = first_usable(acc, dts)
+        if j >= n:
+            return n  # not initialized in this piece: nothing pending, any cut is a boundary
+        start = j + 1  # the initializing sample, then whole blocks
+    if start > n:
+        return 0
+    return start + (n - start) // block * block
 
 
 def first_usable(acc, dts, k0: int = 0) -> int:

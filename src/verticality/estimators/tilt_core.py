@@ -38,11 +38,17 @@ from verticality.estimators.tilt_flags import (
     DT_GAP,
     GYR_MISSING,
     INIT,
+    OUT_OF_RANGE,
     REACQUIRED,
     REACQUIRING,
 )
 from verticality.estimators.tilt_layout import NE, C, E, S, X
-from verticality.estimators.tilt_params import MAX_ACC_M_S2, MAX_DT_S, MAX_RATE_RAD_S
+from verticality.estimators.tilt_params import (
+    GAP_TOLERANCE_S,
+    MAX_ACC_M_S2,
+    MAX_DT_S,
+    MAX_RATE_RAD_S,
+)
 
 
 class TiltState(NamedTuple):
@@ -105,8 +111,9 @@ def valid_dt(dt):
 
 
 def is_gap(dts, p):
-    """Whether a sample's valid Δt (``dts``, 0 where not valid) spans a gap in the recording."""
-    return dts > p.gap_flag_s
+    """Whether a sample's valid Δt (``dts``, 0 where not valid) spans a gap in the recording:
+    longer than ``gap_flag_s`` by more than the rounding of a regular clock (``GAP_TOLERANCE_S``)."""
+    return dts > p.gap_flag_s + GAP_TOLERANCE_S
 
 
 def gaps_in(dt, p, xp=jnp):
@@ -131,10 +138,20 @@ def masks(g, a, dt, xp=jnp):
     return dt_ok, gyr_ok, acc_ok, acc_n2
 
 
+def out_of_range(g, a, xp=jnp):
+    """Whether samples (``g``, ``a`` with the component axis first, as :func:`masks`) hold a gyro
+    or accelerometer component at or beyond the sensor's physical range (``MAX_RATE_RAD_S``,
+    ``MAX_ACC_M_S2``; ±inf included, NaN not: NaN is a missing sample): flag OUT_OF_RANGE."""
+    return ((xp.abs(g[0]) >= MAX_RATE_RAD_S) | (xp.abs(g[1]) >= MAX_RATE_RAD_S)
+            | (xp.abs(g[2]) >= MAX_RATE_RAD_S) | (xp.abs(a[0]) >= MAX_ACC_M_S2)
+            | (xp.abs(a[1]) >= MAX_ACC_M_S2) | (xp.abs(a[2]) >= MAX_ACC_M_S2))
+
+
 def flag_bits(dt_ok, gyr_ok, acc_ok, disturbed=False, gap=False, reacquired=False,
-              reacquiring=False, init=False, xp=jnp):
-    """The flags of samples (int32) from their validity and the filter's events."""
-    f = (xp.where(acc_ok | ~dt_ok, 0, ACC_MISSING) | xp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
+              reacquiring=False, init=False, beyond=False, xp=jnp):
+    """The flags of samples (int32) from their validity and the filter's events (``beyond``:
+    :func:`out_of_range`)."""
+    f = (xp.where(beyond, OUT_OF_RANGE, 0) | xp.where(acc_ok | ~dt_ok, 0, ACC_MISSING) | xp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
          | xp.where(dt_ok, 0, BAD_DT) | xp.where(disturbed, ACC_DISTURBED, 0)
          | xp.where(gap, DT_GAP, 0) | xp.where(reacquired, REACQUIRED, 0)
          | xp.where(reacquiring, REACQUIRING, 0) | xp.where(init, INIT, 0))
@@ -521,7 +538,8 @@ def step(state: TiltState, gyr, acc, dt, p, block: int):
     q = jnp.where(count == 0, x[X.q], q)
     up, roll, pitch = up_roll_pitch(tuple(q))
     flags = flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, disturbed, t.gap, reacq,
-                      (x[X.reacquire] > 0.5) | (sums[S.gap] > 0), init_now)
+                      (x[X.reacquire] > 0.5) | (sums[S.gap] > 0), init_now,
+                      out_of_range(gyr, acc))
     var = output_var(x[X.P].reshape(NE, NE), initialized, sums[S.qmiss], p)
     out = TiltOutput(roll, pitch, jnp.stack(up), q, x[X.b], var, flags, t.acc_ok)
     return TiltState(x, sums, count, initialized), out

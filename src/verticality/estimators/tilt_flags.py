@@ -15,11 +15,14 @@ INIT = 16  # the sample that initialized the filter from the accelerometer
 DT_GAP = 32  # Δt above gap_flag_s: a gap in the recording (motion inside it is not seen)
 REACQUIRED = 64  # the tilt was re-acquired from the accelerometer after a gap or the start
 REACQUIRING = 128  # from a gap (or the start) to its re-acquisition: the estimate may be off
+OUT_OF_RANGE = 256  # a gyro or accelerometer component beyond the sensor's physical range
+# (tilt_params.MAX_RATE_RAD_S, MAX_ACC_M_S2; ±inf included): a corrupt sample, taken as missing
 
 FLAG_NAMES = {ACC_MISSING: "accelerometer missing", GYR_MISSING: "gyro missing",
               BAD_DT: "bad time step", ACC_DISTURBED: "accelerometer disturbed",
               INIT: "initialization", DT_GAP: "gap in the time stamps",
-              REACQUIRED: "tilt re-acquired", REACQUIRING: "re-acquiring"}
+              REACQUIRED: "tilt re-acquired", REACQUIRING: "re-acquiring",
+              OUT_OF_RANGE: "beyond the sensor's range"}
 
 
 def accelerometer_used(flags):

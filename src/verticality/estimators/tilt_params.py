@@ -64,14 +64,24 @@ class TiltParams(NamedTuple):
 
 
 DEFAULT_PARAMS = TiltParams()
-# prior covariance of the error state (δx, δy [rad], ṽx, ṽy [m/s], b̃x, b̃y, b̃z [rad/s])
-DEFAULT_P0 = np.diag([0.05**2, 0.05**2, 0.1**2, 0.1**2, 0.01**2, 0.01**2, 0.01**2])
+# prior covariance of the error state (δx, δy [rad], ṽx, ṽy [m/s], b̃x, b̃y, b̃z [rad/s]). The
+# gyro bias prior, 0.1 rad/s (5.7 °/s), covers the turn-on offsets of common MEMS gyros (±1–10 °/s):
+# with a tighter prior a bias of 0.1 rad/s left the estimate 11° off for tens of seconds while σ
+# claimed 1° (docs/tilt.md, "The uncertainty under faults").
+BIAS_PRIOR_RAD_S = 0.1
+DEFAULT_P0 = np.diag([0.05**2, 0.05**2, 0.1**2, 0.1**2] + [BIAS_PRIOR_RAD_S**2] * 3)
 BLOCK = 32  # samples per Kalman update (the canal signal is integrated in between)
 
-# Validity limits of a sample: far beyond any IMU (MEMS gyros read up to ~35 rad/s, accelerometers
-# up to ~2000 m/s²) and far below where the filter's sums and covariance would overflow. A gyro or
-# accelerometer component beyond them is taken as missing, a step beyond MAX_DT_S as a bad step, so
-# that no finite input turns the estimate non-finite.
-MAX_RATE_RAD_S = 1e4
-MAX_ACC_M_S2 = 1e6
+# Physical range of a sample: twice the largest common MEMS ranges (gyros ±2000 °/s, accelerometers
+# ±16 g; high-g parts read to ±32 g): a gyro or accelerometer component at or beyond them (±inf
+# included) cannot be a reading of the motion but is a corrupt sample (a bit flip, a logger's
+# garbage, a wrong unit): it is taken as missing and flagged OUT_OF_RANGE, so that it is never
+# propagated. A step beyond MAX_DT_S is a bad step. With these limits no finite input turns the
+# estimate non-finite.
+MAX_RATE_RAD_S = float(np.radians(4000.0))  # ≈ 69.8 rad/s
+MAX_ACC_M_S2 = 50.0 * G_M_S2  # ≈ 490 m/s²
 MAX_DT_S = 1e6
+# A step counts as a gap when it exceeds gap_flag_s by more than this: the rounding of a regular
+# clock's stamps (a 10 Hz clock's 0.1 s steps read as 0.10000000000000009 s; seconds since 1970 in
+# float64 are quantized to 2.4e-7 s) is no gap.
+GAP_TOLERANCE_S = 1e-6

@@ -25,6 +25,7 @@ from verticality.estimators.tilt_flags import (
     DT_GAP,
     GYR_MISSING,
     INIT,
+    OUT_OF_RANGE,
     REACQUIRED,
     REACQUIRING,
 )
@@ -32,6 +33,7 @@ from verticality.estimators.tilt_params import (
     BLOCK,
     DEFAULT_P0,
     DEFAULT_PARAMS,
+    GAP_TOLERANCE_S,
     MAX_ACC_M_S2,
     MAX_DT_S,
     MAX_RATE_RAD_S,
@@ -144,6 +146,7 @@ class Stream:
         p = self.p
         gx, gy, gz = float(gyr[0]), float(gyr[1]), float(gyr[2])
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
+        gyr3, acc3 = (gx, gy, gz), (ax, ay, az)
         dt = float(dt)
         dt_ok = 0.0 < dt < MAX_DT_S
         gyr_ok = dt_ok and abs(gx) < MAX_RATE_RAD_S and abs(gy) < MAX_RATE_RAD_S \
@@ -157,7 +160,7 @@ class Stream:
         if not acc_ok:
             ax = ay = az = 0.0
         init_now = False
-        gap = dts > p.gap_flag_s
+        gap = dts > p.gap_flag_s + GAP_TOLERANCE_S
         if self.initialized:
             self.dq = dq = _qmul(self.dq, _qexp(gx * dts, gy * dts, gz * dts))
             wa = dts if acc_ok else 0.0
@@ -202,7 +205,9 @@ class Stream:
         fl = ((0 if acc_ok or not dt_ok else ACC_MISSING) | (0 if gyr_ok or not dt_ok else GYR_MISSING)
               | (0 if dt_ok else BAD_DT) | (ACC_DISTURBED if disturbed else 0)
               | (INIT if init_now else 0) | (DT_GAP if gap else 0) | (REACQUIRED if reacq else 0)
-              | (REACQUIRING if self.reacquire or self.gap > 0 else 0))
+              | (REACQUIRING if self.reacquire or self.gap > 0 else 0)
+              | (OUT_OF_RANGE if any(abs(v) >= MAX_RATE_RAD_S for v in gyr3)
+                 or any(abs(v) >= MAX_ACC_M_S2 for v in acc3) else 0))
         return (math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2])), up, q,
                 tuple(self.b), fl)
 

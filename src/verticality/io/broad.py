@@ -21,6 +21,7 @@ import numpy as np
 
 from verticality import so3
 from verticality.errors import InputError
+from verticality.io.paths import check_input_file
 
 REQUIRED = ("imu_gyr", "imu_acc", "opt_quat", "movement")
 
@@ -57,8 +58,7 @@ def load_trial(path) -> BroadTrial:
     import h5py
 
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    check_input_file(path)
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
@@ -67,25 +67,53 @@ def load_trial(path) -> BroadTrial:
         missing = [k for k in ("imu_gyr", "imu_acc") if k not in f]
         if missing:
             raise InputError(f"{path}: missing dataset(s) {', '.join(missing)} (BROAD layout expected)")
-        gyr = np.asarray(f["imu_gyr"], dtype=np.float64)
-        acc = np.asarray(f["imu_acc"], dtype=np.float64)
-        n = gyr.shape[0]
+        gyr = _dataset(f, "imu_gyr", path)
+        acc = _dataset(f, "imu_acc", path)
         if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
             raise InputError(f"{path}: imu_gyr and imu_acc must both have shape (N, 3), "
                              f"got {gyr.shape} and {acc.shape}")
-        mag = np.asarray(f["imu_mag"], dtype=np.float64) if "imu_mag" in f else None
-        quat = (np.asarray(f["opt_quat"], dtype=np.float64) if "opt_quat" in f
+        n = gyr.shape[0]
+        mag = _dataset(f, "imu_mag", path) if "imu_mag" in f else None
+        quat = (_dataset(f, "opt_quat", path) if "opt_quat" in f
                 else np.full((n, 4), np.nan))
-        movement = (np.asarray(f["movement"], dtype=bool) if "movement" in f
+        movement = (_dataset(f, "movement", path, bool) if "movement" in f
                     else np.ones(n, dtype=bool))
         if "sampling_rate" not in f.attrs:
             raise InputError(f"{path}: attribute sampling_rate is missing (BROAD layout expected)")
-        rate = float(np.asarray(f.attrs["sampling_rate"]).reshape(-1)[0])
-    if not (np.isfinite(rate) and rate > 0):
-        raise InputError(f"{path}: sampling_rate must be a positive number, got {rate}")
+        rate = sampling_rate_hz(f.attrs["sampling_rate"], path)
     if quat.shape != (n, 4) or movement.shape != (n,):
         raise InputError(f"{path}: opt_quat must be (N, 4) and movement (N,) with N = {n}")
     return BroadTrial(path.stem, gyr, acc, mag, quat, movement, rate)
+
+
+def _dataset(f, name: str, path, dtype=np.float64) -> np.ndarray:
+    """Dataset ``name`` of the open HDF5 file ``f`` as an array of ``dtype``; one that does not
+    convert (text, a compound type, a group) is refused naming it."""
+    try:
+        return np.asarray(f[name], dtype=dtype)
+    except (TypeError, ValueError, OSError, AttributeError) as exc:
+        raise InputError(f"{path}: dataset {name} is not numeric ({str(exc)[:60]})") from None
+
+
+def sampling_rate_hz(value, source="input") -> float:
+    """The ``sampling_rate`` attribute as a positive number of Hz: one number (or a one-element
+    array, or its text); anything else (empty, text that is not a number, several values, not
+    finite, not positive) is refused naming the value."""
+    arr = np.asarray(value)
+    if arr.size != 1:
+        raise InputError(f"{source}: sampling_rate must be one positive number (Hz), got "
+                         f"{arr.size} values")
+    item = arr.reshape(-1)[0]
+    if isinstance(item, bytes):
+        item = item.decode("utf-8", "replace")
+    try:
+        rate = float(item)
+    except (TypeError, ValueError):
+        raise InputError(f"{source}: sampling_rate must be a positive number (Hz), got "
+                         f"{str(item)[:40]!r}") from None
+    if not (np.isfinite(rate) and rate > 0):
+        raise InputError(f"{source}: sampling_rate must be a positive number (Hz), got {rate}")
+    return rate
 
 
 def list_trials(directory) -> list[Path]:

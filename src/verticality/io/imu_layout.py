@@ -33,6 +33,11 @@ COLUMNS_EXAMPLE = "t=timestamp,gyr_x=wx,gyr_y=wy,gyr_z=wz,acc_x=ax,acc_y=ay,acc_
 _BRACKET_UNIT = re.compile(r"^(.*?)\s*\[([^\[\]]*)\]$")
 _INTEGER = re.compile(r"^[+-]?\d+$")
 MIN_STEP_S, MAX_STEP_S = 1e-5, 1.0  # median sample step of an IMU: between 100 kHz and 1 Hz
+# Times read as seconds because no unit was stated: a median step above this (below 10 Hz, so that
+# the tilt filter would take every step for a gap) or a first stamp beyond MAX_EPOCH_S (after the
+# year 5000) is refused as most likely ms, µs or ns, naming --time-unit s for real seconds.
+SLOW_STEP_S = 0.1 + 1e-6
+MAX_EPOCH_S = 1e11
 
 
 def header_name(cell: str) -> str:
@@ -187,8 +192,10 @@ def check_time_steps(t_raw: np.ndarray, line_numbers: list[int], unit: str | Non
     """Refuse times that do not increase strictly (naming the first bad line), and a median step
     that is no IMU's rate.
 
-    ``unit`` None (not stated): a median step ≥ 1 is refused, since as seconds that is below 1 Hz
-    and the stamps are most likely ms, µs or ns. A stated unit: the median step in seconds must be
+    ``unit`` None (not stated): a median step above ``SLOW_STEP_S`` is refused, since as seconds
+    that is below 10 Hz (every step a gap for the tilt filter) and the stamps are most likely ms
+    (at 2 kHz: 0.5 ms steps), µs or ns; so is a first stamp beyond ``MAX_EPOCH_S`` (ms since 1970
+    read as seconds). A stated unit: the median step in seconds must be
     at least ``MIN_STEP_S`` (100 kHz) and, unless the unit is seconds, below ``MAX_STEP_S`` (1 Hz),
     which catches a wrong ``--time-unit`` (ns stamps read as ms give 5000 s steps); stating ``s``
     is how a really slow recording is read."""
@@ -201,10 +208,16 @@ def check_time_steps(t_raw: np.ndarray, line_numbers: list[int], unit: str | Non
         return
     med = float(np.median(steps))
     if unit is None:
-        if med >= MAX_STEP_S:
+        if med > SLOW_STEP_S:
             raise InputError(f"{source}: median time step is {med:.6g}, which as seconds would be "
-                             "below 1 Hz: pass --time-unit ms|us|ns (or time_unit=...) to state "
-                             "the unit (--time-unit s if it really is seconds)")
+                             f"{1.0 / med:.3g} Hz, below 10 Hz: pass --time-unit ms|us|ns (or "
+                             "time_unit=...) to state the unit (--time-unit s if it really is "
+                             "seconds)")
+        if abs(float(t_raw[0])) > MAX_EPOCH_S:
+            raise InputError(f"{source}: the first time stamp is {float(t_raw[0]):.6g}, which as "
+                             "seconds since 1970 would be after the year 5000: pass --time-unit "
+                             "ms|us|ns (or time_unit=...) to state the unit (--time-unit s if it "
+                             "really is seconds)")
         return
     med_s = med / TIME_UNITS[unit]
     if med_s < MIN_STEP_S or (unit != "s" and med_s >= MAX_STEP_S):
@@ -213,7 +226,8 @@ def check_time_steps(t_raw: np.ndarray, line_numbers: list[int], unit: str | Non
                          "time column's [unit])")
 
 
-def time_to_seconds(t_raw: np.ndarray, unit: str) -> tuple[np.ndarray, int | float | None]:
+def time_to_seconds(t_raw: np.ndarray, unit: str, origin=None) -> tuple[np.ndarray,
+                                                                         int | float | None]:
     """``(t_s, t0_stamp)`` from stamps in ``unit``.
 
     Seconds are kept as written (``t0_stamp`` None). Stamps in ms, µs or ns are made relative to
@@ -223,8 +237,8 @@ def time_to_seconds(t_raw: np.ndarray, unit: str) -> tuple[np.ndarray, int | flo
     to 2.4e-7 s, hence the relative time; ``t0_stamp`` (the file's first stamp) restores it."""
     if unit == "s":
         return t_raw.astype(np.float64), None
-    t0 = t_raw[0].item()
-    rel = t_raw - t_raw[0]
+    t0 = t_raw[0].item() if origin is None else origin  # a later piece: the file's first stamp
+    rel = t_raw - t0
     return rel.astype(np.float64) / TIME_UNITS[unit], t0
 
 

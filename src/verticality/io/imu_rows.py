@@ -46,7 +46,12 @@ def parse_clean_rows(rows: list[str], lay) -> tuple[np.ndarray, np.ndarray] | No
 
 def parse_rows(rows: list[str], line_numbers: list[int], lay, source: str):
     """``(data, t_raw)`` of data rows of any form: empty and non-numeric cells become NaN (the
-    time column's are refused, naming their lines), ragged rows are refused."""
+    time column's are refused, naming their lines), ragged rows are refused naming the first."""
+    for row, line_no in zip(rows, line_numbers, strict=True):
+        n_cells = len(row.split("#", 1)[0].split(","))
+        if n_cells != lay.n_columns:
+            raise InputError(f"{source}: line {line_no}: {n_cells} values, but the header has "
+                             f"{lay.n_columns} columns")
     try:
         data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, filling_values=np.nan,
                              invalid_raise=True, ndmin=2)

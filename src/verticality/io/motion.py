@@ -45,9 +45,11 @@ class MotionRecord(NamedTuple):
 def read_motion_csv(path) -> MotionRecord:
     """Read and validate a MOTION.csv. Errors name the data row (from 1) and the file line (the
     header is line 1) and the column."""
-    path = Path(path)
+    from verticality.io.paths import check_input_file
+
+    path = check_input_file(path)
     try:
-        fh = path.open(newline="")
+        fh = path.open(newline="", encoding="utf-8-sig")  # a byte-order mark, as IMU files
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc.strerror}") from None
     with fh:
@@ -254,7 +256,7 @@ def write_tilt_comparison_csv(path, t_s, series: dict) -> Path:
 
 def read_otolith_csv(path) -> dict[str, np.ndarray]:
     """OUT.csv back as {column: array} (for tests and scripts)."""
-    with Path(path).open(newline="") as fh:
+    with Path(path).open(newline="", encoding="utf-8-sig") as fh:
         reader = csv.reader(fh)
         header = next(reader)
         data = np.array([[float(v) for v in row] for row in reader if row], dtype=float)

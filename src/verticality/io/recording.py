@@ -14,6 +14,7 @@ import numpy as np
 
 from verticality.errors import InputError
 from verticality.io import broad, imu, imu_layout
+from verticality.io.paths import check_input_file
 
 
 class ImuInput(NamedTuple):
@@ -48,8 +49,7 @@ def load_imu(path, units: Iterable[str] = (), columns: str | dict[str, str] | No
     ``time_unit`` describe CSV files only and are refused with an HDF5 file. A CSV needs at least
     two rows (a time step)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    check_input_file(path)
     gyr_u, acc_u = parse_units(units)
     if broad.is_broad_file(path):
         given = [o for o, v in (("--columns", columns), ("--time-unit", time_unit)) if v is not None]
@@ -60,6 +60,7 @@ def load_imu(path, units: Iterable[str] = (), columns: str | dict[str, str] | No
         trial = broad.load_trial(path)
         gyr, acc = imu.check_units(trial.gyr_rad_s, trial.acc_m_s2, gyr_units=gyr_u,
                                    acc_units=acc_u, source=str(path), dt_s=trial.dt_s)
+        acc = imu.mark_saturated(acc)
         t = trial.t_s
         return ImuInput(t, gyr, acc, np.full(t.shape, trial.dt_s), None)
     mapping = imu_layout.parse_columns_spec(columns) if isinstance(columns, str) else columns

@@ -47,9 +47,17 @@ def render(results: dict, results_dir: Path) -> str:
 
 
 def build(results_dir: Path, out: Path | None = None) -> Path:
-    """Write the report of ``results_dir`` to ``out`` (default ``results_dir/report.html``)."""
+    """Write the report of ``results_dir`` to ``out`` (default ``results_dir/report.html``).
+    ``out`` may not be a file the report reads (results.json, a figure: any file under
+    ``results_dir`` but the default page), checked before anything is written."""
+    from verticality.io.paths import check_paths
+
     results_dir = Path(results_dir)
     target = Path(out) if out is not None else results_dir / REPORT_NAME
+    if out is not None and results_dir.is_dir():
+        default = results_dir / REPORT_NAME
+        read = [p for p in results_dir.rglob("*") if p.is_file() and p != default]
+        check_paths({"--out": target}, read)
     page = render(load_results(results_dir), results_dir)
     target.parent.mkdir(parents=True, exist_ok=True)
     target.write_text(page, encoding="utf-8")
