@@ -198,7 +198,9 @@ def test_tilt_sigma_spans_the_start_and_rests_on_the_calibration_floor():
 
 def test_start_in_motion_on_broad():
     """BROAD trial 15 (fast translation) started mid-trial, at sample 15 000: the first sample is
-    51° off; from 1.5 to 10 s the RMS error is 1.6° (9.5° when the first sample is trusted)."""
+    51° off; from 1.5 to 10 s the RMS error is 2.8° (9.5° when the first sample is trusted; 1.6°
+    before the velocity pseudo-measurement was widened under disturbance, which slows the
+    convergence during this fast translation while σ keeps covering the error)."""
     from pathlib import Path
 
     from verticality.io import broad
@@ -212,7 +214,7 @@ def test_start_in_motion_on_broad():
     err = broad.inclination_error_deg(out.quat_E_S, trial.quat_E_S_opt[k0:k0 + n])
     assert err[0] > 40.0
     sel = slice(int(1.5 / trial.dt_s), n)
-    assert np.sqrt(np.nanmean(err[sel] ** 2)) < 2.5
+    assert np.sqrt(np.nanmean(err[sel] ** 2)) < 3.2
     # the reported σ covers the error throughout, the first wrong second included
     sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
     fin = np.isfinite(err)

@@ -24,6 +24,8 @@ periodic, so the velocity they produce stays small); Joseph-form updates.
 
 from __future__ import annotations
 
+import math
+
 from typing import NamedTuple
 
 import jax
@@ -329,6 +331,23 @@ def error_transition(R, T, g):
         jnp.concatenate([jnp.zeros((3, 4)), jnp.eye(3)], axis=1)], axis=0)
 
 
+def disturbed_velocity_scale(acc_dev_var, p, xp=jnp):
+    """How much the velocity pseudo-measurement's variance grows under a disturbance: the speed
+    prior becomes the larger of ``vel_m_s`` and the speed an inertial acceleration of mean square
+    ``acc_dev_var`` (m²/s⁴) makes at ``vel_disturbed_hz``, ``a_rms / (2π f)``."""
+    w = 2.0 * math.pi * p.vel_disturbed_hz
+    return xp.maximum(1.0, acc_dev_var / (w * w * p.vel_m_s**2))
+
+
+def innovation_nis(P, rows: slice, z, r):
+    """The normalized innovation squared ``zᵀ S⁻¹ z``, ``S = P[rows, rows] + r I``, of a
+    2-row measurement (χ² with 2 degrees of freedom when the filter is consistent)."""
+    i0 = rows.start
+    a, b = P[i0, i0] + r, P[i0, i0 + 1]
+    d = P[i0 + 1, i0 + 1] + r
+    return (d * z[0] * z[0] - 2.0 * b * z[0] * z[1] + a * z[1] * z[1]) / (a * d - b * b)
+
+
 def joseph_update(P, rows: slice, z, r):
     """Kalman update of the error state for ``z = dx[rows] + n``, ``n ~ N(0, r I)`` (2 or 3 rows
     selected), Joseph form, symmetrized; written element-wise (no ``dot``), so that the scan over
@@ -412,8 +431,17 @@ def block_update(x, c, p, gaps: bool = True):
     # stays small: pseudo-measurement 0 = v + n_v (n_v ~ 0 at rest). Since v integrates the
     # specific force rotated by the estimate, its error grows as g J δ: this observes the tilt
     # (T eq. 5) with the inertial part integrated out rather than taken as white noise.
-    dx1, P1 = joseph_update(P, E.vel, -vel, jnp.where(at_rest, c[C.r_vel_rest], c[C.r_vel]))
-    dx = jnp.where(has_acc, dx1, 0.0)
+    r_v0 = jnp.where(at_rest, c[C.r_vel_rest], c[C.r_vel])
+    r_v = r_v0 * disturbed_velocity_scale(acc_dev_var, p)
+    # a velocity far beyond what its covariance allows under the undisturbed prior (a kick that
+    # leaves the sensor moving) is not the tilt's doing: it is forgotten, not turned into tilt
+    jump = has_acc & ~gap & ~collecting & (innovation_nis(P, E.vel, vel, r_v0) > p.vel_jump_nis)
+    dx1, P1 = joseph_update(P, E.vel, -vel, r_v)
+    use = has_acc & ~jump
+    dx = jnp.where(use, dx1, 0.0)
+    P = jnp.where(jump, reset_velocity(P, p.vel_m_s**2), P)
+    vel = jnp.where(jump, 0.0, vel)
+    disturbed = disturbed | jump
 
     def rest_update(dx, P):  # rest: the block-mean gyro measures the bias
         dx3, P3 = joseph_update(P, E.bias, c[C.g_mean] - (b + dx[E.bias]), c[C.r_b])
@@ -454,10 +482,10 @@ def block_update(x, c, p, gaps: bool = True):
 
     if gaps:
         dx, P, vel, pending, reacq_f_E, reacq_t, reacq = jax.lax.cond(
-            at_rest | gap | reacquire0, rare, common, (dx, jnp.where(has_acc, P1, P)))
+            at_rest | gap | reacquire0, rare, common, (dx, jnp.where(use, P1, P)))
     else:  # no gap in sight: the rest update alone, under lax.cond (no cost while moving)
         dx, P = jax.lax.cond(at_rest, lambda a: rest_update(*a), lambda a: a,
-                             (dx, jnp.where(has_acc, P1, P)))
+                             (dx, jnp.where(use, P1, P)))
         vel, pending, reacq_f_E, reacq_t, reacq = (vel + dx[E.vel], 0.0, jnp.zeros(3), 0.0,
                                                    jnp.array(False))
 

@@ -33,7 +33,13 @@ class TiltParams(NamedTuple):
     ``acc_calib_m_s2``: the accelerometer's calibration error (bias, scale, misalignment), which
     gravity alone cannot reveal; it does not change the estimate, only the reported uncertainty
     (``tilt.tilt_sigma_rad``).
-    ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. ``gyr_scale_noise`` (√s):
+    ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. Under a disturbance the
+    speed prior of the velocity pseudo-measurement grows to the speed the disturbance's RMS
+    acceleration makes at ``vel_disturbed_hz`` (``a_rms / 2πf`` when above ``vel_m_s``), so that
+    hard shaking is not read as tilt. ``vel_jump_nis``: a velocity whose normalized innovation
+    squared under the undisturbed prior exceeds it (χ², 2 degrees of freedom; 9.21 is its 99th
+    percentile) is a kick that left the sensor moving, not a tilt error: the velocity is forgotten
+    and the block flagged ``ACC_DISTURBED``. ``gyr_scale_noise`` (√s):
     gyro errors that grow with the rate (scale factor, axis misalignment), process noise density
     ``(k |ω|)²``. Rest (T eq. 1 with ω = 0, so the canal signal is the drift): when for
     ``rest_min_s`` every block has gyro deviation below ``rest_gyr_rad_s`` and accelerometer
@@ -61,6 +67,8 @@ class TiltParams(NamedTuple):
     reacquire_s: float = 1.0
     init_tilt_rad: float = 1.0
     acc_calib_m_s2: float = 0.05
+    vel_disturbed_hz: float = 1.0
+    vel_jump_nis: float = 9.21
 
 
 DEFAULT_PARAMS = TiltParams()

@@ -260,11 +260,18 @@ class Stream:
         if reacq:  # after a gap: the tilt from the mean specific force since the gap
             v_r = p.vel_rest_m_s if self.rest_s >= t_sum else p.vel_m_s  # quiet since the gap
             dx, P = _kf(P, 0, 2, _tilt_error_from_force(f_sum), 2.0 * (v_r / (g * t_sum)) ** 2)
-        elif has_acc and not gap and not collecting:
+        jump = False
+        if has_acc and not gap and not collecting:
             s_vel = (p.vel_rest_m_s**2 if at_rest else p.vel_m_s**2) * p.vel_corr_s
-            dx, P = _kf(P, 2, 2, -vel, s_vel / t_acc_s)
-        forget = gap or collecting
-        if forget:  # the velocity integrated across a gap means nothing
+            S = P[2:4, 2:4] + (s_vel / t_acc_s) * np.eye(2)
+            jump = bool(vel @ np.linalg.solve(S, vel) > p.vel_jump_nis)  # a kick: not the tilt
+            v_dist = math.sqrt(self.acc_dev_var) / (2.0 * math.pi * p.vel_disturbed_hz)
+            widen = max(1.0, (v_dist / p.vel_m_s) ** 2)  # the speed a disturbance makes
+            if not jump:
+                dx, P = _kf(P, 2, 2, -vel, widen * s_vel / t_acc_s)
+        disturbed = disturbed or jump
+        forget = gap or collecting or jump
+        if forget:  # the velocity integrated across a gap (or a kick) means nothing
             P[2:4, :] = 0.0
             P[:, 2:4] = 0.0
             P[2, 2] = P[3, 3] = p.vel_m_s**2
