@@ -1,11 +1,30 @@
 import os
+import shutil
+import tempfile
 
 os.environ.setdefault("MPLBACKEND", "Agg")
-os.environ["VERTICALITY_JAX_CACHE"] = "off"  # the tests leave no compiled kernels behind
+# One compilation cache for the whole session, shared by the worker processes (they inherit the
+# variable from the first process, which made the folder) and removed at the end: the suite is
+# compile-bound and many tests build the same kernels; nothing compiled outlives the session.
+if not os.environ.get("VERTICALITY_TEST_JAX_CACHE"):
+    os.environ["VERTICALITY_TEST_JAX_CACHE"] = tempfile.mkdtemp(prefix="verticality-test-jax-")
+    _OWN_CACHE = True
+else:
+    _OWN_CACHE = False
+os.environ["VERTICALITY_JAX_CACHE"] = os.environ["VERTICALITY_TEST_JAX_CACHE"]
 
+import jax  # noqa: E402
 import pytest  # noqa: E402
 
 import verticality  # noqa: E402, F401  (switches JAX to float64, as every use of the package does)
+
+jax.config.update("jax_compilation_cache_dir", os.environ["VERTICALITY_JAX_CACHE"])
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+
+
+def pytest_unconfigure(config):
+    if _OWN_CACHE and not hasattr(config, "workerinput"):
+        shutil.rmtree(os.environ["VERTICALITY_TEST_JAX_CACHE"], ignore_errors=True)
 
 
 @pytest.fixture(scope="session")
