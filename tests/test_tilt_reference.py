@@ -125,7 +125,19 @@ def _never_initialized():
     return (gyr, acc, dts), None
 
 
-CASES = {"broad_slice": _broad_slice, "nans_irregular_gap": _nans_irregular_gap,
+def _kicks_and_shaking():
+    """One-sided kicks, then hard shaking: the kick gate forgets the velocity and the prior widens
+    under the disturbance (both branches of the velocity update)."""
+    from verticality.analysis.fault_recordings import fault_recording
+
+    gyr_k, acc_k, dt, _ = fault_recording("kicks", n=N // 2, seed=0)
+    gyr_s, acc_s, _, _ = fault_recording("shake", n=2000, seed=1)  # shaking from 12 s to 20 s
+    gyr = np.concatenate([gyr_k, gyr_s[2000 - N // 2:]])
+    acc = np.concatenate([acc_k, acc_s[2000 - N // 2:]])
+    return (gyr, acc, np.full(gyr.shape[0], dt)), None
+
+
+CASES = {"broad_slice": _broad_slice, "kicks_and_shaking": _kicks_and_shaking, "nans_irregular_gap": _nans_irregular_gap,
          "nan_every_channel": _nan_every_channel, "beyond_limits": _beyond_limits,
          "gaps_and_dropouts": _gaps_and_dropouts,
          "start_in_motion": _start_in_motion, "large_rotations": _large_rotations,
@@ -264,6 +276,10 @@ def test_the_cases_exercise_what_they_claim(case):
         assert f[0] & INIT
         assert np.any(np.diff(out.bias_S_rad_s[:, 0]) != 0)
         assert final.rest_s >= tilt.DEFAULT_PARAMS.rest_min_s  # the rest update ran
+    elif name == "kicks_and_shaking":
+        for change in ({"vel_jump_nis": np.inf}, {"vel_disturbed_hz": 1e9}):  # each branch matters
+            other = tilt.estimate(gyr, acc, dts, tilt.DEFAULT_PARAMS._replace(**change))
+            assert np.max(np.abs(other.up_S - out.up_S)) > 1e-3, change
     elif name == "large_rotations":
         rot2 = np.sum((gyr * dts[:, None]) ** 2, axis=1)
         from verticality.estimators.tilt_kernels import SMALL_TH2
