@@ -25,7 +25,6 @@ periodic, so the velocity they produce stays small); Joseph-form updates.
 from __future__ import annotations
 
 import math
-
 from typing import NamedTuple
 
 import jax
