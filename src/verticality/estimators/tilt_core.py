@@ -330,12 +330,12 @@ def error_transition(R, T, g):
         jnp.concatenate([jnp.zeros((3, 4)), jnp.eye(3)], axis=1)], axis=0)
 
 
-def disturbed_velocity_scale(acc_dev_var, p, xp=jnp):
+def disturbed_velocity_scale(acc_dev_var, p):
     """How much the velocity pseudo-measurement's variance grows under a disturbance: the speed
     prior becomes the larger of ``vel_m_s`` and the speed an inertial acceleration of mean square
     ``acc_dev_var`` (m²/s⁴) makes at ``vel_disturbed_hz``, ``a_rms / (2π f)``."""
     w = 2.0 * math.pi * p.vel_disturbed_hz
-    return xp.maximum(1.0, acc_dev_var / (w * w * p.vel_m_s**2))
+    return jnp.maximum(1.0, acc_dev_var / (w * w * p.vel_m_s**2))
 
 
 def innovation_nis(P, rows: slice, z, r):
