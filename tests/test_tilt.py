@@ -369,7 +369,8 @@ def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
 
     (q_true, sums), _ = jax.lax.scan(body, (q_true, core.empty_sums()), None, length=n)
     x_hat = X.pack(q=q_hat0, b=b_hat, v=jnp.zeros(2), P=jnp.eye(NE).reshape(-1), acc_dev_var=0.0,
-                   rest_s=0.0, reacquire=0.0, reacq_f_E=jnp.zeros(3), reacq_t=0.0)
+                   rest_s=0.0, reacquire=0.0, reacq_f_E=jnp.zeros(3), reacq_t=0.0,
+                   vel_inn=jnp.zeros(2), vel_tilt=jnp.zeros(2))
     c = core.block_inputs(sums, p)
     q_end, _, v_end = core.block_prediction(x_hat, c)
     err = so3.quat_log(so3.quat_multiply(q_true, so3.quat_conjugate(q_end)))
@@ -431,7 +432,8 @@ def test_the_filter_is_an_estimator_value_with_named_state():
     np.testing.assert_array_equal(state.P, P0)
     assert state.x.shape == (X.size,) and state.sums.shape == (S.size,)
     assert bool(state.initialized) and int(state.count) == 0 and not bool(state.reacquire)
-    assert X.size == 65 and S.size == 21 and X.P == slice(9, 58) and X.reacq_t == 64
+    assert X.size == 69 and S.size == 21 and X.P == slice(9, 58) and X.reacq_t == 64
+    assert X.vel_inn == slice(65, 67) and X.vel_tilt == slice(67, 69)
     L = Packed([("a", 2), ("b", None)])
     np.testing.assert_array_equal(L.pack(xp=np, b=3.0, a=(1.0, 2.0)), [1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="missing"):
@@ -572,12 +574,14 @@ def test_saturated_readings_are_marked_beyond_the_range():
 
 def test_sigma_stays_honest_under_shaking_and_clipping_and_kicks_are_not_read_as_tilt():
     """On the synthetic fault recordings with known truth (docs/tilt.md, "The uncertainty under
-    faults"): shaking, clipped or not, keeps ≥ 95 % of the unflagged samples within 2σ; forgetting
-    a kick's velocity keeps the error of the kick recording below what reading it as tilt gives."""
-    from verticality.analysis.fault_recordings import fault_recording, sigma_honesty
+    faults"): shaking, clipped or not, taps and kicks keep ≥ 95 % of the unflagged samples within
+    2σ (five recordings of each, pooled); forgetting a kick's velocity keeps the error of the kick
+    recording below what reading it as tilt gives."""
+    from verticality.analysis.fault_recordings import fault_recording, sigma_honesty_over_seeds
 
-    for fault in ("shake", "clipped_2g", "taps"):
-        assert sigma_honesty(fault, seed=1)["within_2sigma"] >= 0.95, fault
+    for fault in ("shake", "clipped_2g", "taps", "kicks"):
+        # measured 100.0, 100.0, 100.0 and 99.5 %; kicks 80.0 % without the persistence test
+        assert sigma_honesty_over_seeds(fault, range(5))["within_2sigma"] >= 0.95, fault
     gyr, acc, dt, up = fault_recording("kicks", seed=2)
     rms = []
     for params in (tilt.DEFAULT_PARAMS, tilt.DEFAULT_PARAMS._replace(vel_jump_nis=np.inf)):

@@ -126,11 +126,13 @@ def _never_initialized():
 
 
 def _kicks_and_shaking():
-    """One-sided kicks, then hard shaking: the kick gate forgets the velocity and the prior widens
-    under the disturbance (both branches of the velocity update)."""
+    """One-sided kicks, then hard shaking: the kick gates forget the velocity (the one-block test,
+    and the persistence test at sample 512) and the prior widens under the disturbance (every
+    branch of the velocity update)."""
     from verticality.analysis.fault_recordings import fault_recording
 
-    gyr_k, acc_k, dt, _ = fault_recording("kicks", n=N // 2, seed=0)
+    gyr_k, acc_k, dt, _ = fault_recording("kicks", seed=3)
+    gyr_k, acc_k = gyr_k[:N // 2], acc_k[:N // 2]
     gyr_s, acc_s, _, _ = fault_recording("shake", n=2000, seed=1)  # shaking from 12 s to 20 s
     gyr = np.concatenate([gyr_k, gyr_s[2000 - N // 2:]])
     acc = np.concatenate([acc_k, acc_s[2000 - N // 2:]])

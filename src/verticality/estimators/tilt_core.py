@@ -275,7 +275,7 @@ def initialize(x, acc_m_s2, p, xp=jnp):
     P = widen_tilt(x[X.P].reshape(NE, NE), p.init_tilt_rad, xp)
     return X.pack(xp=xp, q=quat_from_acc(acc_m_s2, xp), b=x[X.b], v=x[X.v], P=P.reshape(-1),
                   acc_dev_var=x[X.acc_dev_var], rest_s=x[X.rest_s], reacquire=1.0,
-                  reacq_f_E=xp.zeros(3), reacq_t=0.0)
+                  reacq_f_E=xp.zeros(3), reacq_t=0.0, vel_inn=xp.zeros(2), vel_tilt=xp.zeros(2))
 
 
 # --- the block update ---
@@ -345,6 +345,18 @@ def innovation_nis(P, rows: slice, z, r):
     a, b = P[i0, i0] + r, P[i0, i0 + 1]
     d = P[i0 + 1, i0 + 1] + r
     return (d * z[0] * z[0] - 2.0 * b * z[0] * z[1] + a * z[1] * z[1]) / (a * d - b * b)
+
+
+def whiten2(P, rows: slice, z, r):
+    """The innovation ``z`` of a 2-row measurement whitened by its covariance ``S = P[rows, rows]
+    + r I`` (``L⁻¹ z``, ``L`` the Cholesky factor of ``S``): N(0, I) when the filter is
+    consistent."""
+    i0 = rows.start
+    l11 = jnp.sqrt(P[i0, i0] + r)
+    l21 = P[i0 + 1, i0] / l11
+    l22 = jnp.sqrt(P[i0 + 1, i0 + 1] + r - l21 * l21)
+    w0 = z[0] / l11
+    return jnp.stack([w0, (z[1] - l21 * w0) / l22])
 
 
 def joseph_update(P, rows: slice, z, r):
@@ -434,11 +446,28 @@ def block_update(x, c, p, gaps: bool = True):
     r_v = r_v0 * disturbed_velocity_scale(acc_dev_var, p)
     # a velocity far beyond what its covariance allows under the undisturbed prior (a kick that
     # leaves the sensor moving) is not the tilt's doing: it is forgotten, not turned into tilt
-    jump = has_acc & ~gap & ~collecting & (innovation_nis(P, E.vel, vel, r_v0) > p.vel_jump_nis)
+    eligible = has_acc & ~gap & ~collecting
+    jump = eligible & (innovation_nis(P, E.vel, vel, r_v0) > p.vel_jump_nis)
+    # a velocity that stays beyond the prior for longer than its correlation time (a kick too
+    # small for the one-block test): the running mean of the whitened innovations over
+    # ~vel_corr_s (N(0, (1 − λ)/(1 + λ) I) when the filter is consistent) against the same χ²
+    lam = jnp.exp(-T / p.vel_corr_s)
+    inn = lam * x[X.vel_inn] + (1.0 - lam) * whiten2(P, E.vel, -vel, r_v0)
+    persist = eligible & ~jump & (jnp.sum(inn * inn) * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
     dx1, P1 = joseph_update(P, E.vel, -vel, r_v)
+    tilt_fix = x[X.vel_tilt]
+    jump = jump | persist
     use = has_acc & ~jump
     dx = jnp.where(use, dx1, 0.0)
+    # the tilt corrections that velocity made over the window may not be the tilt's doing; which
+    # part is, the filter cannot tell: their size is added to the tilt's variance (undoing them
+    # would also undo the real corrections among them)
+    P = jnp.where(persist, add_tilt_variance(P, jnp.sum(tilt_fix * tilt_fix)), P)
     P = jnp.where(jump, reset_velocity(P, p.vel_m_s**2), P)
+    keep = eligible & ~jump
+    reset = has_acc | gap | collecting
+    inn = jnp.where(keep, inn, jnp.where(reset, 0.0, x[X.vel_inn]))
+    tilt_fix = jnp.where(keep, lam * tilt_fix + dx1[E.tilt], jnp.where(reset, 0.0, tilt_fix))
     vel = jnp.where(jump, 0.0, vel)
     disturbed = disturbed | jump
 
@@ -491,7 +520,8 @@ def block_update(x, c, p, gaps: bool = True):
     q_new = so3.quat_multiply(so3.quat_exp(jnp.stack([dx[0], dx[1], 0.0])), q_end)
     q_new = so3.quat_normalize(q_new)
     x_new = X.pack(q=q_new, b=b + dx[E.bias], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
-                   rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t)
+                   rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
+                   vel_inn=inn, vel_tilt=tilt_fix)
     return x_new, disturbed, reacq
 
 

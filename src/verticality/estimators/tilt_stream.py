@@ -120,6 +120,8 @@ class Stream:
         self.reacquire = False
         self.reacq_f_E = np.zeros(3)
         self.reacq_t = 0.0
+        self.vel_inn = np.zeros(2)  # running mean of the whitened velocity innovations
+        self.vel_tilt = np.zeros(2)  # the tilt corrections the velocity made over that window
         self._zero()
 
     @property
@@ -260,15 +262,27 @@ class Stream:
         if reacq:  # after a gap: the tilt from the mean specific force since the gap
             v_r = p.vel_rest_m_s if self.rest_s >= t_sum else p.vel_m_s  # quiet since the gap
             dx, P = _kf(P, 0, 2, _tilt_error_from_force(f_sum), 2.0 * (v_r / (g * t_sum)) ** 2)
-        jump = False
+        jump = kept = False
         if has_acc and not gap and not collecting:
             s_vel = (p.vel_rest_m_s**2 if at_rest else p.vel_m_s**2) * p.vel_corr_s
             S = P[2:4, 2:4] + (s_vel / t_acc_s) * np.eye(2)
             jump = bool(vel @ np.linalg.solve(S, vel) > p.vel_jump_nis)  # a kick: not the tilt
+            # a velocity beyond the prior for longer than its correlation time: the running mean
+            # of the whitened innovations, N(0, (1 − λ)/(1 + λ) I) when consistent
+            lam = math.exp(-T / p.vel_corr_s)
+            inn = lam * self.vel_inn + (1.0 - lam) * np.linalg.solve(np.linalg.cholesky(S), -vel)
+            persist = not jump and bool(inn @ inn * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
             v_dist = math.sqrt(self.acc_dev_var) / (2.0 * math.pi * p.vel_disturbed_hz)
             widen = max(1.0, (v_dist / p.vel_m_s) ** 2)  # the speed a disturbance makes
-            if not jump:
-                dx, P = _kf(P, 2, 2, -vel, widen * s_vel / t_acc_s)
+            if persist:  # the tilt corrections of that window may be wrong: widen by their size
+                P = _widen_tilt(P, float(self.vel_tilt @ self.vel_tilt))
+            elif not jump:
+                dx, P1 = _kf(P, 2, 2, -vel, widen * s_vel / t_acc_s)
+                self.vel_tilt = lam * self.vel_tilt + dx[:2]
+                self.vel_inn, kept, P = inn, True, P1
+            jump = jump or persist
+        if not kept and (has_acc or gap or collecting):
+            self.vel_inn, self.vel_tilt = np.zeros(2), np.zeros(2)
         disturbed = disturbed or jump
         forget = gap or collecting or jump
         if forget:  # the velocity integrated across a gap (or a kick) means nothing
