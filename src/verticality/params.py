@@ -77,6 +77,13 @@ P13_EKF_HEAD = HeadParams(J_H=jnp.array([0.15, 0.15, 0.15])).resolved()
 P13_KP_NM_RAD = 32.0
 P13_KD_NMS_RAD = 5.0
 
+# F §4.5.2 (the tilt–translation ambiguity experiments): "critically damped dynamic behavior of
+# otoliths with natural frequency of about 300 Hz" and "the head's moment of inertia was about
+# 0.0174 kg·m²" (F's sources for both are biomechanical and vestibular studies it cites).
+F452_OTOLITH_NATURAL_HZ = 300.0
+F452_OTOLITH_DAMPING_RATIO = 1.0  # critically damped
+F452_HEAD_INERTIA_KG_M2 = 0.0174
+
 # Lateral model default: pivots at +-r along head y (F Fig. 2.3).
 LATERAL_R_M = 0.05
 

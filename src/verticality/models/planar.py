@@ -25,7 +25,10 @@ Three model values (:mod:`verticality.models.base`), one pendulum equation
   F §4.4); its pendulum is :attr:`PlanarHead.pendulum`;
 * :class:`WithHeadFrameInput` — a model driven by the pivot acceleration in **head-frame**
   components (what an IMU on the head provides, F's ``ᴴa``), rotated into frame I with the head
-  angle of the state: an input adapter, not a new model (P11's plant, F §4.4's platform).
+  angle of the state: an input adapter, not a new model (P11's plant, F §4.4's platform);
+* :class:`WithAccelerationState` — a :class:`WithHeadFrameInput` whose horizontal head-frame
+  acceleration is a state (a random walk, ``ȧ_h = 0``) instead of an input: the internal model of
+  an estimator that must infer the acceleration (the tilt–translation ambiguity, F §4.5).
 """
 
 from __future__ import annotations
@@ -154,6 +157,40 @@ class WithHeadFrameInput(EuclideanState):
 
     def output(self, x: PlanarState, u=None):
         return self.head.output(x, u)
+
+
+class AccelerationState(NamedTuple):
+    """:class:`PlanarState` with the horizontal head-frame acceleration appended."""
+
+    head: PlanarState
+    a_h_H_m_s2: jnp.ndarray
+
+
+class TorqueAndVertical(NamedTuple):
+    """The inputs left to :class:`WithAccelerationState`: head torque and the vertical head-frame
+    acceleration (measured by the saccule, F §3.2)."""
+
+    tau_Nm: jnp.ndarray
+    a_z_H_m_s2: jnp.ndarray
+
+
+@model_dataclass
+class WithAccelerationState(EuclideanState):
+    """``model`` (a :class:`WithHeadFrameInput`) with its horizontal head-frame acceleration as a
+    state: constant (``ȧ_h = 0``; an estimator adds the random walk as process noise), or with
+    ``a_decay_1_s = 1/τ > 0`` decaying towards zero (``ȧ_h = −a_h/τ``; with process noise a
+    first-order Gauss–Markov acceleration: zero on average, as for a head that does not travel
+    off). State :class:`AccelerationState`, input :class:`TorqueAndVertical`, output the model's."""
+
+    model: WithHeadFrameInput
+    a_decay_1_s: Any = 0.0
+
+    def dynamics(self, x: AccelerationState, u: TorqueAndVertical) -> AccelerationState:
+        d = self.model.dynamics(x.head, HeadInput(u.tau_Nm, x.a_h_H_m_s2, u.a_z_H_m_s2))
+        return AccelerationState(d, -self.a_decay_1_s * x.a_h_H_m_s2)
+
+    def output(self, x: AccelerationState, u=None):
+        return self.model.output(x.head, u)
 
 
 def inclinometer_reading(x: PlanarState):

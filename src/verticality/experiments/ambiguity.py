@@ -1,0 +1,441 @@
+"""`ambiguity-*` — F §4.5.2: observer-based head stabilization when the head's acceleration is
+known (Fig. 4.11, 4.14) or reconstructed from the otolith (Fig. 4.12, 4.15, 4.16).
+
+Plant (truth): the planar head carrying the medial otolith, :class:`~verticality.models.planar.PlanarHead`
+driven through :class:`~verticality.models.planar.WithHeadFrameInput` (torque and head-frame
+acceleration), nonlinear, RK4 with 4 sub-steps per 1 ms sample. Parameters (F §4.5.2,
+:mod:`verticality.params`): otolith critically damped at 300 Hz (``g/l = (2π·300)²``,
+``β/(m l²) = 2·2π·300``; only the ratios matter), head inertia 0.0174 kg·m². Sagittal plane: the
+planar model's rotation is about the head's y axis with ``h = −x`` (:mod:`verticality.models.planar`),
+so a forward head acceleration is ``a_h = −a_x``. Walking: the built-in
+:func:`verticality.trajectories.walking` (F Fig. 4.13, after Menz, Lord & Fitzpatrick 2003); its
+forward and vertical accelerations drive the head as head-frame components ``ᴴa`` (F's input;
+head-mounted accelerometers measure in the head frame), sampled at every RK4 stage time.
+
+Internal model (F 4.10): the same model value linearized at upright
+(:func:`verticality.models.linearize.linearize`), inputs the torque and ``ᴴa_h`` (F: "the only
+inputs left after the linearization"; ``ᴴa_z`` drops out at upright); a Luenberger observer
+(:func:`verticality.estimators.luenberger.design`) on it, estimate started at zero (F). A PD on the
+estimate drives the head: ``τ = k_p (θ_ref − θ̂_H) − k_d ω̂_H``.
+
+Readings the thesis leaves open, fixed here:
+- Observer poles: F gives none; as in `separation` (F §4.4) twice the sensor's natural frequency,
+  ``−2ω_n·(1, 1.1, 1.2, 1.3)``, ω_n = 2π·300 rad/s.
+- PD gains: F gives none for §4.5; a critically damped head loop at 10 rad/s on the true inertia,
+  ``k_p = K ω² = 1.74 N·m/rad``, ``k_d = 2 K ω = 0.348 N·m·s/rad``.
+- Initial head tilt 5° where F says "about 5 degrees" (`ambiguity-known-acc`,
+  `ambiguity-desired-tilt`); the plant's otolith starts at rest under the first sample's
+  acceleration (:func:`verticality.analysis.ambiguity.planar_reading`).
+- Acceleration reconstruction (Fig. 4.12, "based on the measured angular displacement of
+  otolithic organs and estimated head tilt"): F 3.17 with the estimated tilt and the saccule's
+  ``a_z`` (the true vertical head-frame acceleration), in the model's signs
+  (:func:`verticality.analysis.ambiguity.planar_head_acceleration`, ``small_angle=True``): the
+  ``luenberger`` feed. ``luenberger_exact`` uses the exact relation instead (F 3.16).
+- Walking from its steady gait on (the stimulus from 2 s, after its 1 s start-up): F's head is
+  "during normal locomotion"; a start from rest adds a sustained forward acceleration.
+- **Converged**: every quantity finite, and over the last second the mean ``|θ̂_H − θ_H|`` and the
+  mean ``|θ_H − θ_ref|`` are both ≤ 5° (``final_tilt_error_deg``, ``final_head_error_deg``).
+  5° is the order of the walking-driven error that the *known*-acceleration observer itself keeps
+  on the linear internal model (it neglects ``ᴴa_z`` and the products of acceleration and angle:
+  1.9° at upright, 4.6° at −20°); the loops that drift or diverge end far beyond it (≥ 25°), so
+  any bound between about 5° and 25° gives the same regions. ``rms_acc_error_m_s2``: RMS of
+  ``â_h − a_h`` after the first second. Non-finite values are reported as null.
+- ``rotation_only``: the same sweeps with the walking acceleration switched off (the head only
+  rotates): where the reconstruction works when nothing but tilt moves the otolith.
+
+Beyond the thesis (F §4.6's question, "a property of the head or of the observer?"): the same
+sweeps with an EKF (:class:`~verticality.estimators.ekf.ExtendedKalmanFilter`) on the *nonlinear*
+model value with the horizontal acceleration as a random-walk state
+(:class:`~verticality.models.planar.WithAccelerationState`, discretized with 4 RK4 sub-steps), fed
+the same reading, torque and saccule ``a_z`` (the ``ekf`` feed), and with the acceleration a
+first-order Gauss–Markov process of time constant 0.2 s instead (``ekf_gauss_markov``: zero on
+average, as for a head that walks on). Q per 0.1 ms step: σ = 1e-6 rad and 1e-3 rad/s on the otolith,
+1e-6 rad and 1e-3 rad/s on the head, 0.05 m/s² on ``a_h``; R = (1e-3 rad)²; P0 = diag(0.1 rad,
+1 rad/s, 0.5 rad, 1 rad/s, 3 m/s²)², started at zero like the observer.
+
+Sampling: the otolith's 300 Hz (1885 rad/s) and observer poles near 4000 rad/s need the
+measurement far faster than 1 kHz (held over 1 ms the reading lags the observer by half a sample,
+≈ 1 rad of phase at 1885 rad/s, and the loop with the Luenberger observer goes unstable even with
+the acceleration known); everything runs at 10 kHz, the plant with one RK4 step per sample.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from verticality import trajectories as tr
+from verticality.analysis import ambiguity as am
+from verticality.estimators import luenberger as lu
+from verticality.estimators.ekf import ExtendedKalmanFilter
+from verticality.experiments import Result, check, register
+from verticality.integrate import rk4_step_staged
+from verticality.models.base import Discretized
+from verticality.models.linearize import LinearModel, linearize, select_inputs
+from verticality.models.planar import (
+    AccelerationState,
+    HeadInput,
+    PlanarState,
+    TorqueAndVertical,
+    WithAccelerationState,
+    WithHeadFrameInput,
+)
+from verticality.models.platform import f44_platform
+from verticality.params import (
+    F452_HEAD_INERTIA_KG_M2,
+    F452_OTOLITH_DAMPING_RATIO,
+    F452_OTOLITH_NATURAL_HZ,
+)
+
+DT_S = 1e-4
+SUBSTEPS = 1
+OMEGA_N_RAD_S = 2.0 * math.pi * F452_OTOLITH_NATURAL_HZ
+LUENBERGER_POLES = tuple(-2.0 * OMEGA_N_RAD_S * k for k in (1.0, 1.1, 1.2, 1.3))
+HEAD_LOOP_RAD_S = 10.0
+KP_NM_RAD = F452_HEAD_INERTIA_KG_M2 * HEAD_LOOP_RAD_S**2
+KD_NMS_RAD = 2.0 * F452_HEAD_INERTIA_KG_M2 * HEAD_LOOP_RAD_S
+THETA0_DEG = 5.0
+WALK_T0_S = 2.0  # the walking stimulus from 2 s on: steady gait, after its 1 s start-up
+CONVERGED_DEG = 5.0
+EKF_Q_SIGMAS = (1e-6, 1e-3, 1e-6, 1e-3, 0.05)
+EKF_R_RAD = 1e-3
+EKF_P0_SIGMAS = (0.1, 1.0, 0.5, 1.0, 3.0)
+EKF_GAUSS_MARKOV_TAU_S = 0.2
+KINDS = ("known", "luenberger", "luenberger_exact", "ekf", "ekf_gauss_markov")
+UNKNOWN_FEEDS = KINDS[1:]
+
+
+def plant() -> WithHeadFrameInput:
+    """F §4.5.2's head + otolith (the planar model value, driven by torque and ᴴa)."""
+    return WithHeadFrameInput(f44_platform(
+        g_over_l_s2=OMEGA_N_RAD_S**2, beta_over_ml2_s=2.0 * F452_OTOLITH_DAMPING_RATIO * OMEGA_N_RAD_S,
+        J_h_kg_m2=F452_HEAD_INERTIA_KG_M2))
+
+
+def linear_model() -> LinearModel:
+    """F 4.10: :func:`plant` linearized at upright; inputs (τ, ᴴa_h), output the reading."""
+    z = jnp.asarray(0.0)
+    return select_inputs(linearize(plant(), PlanarState(z, z, z, z), HeadInput(z, z, z)), [0, 1])
+
+
+def ekf(a_decay_1_s: float = 0.0) -> ExtendedKalmanFilter:
+    """The EKF on :func:`plant` with the horizontal acceleration as a state: a random walk
+    (``a_decay_1_s = 0``) or a first-order Gauss–Markov process of time constant ``1/a_decay_1_s``."""
+    model = Discretized(WithAccelerationState(plant(), a_decay_1_s), substeps=SUBSTEPS,
+                        single_input=True)
+    return ExtendedKalmanFilter(model=model, Q=jnp.diag(jnp.asarray(EKF_Q_SIGMAS) ** 2),
+                                R=jnp.array([[EKF_R_RAD**2]]), reset_jacobian=False)
+
+
+def walking_head_acceleration(n_steps: int):
+    """The walking head's sagittal acceleration in the planar model's components ``(a_h, a_z)``
+    at the sample times (n,) and at the RK4 stage times of every sub-step (n, SUBSTEPS, 3)."""
+    traj = tr.walking(duration_s=WALK_T0_S + n_steps * DT_S + 1.0)
+    h = DT_S / SUBSTEPS
+    t = WALK_T0_S + np.arange(n_steps) * DT_S
+    stages = (t[:, None, None] + np.arange(SUBSTEPS)[None, :, None] * h
+              + np.array([0.0, 0.5, 1.0])[None, None, :] * h)
+    a = np.asarray(tr.sample(traj, np.concatenate([t, stages.ravel()])).a_I_m_s2)
+    a_h, a_z = -a[:, 0], a[:, 2]  # sagittal: h = −x
+    n = t.size
+    return (a_h[:n], a_z[:n]), (a_h[n:].reshape(stages.shape), a_z[n:].reshape(stages.shape))
+
+
+class Series(NamedTuple):
+    theta_H: jnp.ndarray
+    theta_hat: jnp.ndarray
+    omega_H: jnp.ndarray
+    omega_hat: jnp.ndarray
+    tau: jnp.ndarray
+    a_hat: jnp.ndarray
+    a_true: jnp.ndarray
+    reading: jnp.ndarray
+
+
+def closed_loop(kind: str, theta0_rad, ref_rad, acc, acc_stages, n_steps: int, obs, disc, filt):
+    """One closed-loop run of feed ``kind`` (:data:`KINDS`) with the Luenberger observer ``obs``
+    (``disc`` its discretization at :data:`DT_S`) or the EKF ``filt``; returns :class:`Series` per
+    sample."""
+    truth = plant()
+    a_h, a_z = (jnp.asarray(v) for v in acc)
+    a_h_st, a_z_st = (jnp.asarray(v) for v in acc_stages)
+    r0 = am.planar_reading(a_h[0], a_z[0], theta0_rad)
+    x0 = PlanarState(theta0_rad + r0, jnp.asarray(0.0), jnp.asarray(theta0_rad, float), jnp.asarray(0.0))
+    z = jnp.asarray(0.0)
+    e0 = filt.init(AccelerationState(PlanarState(z, z, z, z), z),
+                   jnp.diag(jnp.asarray(EKF_P0_SIGMAS) ** 2))
+    h = DT_S / SUBSTEPS
+
+    def body(carry, k):
+        x, ls, es, u_prev = carry
+        y = truth.output(x)
+        if kind.startswith("ekf"):
+            es, _ = filt.step(es, u_prev, y, DT_S)
+            th_hat, om_hat, a_hat = es.x.head.theta_H_rad, es.x.head.omega_H_rad_s, es.x.a_h_H_m_s2
+        else:
+            th_hat, om_hat = ls.x[2], ls.x[3]
+            if kind == "known":
+                a_hat = a_h[k]
+            else:
+                a_hat = am.planar_head_acceleration(y[0], a_z[k], th_hat,
+                                                    small_angle=(kind == "luenberger"))
+        tau = KP_NM_RAD * (ref_rad - th_hat) - KD_NMS_RAD * om_hat
+        if not kind.startswith("ekf"):
+            ls, _ = obs.step_discrete(ls, jnp.stack([tau, a_hat]), y, disc)
+
+        def f(w, xx):
+            return truth.dynamics(xx, w), None
+
+        def sub(xx, i):
+            stages = HeadInput(jnp.broadcast_to(tau, (3,)), a_h_st[k, i], a_z_st[k, i])
+            return rk4_step_staged(f, stages, xx, h)[0], None
+
+        x_new = jax.lax.scan(sub, x, jnp.arange(SUBSTEPS))[0]
+        out = Series(x.theta_H_rad, th_hat, x.omega_H_rad_s, om_hat, tau, a_hat, a_h[k], y[0])
+        return (x_new, ls, es, TorqueAndVertical(tau, a_z[k])), out
+
+    carry0 = (x0, obs.init(jnp.zeros(4)), e0, TorqueAndVertical(z, a_z[0]))
+    return jax.lax.scan(body, carry0, jnp.arange(n_steps))[1]
+
+
+_closed_loop_batch = jax.jit(
+    jax.vmap(closed_loop, in_axes=(None, 0, 0, None, None, None, None, None, None)),
+    static_argnums=(0, 5))
+
+
+def sweep(kind: str, theta0_deg, ref_deg, duration_s: float, walking_scale: float = 1.0) -> Series:
+    """Runs of ``kind`` for each pair (θ₀, θ_ref) in degrees (arrays of one length), the walking
+    acceleration scaled by ``walking_scale`` (0: a head that only rotates); numpy :class:`Series`
+    with a leading sweep axis."""
+    n = int(round(duration_s / DT_S))
+    acc, acc_st = jax.tree_util.tree_map(lambda v: walking_scale * v, walking_head_acceleration(n))
+    th0 = jnp.radians(jnp.asarray(theta0_deg, float))
+    ref = jnp.radians(jnp.asarray(ref_deg, float))
+    obs = lu.design(linear_model(), LUENBERGER_POLES)
+    filt = ekf(1.0 / EKF_GAUSS_MARKOV_TAU_S if kind == "ekf_gauss_markov" else 0.0)
+    out = _closed_loop_batch(kind, th0, ref, acc, acc_st, n, obs, obs.discretize(DT_S), filt)
+    return Series(*(np.asarray(v) for v in out))
+
+
+def _finite_or_none(v):
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def summarize(s: Series, ref_deg, known: bool) -> list[dict]:
+    """Per sweep value: converged, final tilt and head errors (deg), RMS acceleration error."""
+    n = s.theta_H.shape[1]
+    t = np.arange(n) * DT_S
+    last1 = t >= t[-1] - 1.0
+    after1 = t >= 1.0
+    rows = []
+    for i, ref in enumerate(np.radians(np.asarray(ref_deg, float))):
+        est_err = np.degrees(np.abs(s.theta_hat[i] - s.theta_H[i]))
+        head_err = np.degrees(np.abs(s.theta_H[i] - ref))
+        finite = all(np.all(np.isfinite(v[i])) for v in s)
+        converged = bool(finite and est_err[last1].mean() <= CONVERGED_DEG
+                         and head_err[last1].mean() <= CONVERGED_DEG)
+        acc_err = s.a_hat[i] - s.a_true[i]
+        rows.append({
+            "converged": converged,
+            "final_tilt_error_deg": _finite_or_none(est_err[last1].mean()),
+            "final_head_error_deg": _finite_or_none(head_err[last1].mean()),
+            "rms_acc_error_m_s2": None if known else _finite_or_none(
+                np.sqrt(np.mean(acc_err[after1] ** 2))),
+        })
+    return rows
+
+
+def largest_converging(values_deg, rows) -> float | None:
+    """The largest |value| such that every sweep value of smaller or equal magnitude converged
+    (None if the smallest fails)."""
+    best = None
+    for v, r in sorted(zip(values_deg, rows, strict=True), key=lambda p: abs(p[0])):
+        if not r["converged"]:
+            break
+        best = abs(float(v))
+    return best
+
+
+def smallest_failing(values_deg, rows) -> float | None:
+    fails = [abs(float(v)) for v, r in zip(values_deg, rows, strict=True) if not r["converged"]]
+    return min(fails) if fails else None
+
+
+def _series_for_figure(s: Series, idx, every: int = 10) -> dict:
+    out = {}
+    for i in idx:
+        for name, v in s._asdict().items():
+            out[f"{i}/{name}"] = v[i][::every]
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# The three experiments
+# ----------------------------------------------------------------------------------------------
+
+
+def _duration(quick: bool) -> float:
+    return 3.0 if quick else 10.0
+
+
+@register("ambiguity-known-acc", "Tilt estimation and head control with the acceleration known (F §4.5.2)",
+          source="F §4.5.2, Fig. 4.11, 4.14", figures=lambda r, d: figures(r, d, "ambiguity-known-acc"))
+def run_known(quick: bool = False) -> Result:
+    duration = _duration(quick)
+    refs = [-20.0, 0.0, 20.0] if quick else [-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0]
+    th0 = [THETA0_DEG] * len(refs)
+    s = sweep("known", th0, refs, duration)
+    rows = summarize(s, refs, known=True)
+    n_conv = sum(r["converged"] for r in rows)
+    metrics = {
+        "desired_tilt_deg": refs,
+        "luenberger": rows,
+        "all_converge": n_conv == len(rows),
+        "checks": {"all_converge": check(n_conv, len(rows), n_conv == len(rows))},
+    }
+    series = {"t": np.arange(s.theta_H.shape[1])[::10] * DT_S, "sweep": refs,
+              **_series_for_figure(s, [0, len(refs) // 2, len(refs) - 1])}
+    return Result(metrics=metrics, paper={"all_converge": True}, series=series,
+                  simulated_s=duration * len(refs))
+
+
+def _unknown(values, th0, refs, duration, swept: str):
+    """The reconstructed-acceleration feeds on one sweep, with walking and rotation only."""
+    out: dict = {"rotation_only": {}}
+    series: dict = {}
+    for walking_scale in (1.0, 0.0):
+        feeds = UNKNOWN_FEEDS if walking_scale else ("luenberger", "luenberger_exact")
+        for kind in feeds:
+            s = sweep(kind, th0, refs, duration, walking_scale)
+            rows = summarize(s, refs, known=False)
+            entry = {
+                "per_value": rows,
+                f"largest_converging_{swept}_deg": largest_converging(values, rows),
+                f"smallest_failing_{swept}_deg": smallest_failing(values, rows),
+            }
+            if walking_scale:
+                out[kind] = entry
+                if kind in ("luenberger", "ekf_gauss_markov"):
+                    series.update({f"{kind}/{k}": v
+                                   for k, v in _series_for_figure(s, range(len(values))).items()})
+            else:
+                out["rotation_only"][kind] = entry
+        series["t"] = np.arange(s.theta_H.shape[1])[::10] * DT_S
+    return out, series
+
+
+@register("ambiguity-initial-tilt",
+          "Acceleration reconstructed from the otolith: stabilizing upright from an initial tilt (F §4.5.2)",
+          source="F §4.5.2, Fig. 4.12, 4.15", figures=lambda r, d: figures(r, d, "ambiguity-initial-tilt"))
+def run_initial(quick: bool = False) -> Result:
+    duration = _duration(quick)
+    values = [0.0, 12.0, 25.0] if quick else [0.0, 5.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0]
+    feeds, series = _unknown(values, values, [0.0] * len(values), duration, "initial_tilt")
+    metrics = {"initial_tilt_deg": values, **feeds,
+               "checks": {"sweep_complete": check(len(values), 0, all(
+                   len(feeds[k]["per_value"]) == len(values) for k in UNKNOWN_FEEDS))}}
+    series["sweep"] = values
+    paper = {"luenberger": {"largest_converging_initial_tilt_deg": 12.0,
+                            "smallest_failing_initial_tilt_deg": 25.0}}
+    return Result(metrics=metrics, paper=paper, series=series,
+                  simulated_s=duration * len(values) * (len(UNKNOWN_FEEDS) + 2))
+
+
+@register("ambiguity-desired-tilt",
+          "Acceleration reconstructed from the otolith: holding the head at a desired tilt (F §4.5.2)",
+          source="F §4.5.2, Fig. 4.12, 4.16", figures=lambda r, d: figures(r, d, "ambiguity-desired-tilt"))
+def run_desired(quick: bool = False) -> Result:
+    duration = _duration(quick)
+    values = [0.0, 6.0] if quick else [0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 15.0]
+    feeds, series = _unknown(values, [THETA0_DEG] * len(values), values, duration, "desired_tilt")
+    metrics = {"desired_tilt_deg": values, **feeds,
+               "checks": {"sweep_complete": check(len(values), 0, all(
+                   len(feeds[k]["per_value"]) == len(values) for k in UNKNOWN_FEEDS))}}
+    series["sweep"] = values
+    paper = {"luenberger": {"largest_converging_desired_tilt_deg": 0.0,
+                            "smallest_failing_desired_tilt_deg": 6.0}}
+    return Result(metrics=metrics, paper=paper, series=series,
+                  simulated_s=duration * len(values) * (len(UNKNOWN_FEEDS) + 2))
+
+
+def _at(values, rows, v) -> bool:
+    return bool(rows[list(values).index(v)]["converged"])
+
+
+# ----------------------------------------------------------------------------------------------
+# Figures (like F Figs. 4.14–4.16: time courses for two sweep values and the summary)
+# ----------------------------------------------------------------------------------------------
+
+
+def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
+    from verticality.plots import new_figure, save
+
+    s = result.series
+    t = s["t"]
+    sweep_values = list(s["sweep"])
+    m = result.metrics
+    if name == "ambiguity-known-acc":
+        feeds = [("", m["luenberger"])]
+        picks = [0, len(sweep_values) - 1]
+    else:
+        feeds = [("luenberger/", m["luenberger"]["per_value"]),
+                 ("ekf_gauss_markov/", m["ekf_gauss_markov"]["per_value"])]
+        conv = [r["converged"] for r in m["luenberger"]["per_value"]]
+        ok = [i for i, c in enumerate(conv) if c]
+        bad = [i for i, c in enumerate(conv) if not c]
+        picks = [ok[-1] if ok else 0, bad[0] if bad and ok else len(sweep_values) - 1]
+    paths = []
+    fig, axes = new_figure(3, 2 + (len(feeds) > 1), width=13, sharex=False)
+    for j, i in enumerate(picks):
+        prefix = feeds[0][0]
+        axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_H"]), label="head tilt (Luenberger loop)")
+        axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_hat"]), lw=0.8, label="its estimate")
+        if len(feeds) > 1:
+            axes[0, j].plot(t, np.degrees(s[f"ekf_gauss_markov/{i}/theta_H"]),
+                            label="head tilt (EKF loop, Gauss–Markov a)")
+            axes[0, j].plot(t, np.degrees(s[f"ekf_gauss_markov/{i}/theta_hat"]), lw=0.8,
+                            label="its estimate")
+        axes[0, j].set_title(f"{name}: {sweep_values[i]:g}°", fontsize=9)
+        axes[0, j].set_ylabel("deg")
+        axes[1, j].plot(t, np.degrees(np.abs(s[f"{prefix}{i}/theta_hat"] - s[f"{prefix}{i}/theta_H"])),
+                        color="C3", label="|estimate − tilt| (Luenberger)")
+        axes[1, j].set_ylabel("deg")
+        axes[2, j].plot(t, s[f"{prefix}{i}/a_true"], label="ᴴa_h true")
+        axes[2, j].plot(t, s[f"{prefix}{i}/a_hat"], lw=0.8, label="ᴴa_h used by the observer")
+        axes[2, j].set_ylabel("m/s²")
+        axes[2, j].set_xlabel("t [s]")
+        for ax in axes[:, j]:
+            ax.legend(fontsize=7)
+    if len(feeds) > 1:
+        ax = axes[0, 2]
+        for label, rows in feeds:
+            err = [r["final_tilt_error_deg"] if r["final_tilt_error_deg"] is not None else np.nan
+                   for r in rows]
+            ax.semilogy(sweep_values, np.maximum(err, 1e-6), "o-", label=label.rstrip("/"))
+        ax.axhline(CONVERGED_DEG, color="0.3", ls="--", lw=0.8, label="convergence bound")
+        ax.set_xlabel("sweep value [deg]")
+        ax.set_ylabel("final |θ̂ − θ| [deg]")
+        ax.legend(fontsize=7)
+        ax = axes[1, 2]
+        for label, rows in feeds:
+            ax.plot(sweep_values, [float(r["converged"]) for r in rows], "o-", label=label.rstrip("/"))
+        ax.set_ylabel("converged")
+        ax.set_xlabel("sweep value [deg]")
+        ax.legend(fontsize=7)
+        ax = axes[2, 2]
+        tilt = np.radians(np.linspace(0, 30, 61))[:, None]
+        acc = np.linspace(-0.5, 0.5, 41)[None, :] * 9.81
+        err = np.asarray(am.upright_assumption_error_m_s2(tilt, acc))
+        im = ax.pcolormesh(acc[0], np.degrees(tilt[:, 0]), np.abs(err), shading="auto")
+        fig.colorbar(im, ax=ax, label="|error| [m/s²]")
+        ax.set_xlabel("ᴴa_h [m/s²]")
+        ax.set_ylabel("head tilt [deg]")
+        ax.set_title("upright-assumption error (F 3.14 vs exact)", fontsize=9)
+    paths.append(save(fig, out_dir / f"{name.replace('-', '_')}.png"))
+    return paths
