@@ -243,8 +243,8 @@ def test_registered_but_not_run_and_unclaimed_experiments_are_covered(tmp_path):
     assert "not run" in parsed.text_by_section[anchor("ekf-impact")]
     assert "No seed claim is recorded" in parsed.text_by_section[anchor("brand-new")]
     # the seed claims without an experiment are listed with their published figures
-    assert "ambiguity-initial-tilt" in parsed.text_by_section["pending"]
-    assert "25°" in parsed.text_by_section["pending"]
+    assert "perception paradigms" in parsed.text_by_section["pending"]
+    assert "somatogravic" in parsed.text_by_section["pending"]
 
 
 def test_moved_folder_missing_figure_old_results_and_hostile_text(tmp_path):
