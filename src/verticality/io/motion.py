@@ -254,6 +254,13 @@ def write_tilt_comparison_csv(path, t_s, series: dict) -> Path:
     return path
 
 
+def write_columns_csv(path, columns: dict) -> Path:
+    """Write ``{name: (N,) array}`` as a CSV with those column names, floats written exactly."""
+    path = Path(path)
+    _write(path, list(columns), np.stack([np.asarray(v, float) for v in columns.values()], axis=1))
+    return path
+
+
 def read_otolith_csv(path) -> dict[str, np.ndarray]:
     """OUT.csv back as {column: array} (for tests and scripts)."""
     with Path(path).open(newline="", encoding="utf-8-sig") as fh:
