@@ -364,13 +364,18 @@ def walking(
     ramp_in_s: float = 1.0,
 ) -> Trajectory:
     """A walking-like head motion in the sagittal (x–z) plane, after F Fig. 4.13 (head linear
-    acceleration during locomotion, from the walking study cited there as [135]).
+    acceleration during locomotion), whose source is Menz, Lord & Fitzpatrick 2003 (F ref. 135:
+    head and pelvis accelerations of 30 young adults walking on a level and an irregular surface,
+    accelerometers at the occiput; the head's accelerations are dominated by the step frequency,
+    vertical larger than fore–aft, and smoother than the pelvis').
 
-    F gives only the figure, not the numbers; this is a synthetic gait with the usual human
-    features: forward progression at ``speed_m_s`` reached over ``ramp_in_s``, a vertical bounce at
-    the step frequency (2 cm at 2 Hz ⇒ ≈ 3.2 m/s² peak, ≈ 0.3 g) with a 2nd harmonic, a fore–aft
-    oscillation at the step frequency (1 cm ⇒ ≈ 1.6 m/s²) with a 2nd harmonic, and a small pitch
-    oscillation at the stride frequency. Amplitudes are documented choices, not digitized data.
+    F gives only the figure, not the numbers, and the study's tables are not reproduced here; this
+    is a synthetic gait with those features: forward progression at ``speed_m_s`` reached over
+    ``ramp_in_s``, a cadence of 2 steps/s (120 steps/min, a usual young-adult cadence), a vertical
+    bounce at the step frequency (2 cm at 2 Hz ⇒ ≈ 3.2 m/s² peak, ≈ 0.3 g) with a 2nd harmonic, a
+    fore–aft oscillation at the step frequency (1 cm ⇒ ≈ 1.6 m/s²) with a 2nd harmonic, and a
+    small pitch oscillation at the stride frequency (1 Hz). Amplitudes are documented choices, not
+    digitized data. The one walking stimulus of the project (`ambiguity-*`, the CLI's `walking`).
     """
     w = 2.0 * jnp.pi * step_hz
 

@@ -373,6 +373,28 @@ def _at(values, rows, v) -> bool:
 # ----------------------------------------------------------------------------------------------
 
 
+def _relation_maps(fig, axes, rows, sweep_values):
+    """The known-acceleration summary and the steady-state relations' error maps (F 3.17 against
+    the exact F 3.16; the upright assumption F 3.14) over head tilt × horizontal acceleration."""
+    ax = axes[0]
+    ax.plot(sweep_values, [r["final_tilt_error_deg"] for r in rows], "o-", label="final |θ̂ − θ|")
+    ax.plot(sweep_values, [r["final_head_error_deg"] for r in rows], "s-", label="final |θ − θ_ref|")
+    ax.axhline(CONVERGED_DEG, color="0.3", ls="--", lw=0.8, label="convergence bound")
+    ax.set_xlabel("desired tilt [deg]")
+    ax.set_ylabel("deg")
+    ax.legend(fontsize=7)
+    tilt = np.radians(np.linspace(-30, 30, 61))[:, None]
+    acc = np.linspace(-1.0, 1.0, 41)[None, :] * 9.81
+    for ax, err, title in (
+            (axes[1], am.small_angle_error_m_s2(tilt, acc), "F 3.17 (small angle) − exact"),
+            (axes[2], am.upright_assumption_error_m_s2(tilt, acc), "upright assumption − exact")):
+        im = ax.pcolormesh(acc[0], np.degrees(tilt[:, 0]), np.abs(np.asarray(err)), shading="auto")
+        fig.colorbar(im, ax=ax, label="|error| [m/s²]")
+        ax.set_xlabel("ᴴa_h [m/s²]")
+        ax.set_ylabel("head tilt [deg]")
+        ax.set_title(title, fontsize=9)
+
+
 def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
     from verticality.plots import new_figure, save
 
@@ -391,7 +413,7 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
         bad = [i for i, c in enumerate(conv) if not c]
         picks = [ok[-1] if ok else 0, bad[0] if bad and ok else len(sweep_values) - 1]
     paths = []
-    fig, axes = new_figure(3, 2 + (len(feeds) > 1), width=13, sharex=False)
+    fig, axes = new_figure(3, 3, width=13, sharex=False)
     for j, i in enumerate(picks):
         prefix = feeds[0][0]
         axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_H"]), label="head tilt (Luenberger loop)")
@@ -437,5 +459,7 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
         ax.set_xlabel("ᴴa_h [m/s²]")
         ax.set_ylabel("head tilt [deg]")
         ax.set_title("upright-assumption error (F 3.14 vs exact)", fontsize=9)
+    if len(feeds) == 1:
+        _relation_maps(fig, axes[:, 2], feeds[0][1], sweep_values)
     paths.append(save(fig, out_dir / f"{name.replace('-', '_')}.png"))
     return paths
