@@ -206,8 +206,9 @@ def violations(case: dict) -> list[str]:
         elif code == 0 and kind == "stream":
             names, data = _estimate_table(out)
             _check_estimate(names, data, _data_row_count(inputs["in.csv"]), found)
-        elif code == 0 and kind == "otolith" and (d / "out.csv").is_file():
-            names, data = _estimate_table((d / "out.csv").read_text())
+        elif code == 0 and kind in ("otolith", "ambiguity"):
+            out_csv = d / ("out.csv" if kind == "otolith" else "a.csv")
+            names, data = _estimate_table(out_csv.read_text()) if out_csv.is_file() else (None, None)
             if data is None or data.shape[0] != _data_row_count(inputs["m.csv"]):
                 found.append("row count")
             elif not np.all(np.isfinite(data)):
@@ -402,3 +403,23 @@ def test_stabilize_on_malformed_motion_files_never_breaks_an_invariant():
         case = {"kind": "stabilize", "files": {"m.csv": raw},
                 "argv": ["stabilize", "{d}/m.csv", "--out", "{d}/s.csv"]}
         assert violations(case) == []
+
+
+def test_ambiguity_on_malformed_motion_files_never_breaks_an_invariant(tmp_path):
+    """`ambiguity` replays the otolith at the motion's own length, so a few fixed seeds only;
+    every other file is well formed (then the run completes, one output row per input row), and
+    one case in three names the input as `--out` or `--plot` (under another spelling)."""
+    for seed in range(6):
+        rng = random.Random(seed)
+        rows = motion_rows(rng, 120)
+        raw = corrupt_csv(rng, MOTION_HEADER, rows, 11) if seed % 2 \
+            else ("\n".join([MOTION_HEADER, *rows]) + "\n").encode()
+        argv = ["ambiguity", "{d}/m.csv", "--out", "{d}/a.csv", "--plot", "{d}/a.png"]
+        if seed % 3 == 2:
+            argv[rng.choice([3, 5])] = rng.choice(["{d}/./m.csv", "{d}/sub/../m.csv"])
+        assert violations({"kind": "ambiguity", "files": {"m.csv": raw}, "argv": argv}) == []
+    (tmp_path / "m.csv").write_text("\n".join([MOTION_HEADER, *motion_rows(random.Random(9), 120)]))
+    code, _, err = run_cli(["ambiguity", str(tmp_path / "m.csv"), "--out", str(tmp_path / "a.csv")],
+                           None)
+    assert code == 0, err
+    assert len((tmp_path / "a.csv").read_text().splitlines()) == 121

@@ -34,11 +34,10 @@ def register(sub):
 
 def run(args) -> int:
     from verticality.analysis.ambiguity_replay import report
-    from verticality.io.output import check_writable_file
+    from verticality.io.paths import check_input_file, check_paths
 
-    for path, option in ((args.out, "--out"), (args.plot, "--plot")):
-        if path is not None:
-            check_writable_file(path, option)
+    check_input_file(args.motion)
+    check_paths({"--out": args.out, "--plot": args.plot}, [args.motion], figures=["--plot"])
     summary = report(args.motion, args.out, args.plot, args.otolith)
     if args.json:
         print(json.dumps(summary, indent=2))
