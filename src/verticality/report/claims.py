@@ -91,6 +91,21 @@ class Difference:
 
 _SIGMAS = ("0.0003", "0.001", "0.003", "0.01", "0.03")
 
+
+# F §4.5.2's setting and the readings the thesis leaves open, shared by the three ambiguity claims
+AMBIGUITY_SETTINGS = (
+    "planar sagittal head + medial otolith, nonlinear: otolith critically damped at 300 Hz, "
+    "head inertia 0.0174 kg·m² (F §4.5.2); 10 kHz, RK4",
+    "walking head acceleration (built-in walking, F Fig. 4.13 after Menz, Lord & "
+    "Fitzpatrick 2003) as head-frame input, steady gait",
+    "Luenberger observer on the model linearized at upright (inputs τ, ᴴa_h), "
+    "estimate started at zero; PD k_p = 1.74 N·m/rad, k_d = 0.348 N·m·s/rad")
+AMBIGUITY_READINGS = (
+    "observer poles −2ω_n·(1, 1.1, 1.2, 1.3), ω_n = 2π·300 rad/s (F gives none; as in "
+    "`separation`)",
+    "PD: a critically damped 10 rad/s head loop (F gives no gains)",
+    "converged: mean |θ̂ − θ| and |θ − θ_ref| over the last second ≤ 10°")
+
 CLAIMS: dict[str, Claim] = {
     "tahboub-gains": Claim(
         source="T §III.A.1, eq. 20–22",
@@ -400,16 +415,8 @@ CLAIMS: dict[str, Claim] = {
         source="F §4.5.2, Fig. 4.11, 4.14",
         claim="With the head's acceleration known, a Luenberger observer on the medial model "
               "linearized at upright, feeding a PD, converges for every desired head orientation.",
-        settings=("planar sagittal head + medial otolith, nonlinear: otolith critically damped at 300 Hz, "
-                  "head inertia 0.0174 kg·m² (F §4.5.2); 10 kHz, RK4",
-                  "walking head acceleration (built-in walking, F Fig. 4.13 after Menz, Lord & "
-                  "Fitzpatrick 2003) as head-frame input, steady gait",
-                  "Luenberger observer on the model linearized at upright (inputs τ, ᴴa_h), "
-                  "estimate started at zero; PD k_p = 1.74 N·m/rad, k_d = 0.348 N·m·s/rad"),
-        readings=("observer poles −2ω_n·(1, 1.1, 1.2, 1.3), ω_n = 2π·300 rad/s (F gives none; as in "
-                  "`separation`)",
-                  "PD: a critically damped 10 rad/s head loop (F gives no gains)",
-                  "converged: mean |θ̂ − θ| and |θ − θ_ref| over the last second ≤ 10°"),
+        settings=AMBIGUITY_SETTINGS,
+        readings=AMBIGUITY_READINGS,
         published=(Published("converges for every desired tilt (−20° … 20°)", "F Fig. 4.14",
                              "all converge", ("all_converge",), "equals", True, headline=True),),
         pages=("ambiguity.md",),
@@ -419,18 +426,10 @@ CLAIMS: dict[str, Claim] = {
         claim="With the acceleration reconstructed from the otolith reading and the estimated "
               "tilt (F 3.17), the loop stabilizes the head upright from an initial tilt of 12° "
               "and fails from 25°.",
-        settings=("planar sagittal head + medial otolith, nonlinear: otolith critically damped at 300 Hz, "
-                  "head inertia 0.0174 kg·m² (F §4.5.2); 10 kHz, RK4",
-                  "walking head acceleration (built-in walking, F Fig. 4.13 after Menz, Lord & "
-                  "Fitzpatrick 2003) as head-frame input, steady gait",
-                  "Luenberger observer on the model linearized at upright (inputs τ, ᴴa_h), "
-                  "estimate started at zero; PD k_p = 1.74 N·m/rad, k_d = 0.348 N·m·s/rad"),
-        readings=("observer poles −2ω_n·(1, 1.1, 1.2, 1.3), ω_n = 2π·300 rad/s (F gives none; as in "
-                  "`separation`)",
-                  "PD: a critically damped 10 rad/s head loop (F gives no gains)",
-                  "converged: mean |θ̂ − θ| and |θ − θ_ref| over the last second ≤ 10°") + ("reconstruction: F 3.17 in the model's signs with the "
-                               "estimated tilt and the saccule's a_z; the exact F 3.16 and two "
-                               "EKFs beside it",),
+        settings=AMBIGUITY_SETTINGS,
+        readings=AMBIGUITY_READINGS + ("reconstruction: F 3.17 in the model's signs with the "
+                                       "estimated tilt and the saccule's a_z; the exact F 3.16 "
+                                       "and two EKFs beside it",),
         published=(Published("largest initial tilt that converges (Luenberger, F 3.17)",
                              "F Fig. 4.15", "12°",
                              ("luenberger", "largest_converging_initial_tilt_deg"), "at_least",
@@ -453,16 +452,8 @@ CLAIMS: dict[str, Claim] = {
         source="F §3.2, §4.5.2, Fig. 4.12, 4.16",
         claim="Under the same reconstruction, holding the head upright works and holding it at "
               "6° fails.",
-        settings=("planar sagittal head + medial otolith, nonlinear: otolith critically damped at 300 Hz, "
-                  "head inertia 0.0174 kg·m² (F §4.5.2); 10 kHz, RK4",
-                  "walking head acceleration (built-in walking, F Fig. 4.13 after Menz, Lord & "
-                  "Fitzpatrick 2003) as head-frame input, steady gait",
-                  "Luenberger observer on the model linearized at upright (inputs τ, ᴴa_h), "
-                  "estimate started at zero; PD k_p = 1.74 N·m/rad, k_d = 0.348 N·m·s/rad"),
-        readings=("observer poles −2ω_n·(1, 1.1, 1.2, 1.3), ω_n = 2π·300 rad/s (F gives none; as in "
-                  "`separation`)",
-                  "PD: a critically damped 10 rad/s head loop (F gives no gains)",
-                  "converged: mean |θ̂ − θ| and |θ − θ_ref| over the last second ≤ 10°") + ("initial head tilt 5° (F: “about 5 degrees”)",),
+        settings=AMBIGUITY_SETTINGS,
+        readings=AMBIGUITY_READINGS + ("initial head tilt 5° (F: “about 5 degrees”)",),
         published=(Published("largest desired tilt that converges (Luenberger, F 3.17)",
                              "F Fig. 4.16", "0°",
                              ("luenberger", "largest_converging_desired_tilt_deg"), "at_least",
