@@ -1,5 +1,6 @@
 """Running tilt filters over BROAD trials: ours and, when the optional ``peers`` extra is installed,
-VQF (vqf, 6D, defaults, ``VQF(Ts).updateBatch``), Madgwick and Mahony (ahrs, 6D, defaults).
+VQF (vqf, 6D, defaults, ``VQF(Ts).updateBatch``), Madgwick and Mahony (ahrs, 6D, defaults); and
+the offline estimators, our smoother (``tilt.smooth``) and VQF's ``offlineVQF`` (6D, defaults).
 
 Peers are imported lazily; a missing one is reported by :func:`peer_status` with the reason and
 left out of the results (never silently replaced). Every filter gets the same gyro/accelerometer
@@ -21,7 +22,12 @@ from verticality.io import broad
 OURS = "verticality"
 PEERS = ("vqf", "madgwick", "mahony")
 FILTERS = (OURS,) + PEERS
-_PEER_MODULE = {"vqf": "vqf", "madgwick": "ahrs", "mahony": "ahrs"}
+# the offline estimators (the whole recording at once): our smoother (tilt.smooth) and VQF's
+# offline variant (vqf.offlineVQF, 6D, defaults); evaluate broad runs them beside the filters
+OURS_OFFLINE = "verticality-offline"
+VQF_OFFLINE = "vqf-offline"
+OFFLINE = (OURS_OFFLINE, VQF_OFFLINE)
+_PEER_MODULE = {"vqf": "vqf", "madgwick": "ahrs", "mahony": "ahrs", VQF_OFFLINE: "vqf"}
 
 
 def peer_status() -> dict[str, str | None]:
@@ -29,7 +35,7 @@ def peer_status() -> dict[str, str | None]:
     import importlib
 
     status: dict[str, str | None] = {}
-    for name in PEERS:
+    for name in PEERS + (VQF_OFFLINE,):
         try:
             importlib.import_module(_PEER_MODULE[name])
             status[name] = None
@@ -40,18 +46,21 @@ def peer_status() -> dict[str, str | None]:
 
 
 def choose_filters(requested=None) -> tuple[list[str], list[str]]:
-    """``(filters, notes)``: the ``requested`` filter names (checked), or ours and every installed
-    peer; a note for each wanted peer that is not installed."""
+    """``(filters, notes)``: the ``requested`` filter names (checked), or ours, every installed
+    peer, our smoother and VQF's offline variant (when vqf is installed); a note for each wanted
+    peer that is not installed."""
     status = peer_status()
+    peers = PEERS + (VQF_OFFLINE,)
     if requested is None:
-        filters = [OURS] + [p for p in PEERS if status[p] is None]
+        filters = ([OURS] + [p for p in PEERS if status[p] is None] + [OURS_OFFLINE]
+                   + ([VQF_OFFLINE] if status[VQF_OFFLINE] is None else []))
     else:
         filters = list(requested)
         for f in filters:
-            if f != OURS and f not in PEERS:
-                raise InputError(f"unknown filter {f!r}; choose from {OURS}, {', '.join(PEERS)}")
-    notes = [f"note: skipping {p}: {status[p]}" for p in PEERS
-             if status[p] is not None and p in (requested or PEERS)]
+            if f not in _RUNNERS:
+                raise InputError(f"unknown filter {f!r}; choose from {', '.join(_RUNNERS)}")
+    notes = [f"note: skipping {p}: {status[p]}" for p in peers
+             if status[p] is not None and p in (requested or peers)]
     return filters, notes
 
 
@@ -60,6 +69,21 @@ def _ours(gyr, acc, dt_s):
 
     out = tilt.estimate(gyr, acc, dt_s)
     return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
+
+
+def _ours_offline(gyr, acc, dt_s):
+    from verticality.estimators import tilt
+
+    out = tilt.smooth(gyr, acc, dt_s)
+    return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
+
+
+def _vqf_offline(gyr, acc, dt_s):
+    from vqf import offlineVQF
+
+    res = offlineVQF(np.ascontiguousarray(gyr, dtype=np.float64),
+                     np.ascontiguousarray(acc, dtype=np.float64), None, float(np.median(dt_s)))
+    return res["quat6D"], res["bias"], None
 
 
 def _vqf(gyr, acc, dt_s):
@@ -85,7 +109,9 @@ def _mahony(gyr, acc, dt_s):
 
 
 _RUNNERS: dict[str, Callable] = {OURS: _ours, "vqf": _vqf, "madgwick": _madgwick,
-                                 "mahony": _mahony}
+                                 "mahony": _mahony, OURS_OFFLINE: _ours_offline,
+                                 VQF_OFFLINE: _vqf_offline}
+_OURS_ALL = (OURS, OURS_OFFLINE)  # ours: any samples, and a σ
 
 
 def run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
@@ -98,11 +124,11 @@ def run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
 def _run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
     """:func:`run_filter` and the tilt's standard deviation (N,) rad, or None for the peers."""
     if name not in _RUNNERS:
-        raise InputError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}")
+        raise InputError(f"unknown filter {name!r}; choose one of {', '.join(_RUNNERS)}")
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
-    if name != OURS:
+    if name not in _OURS_ALL:
         reason = peer_status()[name]
         if reason is not None:
             raise InputError(f"filter {name}: {reason}")
@@ -128,11 +154,13 @@ def sigma_calibration(quat_est_wxyz, sigma_rad, trial: broad.BroadTrial) -> dict
 def evaluate_trials(paths: Iterable[Path], filters: Iterable[str],
                     progress: Callable[[str], None] | None = None) -> dict:
     """``{"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg},
-    "runtime_s": {FILTER: s}, "samples": int, "sigma": {NAME: sigma_calibration}}`` for the given
-    filters over the given trials (``sigma`` for our filter, when it runs)."""
+    "runtime_s": {FILTER: s}, "samples": int, "sigma": {NAME: sigma_calibration},
+    "sigma_offline": {NAME: sigma_calibration}}`` for the given filters over the given trials
+    (``sigma`` for our filter, ``sigma_offline`` for our smoother, when they run)."""
     filters = list(filters)
     trials: dict[str, dict[str, float]] = {}
     sigma: dict[str, dict[str, float]] = {}
+    sigma_offline: dict[str, dict[str, float]] = {}
     runtime = {f: 0.0 for f in filters}
     samples = 0
     for path in paths:
@@ -147,7 +175,8 @@ def evaluate_trials(paths: Iterable[Path], filters: Iterable[str],
             runtime[name] += time.perf_counter() - t0
             trials[trial.name][name] = broad.inclination_rmse_deg(np.asarray(quat), trial)
             if sig is not None:
-                sigma[trial.name] = sigma_calibration(np.asarray(quat), sig, trial)
+                (sigma if name == OURS else sigma_offline)[trial.name] = sigma_calibration(
+                    np.asarray(quat), sig, trial)
     mean = {f: float(np.mean([t[f] for t in trials.values()])) for f in filters}
     return {"trials": trials, "mean": mean, "runtime_s": runtime, "samples": samples,
-            "sigma": sigma}
+            "sigma": sigma, "sigma_offline": sigma_offline}

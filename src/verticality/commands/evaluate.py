@@ -1,5 +1,6 @@
 """``verticality evaluate broad DIR [--json]``: official BROAD inclination RMSE per trial and the
-mean, for our filter and the installed peers (vqf, madgwick, mahony) in the same run."""
+mean, for our filter and the installed peers (vqf, madgwick, mahony), and for the offline
+estimators (our smoother, vqf's offlineVQF), in the same run."""
 
 from __future__ import annotations
 
@@ -15,9 +16,12 @@ def register(sub):
     b = ev.add_parser("broad", help="BROAD inclination RMSE per trial (official metric)")
     b.add_argument("directory", type=Path, metavar="DIR", help="folder of BROAD .hdf5 trials")
     b.add_argument("--json", action="store_true",
-                   help='print {"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg}}')
+                   help='print {"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg}, '
+                        '"sigma": {FILTER: {NAME: {"within_1sigma", "within_2sigma", '
+                        '"rms_sigma_deg"}}}} (sigma: ours and our smoother)')
     b.add_argument("--filters", nargs="+", default=None, metavar="NAME",
-                   help="filters to run (default: verticality and every installed peer)")
+                   help="filters to run (default: verticality, every installed peer, "
+                        "verticality-offline (our smoother) and vqf-offline (offlineVQF))")
     b.set_defaults(func=run_broad)
 
 
@@ -25,7 +29,12 @@ def run_broad(args) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from verticality.analysis.broad_eval import OURS, choose_filters, evaluate_trials
+    from verticality.analysis.broad_eval import (
+        OURS,
+        OURS_OFFLINE,
+        choose_filters,
+        evaluate_trials,
+    )
     from verticality.io import broad
 
     err = Console(stderr=True)
@@ -34,23 +43,26 @@ def run_broad(args) -> int:
     for note in notes:
         err.print(note)
     res = evaluate_trials(paths, filters, progress=lambda msg: err.print(f"running {msg} …"))
+    # our filter's and our smoother's reported σ against their errors (docs/tilt.md)
+    sigmas = {name: res[key] for name, key in ((OURS, "sigma"), (OURS_OFFLINE, "sigma_offline"))
+              if res[key]}
     if args.json:
-        json.dump({"trials": res["trials"], "mean": res["mean"]}, sys.stdout, indent=2)
+        json.dump({"trials": res["trials"], "mean": res["mean"], "sigma": sigmas}, sys.stdout,
+                  indent=2)
         sys.stdout.write("\n")
         return 0
     table = Table(title=f"BROAD inclination RMSE (deg), {len(res['trials'])} trials")
     table.add_column("trial")
     for f in filters:
         table.add_column(f, justify="right")
-    sig = res["sigma"]  # our filter's reported σ against its errors (docs/tilt.md)
-    if sig:
-        table.add_column(f"{OURS}: RMS σ", justify="right")
+    for f in sigmas:
+        table.add_column(f"{f}: RMS σ", justify="right")
         table.add_column("within σ / 2σ", justify="right")
     best = {name: min(v.values()) for name, v in res["trials"].items()}
     for name, v in res["trials"].items():
         cells = [(f"[bold]{v[f]:.3f}[/bold]" if v[f] == best[name] else f"{v[f]:.3f}")
                  for f in filters]
-        if sig:
+        for sig in sigmas.values():
             c = sig[name]
             cells += [f"{c['rms_sigma_deg']:.3f}",
                       f"{100 * c['within_1sigma']:.1f} / {100 * c['within_2sigma']:.1f} %"]
@@ -58,7 +70,7 @@ def run_broad(args) -> int:
     table.add_row("mean", *[f"{res['mean'][f]:.3f}" for f in filters], end_section=True)
     table.add_row("runtime (s)", *[f"{res['runtime_s'][f]:.2f}" for f in filters])
     Console().print(table)
-    if sig:
+    if sigmas:
         Console().print("within σ / 2σ: the share of scored samples whose error is at most the "
                         "reported σ / 2σ (0.632 / 0.982 if σ were exact for a 2-D Gaussian error)")
     return 0

@@ -65,7 +65,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators import tilt_batch, tilt_core
+from verticality.estimators import tilt_batch, tilt_core, tilt_smoother
 from verticality.estimators.tilt_core import TiltOutput, TiltState, quat_from_acc
 from verticality.estimators.tilt_flags import (  # noqa: F401  (the flags, for users of tilt)
     ACC_DISTURBED,
@@ -89,7 +89,7 @@ from verticality.estimators.tilt_params import (  # noqa: F401  (re-exported for
 )
 from verticality.models.base import model_dataclass, static_field
 
-__all__ = ["TiltFilter", "TiltState", "TiltOutput", "TiltParams", "Stepper", "estimate",
+__all__ = ["TiltFilter", "TiltState", "TiltOutput", "TiltParams", "Stepper", "estimate", "smooth",
            "make_step", "tilt_sigma_rad", "quat_from_acc", "DEFAULT_PARAMS", "DEFAULT_P0", "BLOCK"]
 
 _NO_ACC = np.full(3, np.nan)
@@ -170,6 +170,31 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         return filt.run(filt.init(), gyr, acc, dt)[1]
     return concatenate_outputs(list(run_in_pieces(filt, filt.init(), gyr, acc,
                                                   np.broadcast_to(dt, (n,)))))
+
+
+def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
+           block: int = BLOCK) -> TiltOutput:
+    """The offline estimate of a whole recording: the filter (:func:`estimate`, the same
+    arguments) followed by a Rauch–Tung–Striebel backward pass over its error state
+    (:mod:`~verticality.estimators.tilt_smoother`), so that every sample's tilt uses the samples
+    after it as well as those before. The same fields, row count and flags as :func:`estimate`;
+    ``var`` the smoothed variances (:func:`tilt_sigma_rad` gives the smoothed tilt's σ). A gap in
+    the time stamps, and the re-acquisition after it (or after the start), splits the smoothing:
+    nothing after a gap changes the estimate before it. The whole recording is held in memory:
+    a recording beyond :data:`verticality.sizing.MAX_WORK_BYTES` is refused (``InputError``).
+
+    Example::
+
+        out = tilt.smooth(gyr, acc, 1 / 285.7)
+        out.roll_rad, out.pitch_rad, tilt.tilt_sigma_rad(out.var)
+    """
+    gyr = np.asarray(gyr_rad_s, dtype=np.float64)
+    tilt_smoother.check_size(gyr.shape[0] if gyr.ndim else 0)
+    filt = TiltFilter(params, block)
+    final, out, trans = tilt_batch.run(params, block, filt.init(), gyr, acc_m_s2, dt_s,
+                                       transitions=True)
+    dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
+    return tilt_smoother.smoothed_output(out, trans, final.P, dts, block)
 
 
 def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int | None = None):

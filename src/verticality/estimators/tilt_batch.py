@@ -10,6 +10,8 @@ applied sample by sample, to rounding (tests/test_tilt_reference.py).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import numpy as np
 
@@ -23,7 +25,7 @@ from verticality.estimators.tilt_flags import (
     REACQUIRING,
     accelerometer_used,
 )
-from verticality.estimators.tilt_layout import HEAD, NE, ROW, SAMPLE, SOA, E, S, X
+from verticality.estimators.tilt_layout import HEAD, NE, ROW, SAMPLE, SOA, TRANS, E, S, X
 from verticality.estimators.tilt_params import MAX_RATE_RAD_S
 
 CHUNK_BLOCKS = 256
@@ -46,10 +48,23 @@ def empty_output(n: int, alloc=np.zeros) -> core.TiltOutput:
                            alloc((n, NE)), alloc(n, dtype=np.int32), alloc(n, dtype=bool))
 
 
-def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s):
+class Transitions(NamedTuple):
+    """The block updates of a batch run, for the offline smoother: ``start`` the sample at which
+    the first updated block begins (its samples are ``start + j * block`` to ``start + (j + 1) *
+    block``, the samples of a block begun before the run's first sample counted as before it),
+    ``rows`` (M, ``TRANS``) one per updated block, in order."""
+
+    start: int
+    rows: np.ndarray
+
+
+def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
+        transitions: bool = False):
     """Filter a recording from ``state``: gyro (N, 3) rad/s, accelerometer (N, 3) m/s², ``dt_s`` a
     scalar or (N,) (``dt_s[k]`` the time from sample k−1 to k). Returns ``(final_state,
-    TiltOutput)`` of NumPy arrays, as the core's ``step`` applied sample by sample would."""
+    TiltOutput)`` of NumPy arrays, as the core's ``step`` applied sample by sample would; with
+    ``transitions`` also the block updates (:class:`Transitions`, by the kernel compiled with
+    them: the same numbers)."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
@@ -67,11 +82,14 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s):
     if not initialized:
         k, x = _before_initialization(res, params, x, sums, gyr, acc, dts)
         initialized = k > 0 and bool(res.flags[k - 1] & INIT)
+    trans = Transitions(n, np.zeros((0, TRANS.size)))
     if k < n:
-        x, sums, count = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k)
+        x, sums, count, trans = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k,
+                                        transitions)
     res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
     res.measured[:] = accelerometer_used(res.flags)
-    return core.TiltState(x, sums, np.int32(count), np.bool_(initialized)), res
+    final = core.TiltState(x, sums, np.int32(count), np.bool_(initialized))
+    return (final, res, trans) if transitions else (final, res)
 
 
 def piece_cut(state: core.TiltState, acc, dts, block: int, final: bool) -> int:
@@ -154,10 +172,10 @@ def _head(sums0, n_update: int, nb: int):
 _EMPTY_SUMS = np.asarray(core.empty_sums(xp=np))
 
 
-def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k):
+def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False):
     """Samples ``k`` to the end through the batch kernel, from the filter ``x`` and the current
     block's ``sums0`` of ``count`` samples. Returns the filter, the sums and the count after the
-    last sample."""
+    last sample, and the :class:`Transitions` (None unless ``transitions``)."""
     n = gyr.shape[0]
     pad = count  # the block began before sample k: its samples are in sums0
     base = k - pad  # sample index of virtual position 0 (the current block's start)
@@ -169,7 +187,7 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k):
     # (the same numbers, faster)
     need = blocks_needing_gaps(dts, acc, k, block, p, bool(x[X.reacquire] > 0.5),
                                float(x[X.reacq_t]), pad=pad, gap0=bool(sums0[S.gap] > 0))
-    pending, j, v = [], 0, 0
+    pending, trans, j, v = [], [], 0, 0
     while v < nv:
         # a gap or a re-acquisition (after a gap, and after the initialization) within a chunk's
         # reach: short chunks with gap handling until it is past; and for a tail of at most half
@@ -196,7 +214,11 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k):
         n_update = m // block if v + m == nv else nb
         x, current, outs = tilt_kernels.run_chunk(x, _head(sums0 if v == 0 else None, n_update,
                                                            nb),
-                                                  data, p_vec, block, p._fields, gaps=gaps)
+                                                  data, p_vec, block, p._fields, gaps=gaps,
+                                                  transitions=transitions)
+        if transitions:
+            trans.append(outs[3][:n_update])
+            outs = outs[:3]
         pending.append((lo, lead, m, size, outs))
         v += m
         j += nb
@@ -212,7 +234,9 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k):
     _add_dropout_variance(res.var, gyr, acc, dts, k, pad, float(sums0[S.qmiss]), block, p)
     count = nv % block
     sums = np.asarray(current) if count else _EMPTY_SUMS.copy()
-    return np.asarray(x), sums, count
+    trans = (Transitions(base, np.concatenate([np.asarray(t) for t in trans]))
+             if transitions else None)
+    return np.asarray(x), sums, count, trans
 
 
 def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p):

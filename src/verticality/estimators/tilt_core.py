@@ -406,10 +406,30 @@ def block_prediction(x, c):
     return q_end, f_E, x[X.v] + f_E[:2]
 
 
+class BlockTransition(NamedTuple):
+    """What a block update did to the error state, for the offline smoother
+    (:mod:`verticality.estimators.tilt_smoother`): the block as a linear-Gaussian step
+    ``x_prior = F x_start + w`` followed by the measurement updates, ``x_new = x_prior ⊕ dx``.
+
+    A velocity reset (a kick, a persistent velocity, a gap) replaces the velocity by a fresh
+    unknown: ``F``'s velocity rows are zeroed there and ``P_prior`` holds the reset velocity
+    variance, so that nothing after the reset is carried back into the velocity before it.
+    ``split``: the block is a gap, collects the specific force for a re-acquisition, or
+    re-acquires; its update is no linear step of the error (the re-acquisition measures the tilt
+    with the sum of several blocks), so the smoothing does not cross into it."""
+
+    F: jax.Array  # (7, 7) the error transition over the block (velocity rows zeroed on a reset)
+    P_prior: jax.Array  # (7, 7) the covariance before the block's measurement updates
+    dx: jax.Array  # (7,) the correction the updates applied (x_new ⊖ x_prior)
+    split: jax.Array  # () bool
+
+
 def block_update(x, c, p, gaps: bool = True):
     """Kalman prediction over a block and the otolith/rest updates (T eq. 2, 7–13 in 3-D): the
     filter ``x`` (``X``) at the block start and the block's inputs ``c`` (``C``,
-    :func:`block_inputs`) give ``(x_new, disturbed, reacquired)``.
+    :func:`block_inputs`) give ``(x_new, disturbed, reacquired, transition)``
+    (:class:`BlockTransition`, for the smoother; unused by the filter, it costs nothing there:
+    XLA drops what no output needs).
 
     ``gaps=False`` leaves out the handling of gaps and re-acquisitions (for a block with no gap
     while no re-acquisition is pending: the results are then the same, and the batch kernel's
@@ -469,6 +489,7 @@ def block_update(x, c, p, gaps: bool = True):
     inn = jnp.where(keep, inn, jnp.where(reset, 0.0, x[X.vel_inn]))
     tilt_fix = jnp.where(keep, lam * tilt_fix + dx1[E.tilt], jnp.where(reset, 0.0, tilt_fix))
     vel = jnp.where(jump, 0.0, vel)
+    vel_prior = vel  # the velocity before the updates (after a reset)
     disturbed = disturbed | jump
 
     def rest_update(dx, P):  # rest: the block-mean gyro measures the bias
@@ -522,7 +543,11 @@ def block_update(x, c, p, gaps: bool = True):
     x_new = X.pack(q=q_new, b=b + dx[E.bias], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
                    vel_inn=inn, vel_tilt=tilt_fix)
-    return x_new, disturbed, reacq
+    vel_reset = jump | gap | collecting
+    transition = BlockTransition(jnp.where(vel_reset, F * _KEEP_VEL[:, None], F), P_pred,
+                                 dx.at[E.vel].set(vel - vel_prior),
+                                 gap | collecting | reacq)
+    return x_new, disturbed, reacq, transition
 
 
 def close_block(x, sums, p):
@@ -584,7 +609,7 @@ def step(state: TiltState, gyr, acc, dt, p, block: int):
 
     def close(args):
         x, sums, count = args
-        xn, disturbed, reacq = close_block(x, sums, p)
+        xn, disturbed, reacq, _ = close_block(x, sums, p)
         return xn, empty_sums(), jnp.zeros_like(count), disturbed, reacq
 
     x, sums, count, disturbed, reacq = jax.lax.cond(

@@ -28,7 +28,7 @@ import numpy as np
 
 from verticality import so3
 from verticality.estimators import tilt_core as core
-from verticality.estimators.tilt_layout import HEAD, P_DIAG, ROW, SAMPLE, SOA, S, X
+from verticality.estimators.tilt_layout import HEAD, P_DIAG, ROW, SAMPLE, SOA, TRANS, S, X
 
 SMALL_TH2 = 0.04  # |rotation|² (rad²) below which the Taylor exponential is used (error < 1e-27)
 
@@ -87,7 +87,8 @@ for _sl in (S.dquat, S.f, S.tau):
     _REDUCED[_sl] = False
 
 
-def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool = True):
+def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool = True,
+               transitions: bool = False):
     """Filter a chunk of ``n = nb * block`` samples that starts at a block boundary of the
     initialized filter ``x`` (``X``). ``data`` (n, ``SAMPLE``) = [gyr (3), acc (3), dt] per sample
     (one array: one host-to-device transfer per chunk). ``head`` (``HEAD``): ``sums0``, the sums
@@ -102,7 +103,10 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     block; ``flags`` (block, nb) int32 without ``REACQUIRING``, which the host sets from the rows
     (computing it here costs a third of the chunk's time, XLA's fusion of it). A sample's bias and
     variances are its block's start values, except at its last sample (the updated ones).
-    ``gaps=False``: the caller guarantees that no gap and no re-acquisition is in the chunk."""
+    ``gaps=False``: the caller guarantees that no gap and no re-acquisition is in the chunk.
+    ``transitions``: the outputs also hold ``trans`` (nb, ``TRANS``), each block's covariance at
+    its start and its ``tilt_core.BlockTransition`` (for the offline smoother; a separately
+    compiled kernel, so the filter's own kernels are untouched)."""
     # ``params``: a TiltParams, or its values as one vector with ``names`` its fields (one
     # argument: passing it costs less than passing 20 scalars)
     p = SimpleNamespace(**dict(zip(names, params, strict=True))) if names else params
@@ -134,16 +138,20 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
 
     def body(xc, cj):
         c, j = cj
-        xn, disturbed, reacq = core.block_update(xc, c, p, gaps)
+        xn, disturbed, reacq, tr = core.block_update(xc, c, p, gaps)
         xn = jnp.where(j < head[HEAD.n_update], xn, xc)
         # (reading the re-acquisition state costs ~30 % when no gap is in the chunk)
         pend = (xc[X.reacquire], xn[X.reacquire]) if gaps else (0.0, 0.0)
         row = ROW.pack(q0=xc[X.q], b0=xc[X.b], var0=xc[P_DIAG], q1=xn[X.q], b1=xn[X.b],
                        var1=xn[P_DIAG], disturbed=disturbed, reacquired=reacq,
                        reacquire0=pend[0], reacquire1=pend[1])
+        if transitions:
+            row = (row, TRANS.pack(P0=xc[X.P], F=tr.F.reshape(-1), P_prior=tr.P_prior.reshape(-1),
+                                   dx=tr.dx, split=tr.split))
         return xn, row
 
     x, rows = jax.lax.scan(body, x, (core.block_inputs(sums, p), jnp.arange(nb)))
+    rows, trans = rows if transitions else (rows, None)
     # per-sample quaternion: q0 ⊗ dq_k ⊗ exp(−b0 τ_k), normalized; the block's last sample
     # carries the updated estimate
     q0 = tuple(rows[:, ROW.q0][:, i] for i in range(4))
@@ -161,9 +169,10 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     # the host writes these straight into the sample-major result arrays (a transposing copy
     # there is cheaper than XLA's transpose here, and bias/var need no per-sample array at all)
     current = sums[jnp.minimum(head[HEAD.n_update].astype(jnp.int32), nb - 1)]
-    return x, current, (SOA.pack(axis=0, quat=q, up=up, roll=roll, pitch=pitch), rows, fl)
+    outs = (SOA.pack(axis=0, quat=q, up=up, roll=roll, pitch=pitch), rows, fl)
+    return x, current, (outs + (trans,) if transitions else outs)
 
 
 # one compilation for every parameter value (the host puts the parameters on the device once per
 # recording, so that a call transfers only its chunk)
-run_chunk = jax.jit(_run_chunk, static_argnames=("block", "names", "gaps"))
+run_chunk = jax.jit(_run_chunk, static_argnames=("block", "names", "gaps", "transitions"))

@@ -28,6 +28,9 @@ arrays. The layouts:
 * :data:`ROW` the batch kernel's row per block: the state at its start (``q0``, ``b0``, ``var0``
   the diagonal of ``P``) and after its update (``q1``, ``b1``, ``var1``), whether the update found
   the accelerometer disturbed and re-acquired the tilt, and ``reacquire`` before and after.
+* :data:`TRANS` the batch kernel's row per block for the offline smoother: the covariance at the
+  block's start ``P0`` and the block's :class:`~verticality.estimators.tilt_core.BlockTransition`
+  (``F``, ``P_prior``, ``dx``, ``split``; matrices row-major).
 * :data:`SOA` the batch kernel's per-sample outputs, along the leading axis.
 * :data:`HEAD` the batch kernel's chunk header: the sums the chunk's first block starts from and
   the number of blocks whose update the chunk applies.
@@ -102,5 +105,7 @@ OUT = Packed([("roll", None), ("pitch", None), ("up", 3), ("quat", 4), ("bias", 
 ROW = Packed([("q0", 4), ("b0", 3), ("var0", NE), ("q1", 4), ("b1", 3), ("var1", NE),
               ("disturbed", None), ("reacquired", None), ("reacquire0", None),
               ("reacquire1", None)])
+TRANS = Packed([("P0", NE * NE), ("F", NE * NE), ("P_prior", NE * NE), ("dx", NE),
+                ("split", None)])
 SOA = Packed([("quat", 4), ("up", 3), ("roll", None), ("pitch", None)])
 HEAD = Packed([("sums0", S.size), ("n_update", None)])

@@ -1,0 +1,167 @@
+"""The offline smoother of the 3-D tilt filter (``tilt.smooth``): a Rauch–Tung–Striebel backward
+pass over the block filter's error state.
+
+The forward pass is the filter itself (``tilt_batch.run`` with ``transitions``: the same block
+update, :func:`verticality.estimators.tilt_core.block_update`, which also reports each block as a
+linear-Gaussian step, :class:`~verticality.estimators.tilt_core.BlockTransition`). Per block
+``j`` it gives the covariance at its start ``P0_j`` (the filtered ``P⁺`` of the block before), the
+error transition ``F_j``, the covariance before its measurement updates ``P⁻_j`` and the
+correction ``dx_j`` the updates applied. Backward, with ``e_j`` the smoothed error at the start of
+block ``j`` (``x^s = x⁺ ⊕ e``) and ``e'_j = e_{j+1}`` the one at its end::
+
+    C_j  = P0_j F_jᵀ (P⁻_j)⁻¹
+    e_j  = C_j (e'_j + dx_j)                    (x^s ⊖ x⁻ = e' + dx: the tilt parts of e' and dx
+                                                 are horizontal, their composition's error is
+                                                 vertical, the heading)
+    P^s_j = P0_j + C_j (P^s'_j − P⁻_j) C_jᵀ
+
+from ``e = 0``, ``P^s = P⁺`` after the last updated block (the filter's final estimate is the
+smoothed one). Where a block is a gap, collects the specific force for a re-acquisition or
+re-acquires (``split``), ``C = 0``: the recording is smoothed in independent segments, and nothing
+after a gap changes the estimate before it. A velocity reset (``BlockTransition``) zeroes ``F``'s
+velocity rows, so ``C``'s velocity columns vanish there: the smoothed velocity after a reset says
+nothing about the velocity before it.
+
+Samples inside a block: the filter's sample (the block-start estimate carried by the gyro,
+``tilt_core.sample_quat``) corrected by the smoothed error interpolated linearly in time between
+the block's smoothed ends (``e_j`` at its start, ``e'_j + dx_j`` at its end, relative to the
+gyro-carried prediction); within a block the error's change is the bias error times the time
+(``F``), linear to first order. The bias likewise; the variances are interpolated the same way
+(plus what gyro dropouts add within the block, as the filter reports them). Inside a split block
+the filter's samples are kept; its last sample carries the smoothed block end.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from verticality import sizing, so3
+from verticality.estimators import tilt_core as core
+from verticality.estimators.tilt_batch import Transitions
+from verticality.estimators.tilt_kernels import atan2
+from verticality.estimators.tilt_layout import NE, TRANS, E
+
+# memory per sample of a smoothing run, peak (the inputs, the filter's outputs, the smoothed
+# outputs, the per-block transitions and the device's copies; measured with
+# benchmarks/bench_tilt.py's recording, rounded up)
+BYTES_PER_SAMPLE = 1500
+
+
+def check_size(n: int) -> None:
+    """Refuse a recording of ``n`` samples whose smoothing would need more memory than
+    :data:`verticality.sizing.MAX_WORK_BYTES` (the smoother holds the whole recording)."""
+    sizing.check_work_size(n, BYTES_PER_SAMPLE, "samples held at once by the offline smoother",
+                           "smooth the recording in parts (cut it where the IMU rests or at a "
+                           "gap), or use the causal filter (estimate without --offline), which "
+                           "reads and filters the recording piece by piece")
+
+
+def rts_gains(P0, F, P_prior, split):
+    """The smoother gains ``C = P0 Fᵀ (P⁻)⁻¹`` of a stack of blocks ((M, 7, 7) each; ``split``
+    (M,) bool: ``C = 0``). ``P⁻`` and ``P0`` are symmetric: ``C = ((P⁻)⁻¹ F P0)ᵀ``."""
+    C = jnp.swapaxes(jnp.linalg.solve(P_prior, F @ P0), -1, -2)
+    return jnp.where(split[:, None, None], 0.0, C)
+
+
+def rts_backward(P0, F, P_prior, dx, split, P_end):
+    """The backward pass (module doc) over M blocks: ``P0``, ``F``, ``P_prior`` (M, 7, 7), ``dx``
+    (M, 7), ``split`` (M,) bool, ``P_end`` (7, 7) the filtered covariance after the last block.
+    Returns ``(e, Ps)``: the smoothed error (M, 7) and covariance (M, 7, 7) at each block's start
+    (a reverse ``lax.scan``)."""
+    C = rts_gains(P0, F, P_prior, split)
+
+    def back(carry, blk):
+        e_end, Ps_end = carry
+        Cj, P0j, Ppj, dxj = blk
+        e = Cj @ (e_end + dxj)
+        Ps = P0j + Cj @ (Ps_end - Ppj) @ Cj.T
+        Ps = 0.5 * (Ps + Ps.T)
+        return (e, Ps), (e, Ps)
+
+    _, (e, Ps) = jax.lax.scan(back, (jnp.zeros(NE), P_end), (C, P0, P_prior, dx), reverse=True)
+    return e, Ps
+
+
+def _diag(P):
+    return jnp.diagonal(P, axis1=-2, axis2=-1)
+
+
+@jax.jit
+def _smooth_blocks(rows, P_end, quat, bias, var, dts):
+    """The smoothed samples of M whole blocks: ``rows`` (M, ``TRANS``), ``P_end`` (7, 7), the
+    filter's ``quat`` (M, block, 4), ``bias`` (M, block, 3), ``var`` (M, block, 7) and the valid
+    steps ``dts`` (M, block) (0 where a sample's Δt is not valid). Returns the smoothed
+    ``(quat, up, roll, pitch, bias, var)`` in the same layout."""
+    m, block = dts.shape
+    P0 = rows[:, TRANS.P0].reshape(m, NE, NE)
+    F = rows[:, TRANS.F].reshape(m, NE, NE)
+    P_prior = rows[:, TRANS.P_prior].reshape(m, NE, NE)
+    dx = rows[:, TRANS.dx]
+    split = rows[:, TRANS.split] > 0.5
+    e, Ps = rts_backward(P0, F, P_prior, dx, split, P_end)
+    e_end = jnp.concatenate([e[1:], jnp.zeros((1, NE))])
+    Ps_end = jnp.concatenate([Ps[1:], P_end[None]])
+
+    T = jnp.sum(dts, axis=1, keepdims=True)
+    w = (jnp.cumsum(dts, axis=1) / jnp.where(T > 0, T, 1.0))[..., None]  # (M, block, 1)
+    inside = jnp.where(split[:, None, None], 0.0,
+                       (1.0 - w) * e[:, None] + w * (e_end + dx)[:, None])
+    last = (jnp.arange(block) == block - 1)[None, :, None]
+    corr = jnp.where(last, e_end[:, None], inside)  # (M, block, 7)
+    dq = so3.quat_exp_components(corr[..., 0], corr[..., 1], jnp.zeros_like(corr[..., 0]))
+    q = so3.quat_normalize_components(so3.quat_multiply_components(
+        dq, tuple(quat[..., i] for i in range(4))))
+    up, roll, pitch = core.up_roll_pitch(q, atan2=atan2)
+    var_in = jnp.where(split[:, None, None], var,
+                       (1.0 - w) * _diag(Ps)[:, None] + w * _diag(Ps_end)[:, None]
+                       + var - _diag(P0)[:, None])
+    var_s = jnp.maximum(jnp.where(last, _diag(Ps_end)[:, None], var_in), 0.0)
+    return (jnp.stack(q, axis=-1), jnp.stack(up, axis=-1), roll, pitch,
+            bias + corr[..., E.bias], var_s)
+
+
+def _padded_blocks(m: int) -> int:
+    """The number of blocks the compiled pass runs for ``m``: the next power of two (a few
+    compiled shapes serve every recording)."""
+    return 1 << max(0, (m - 1).bit_length())
+
+
+def smoothed_output(out: core.TiltOutput, trans: Transitions, P_end, dts,
+                    block: int) -> core.TiltOutput:
+    """The filter's output ``out`` (NumPy, from the recording's start) smoothed with the run's
+    block updates ``trans`` (``tilt_batch.run(..., transitions=True)``), ``P_end`` (7, 7) the
+    final filtered covariance, ``dts`` (N,) the steps. The samples before the first updated
+    block (up to the initialization) and after the last (the unfinished block) are the filter's:
+    there the smoothed estimate is the filtered one. Flags and ``measured`` are the filter's."""
+    m = trans.rows.shape[0]
+    res = core.TiltOutput(*(np.array(v) for v in out))
+    if m == 0:
+        return res
+    s0, mp = trans.start, _padded_blocks(m)
+    sl = slice(s0, s0 + m * block)
+    rows = np.zeros((mp, TRANS.size))
+    rows[:m] = trans.rows
+    eye = np.eye(NE).reshape(-1)  # padding: split blocks with the final covariance
+    rows[m:, TRANS.P0] = np.asarray(P_end).reshape(-1)
+    rows[m:, TRANS.F] = eye
+    rows[m:, TRANS.P_prior] = eye
+    rows[m:, TRANS.split] = 1.0
+
+    def padded(a, fill):
+        z = np.empty((mp * block,) + a.shape[1:])
+        z[:m * block] = a[sl]
+        z[m * block:] = fill
+        return z.reshape((mp, block) + a.shape[1:])
+
+    d = np.asarray(dts, dtype=np.float64)
+    d = np.where(core.valid_dt(d), d, 0.0)
+    outs = _smooth_blocks(rows, np.asarray(P_end, dtype=np.float64),
+                          padded(res.quat_E_S, (1.0, 0.0, 0.0, 0.0)),
+                          padded(res.bias_S_rad_s, 0.0), padded(res.var, 0.0), padded(d, 0.0))
+    for dst, src in zip((res.quat_E_S, res.up_S, res.roll_rad, res.pitch_rad, res.bias_S_rad_s,
+                         res.var), outs, strict=True):
+        src = np.asarray(src)
+        dst[sl] = src.reshape((mp * block,) + src.shape[2:])[:m * block]
+    return res
