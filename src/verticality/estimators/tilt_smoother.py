@@ -40,7 +40,7 @@ import numpy as np
 from verticality import sizing, so3
 from verticality.estimators import tilt_core as core
 from verticality.estimators.tilt_batch import Transitions
-from verticality.estimators.tilt_kernels import atan2
+from verticality.estimators.tilt_kernels import atan2, quat_exp_batched
 from verticality.estimators.tilt_layout import NE, TRANS, E
 
 # memory per sample of a smoothing run, peak (the inputs, the filter's outputs, the smoothed
@@ -58,10 +58,35 @@ def check_size(n: int) -> None:
                            "reads and filters the recording piece by piece")
 
 
+def matmul(a, b):
+    """``a @ b`` of (..., n, k) and (..., k, m) stacks, element-wise (XLA on a CPU runs a
+    broadcast product and a sum over 7 × 7 matrices faster than a dot)."""
+    return jnp.sum(a[..., :, :, None] * b[..., None, :, :], axis=-2)
+
+
+def solve_spd(A, B):
+    """``A⁻¹ B`` for stacks of symmetric positive-definite ``A`` (M, n, n) and ``B`` (M, n, m):
+    Gaussian elimination without pivoting (stable for a positive-definite matrix), unrolled over
+    the few rows, each step element-wise over the stack."""
+    n, m = A.shape[-1], B.shape[-1]
+    a = [[A[:, i, j] for j in range(n)] for i in range(n)]
+    b = [[B[:, i, j] for j in range(m)] for i in range(n)]
+    for k in range(n):
+        for i in range(k + 1, n):
+            f = a[i][k] / a[k][k]
+            a[i] = [a[i][j] - f * a[k][j] if j > k else a[i][j] for j in range(n)]
+            b[i] = [b[i][j] - f * b[k][j] for j in range(m)]
+    x = [None] * n
+    for i in reversed(range(n)):
+        x[i] = [(b[i][j] - sum(a[i][k] * x[k][j] for k in range(i + 1, n))) / a[i][i]
+                for j in range(m)]
+    return jnp.stack([jnp.stack(row, axis=-1) for row in x], axis=-2)
+
+
 def rts_gains(P0, F, P_prior, split):
     """The smoother gains ``C = P0 Fᵀ (P⁻)⁻¹`` of a stack of blocks ((M, 7, 7) each; ``split``
     (M,) bool: ``C = 0``). ``P⁻`` and ``P0`` are symmetric: ``C = ((P⁻)⁻¹ F P0)ᵀ``."""
-    C = jnp.swapaxes(jnp.linalg.solve(P_prior, F @ P0), -1, -2)
+    C = jnp.swapaxes(solve_spd(P_prior, matmul(F, P0)), -1, -2)
     return jnp.where(split[:, None, None], 0.0, C)
 
 
@@ -75,12 +100,12 @@ def rts_backward(P0, F, P_prior, dx, split, P_end):
     def back(carry, blk):
         e_end, Ps_end = carry
         Cj, P0j, Ppj, dxj = blk
-        e = Cj @ (e_end + dxj)
-        Ps = P0j + Cj @ (Ps_end - Ppj) @ Cj.T
+        e = jnp.sum(Cj * (e_end + dxj)[None, :], axis=1)
+        Ps = P0j + matmul(matmul(Cj, Ps_end - Ppj), Cj.T)
         Ps = 0.5 * (Ps + Ps.T)
         return (e, Ps), (e, Ps)
 
-    _, (e, Ps) = jax.lax.scan(back, (jnp.zeros(NE), P_end), (C, P0, P_prior, dx), reverse=True)
+    _, (e, Ps) = jax.lax.scan(back, (jnp.zeros(NE), P_end), (C, P0, P_prior, dx), reverse=True, unroll=16)
     return e, Ps
 
 
@@ -89,42 +114,53 @@ def _diag(P):
 
 
 @jax.jit
-def _smooth_blocks(rows, P_end, quat, bias, var, dts):
-    """The smoothed samples of M whole blocks: ``rows`` (M, ``TRANS``), ``P_end`` (7, 7), the
-    filter's ``quat`` (M, block, 4), ``bias`` (M, block, 3), ``var`` (M, block, 7) and the valid
-    steps ``dts`` (M, block) (0 where a sample's Δt is not valid). Returns the smoothed
-    ``(quat, up, roll, pitch, bias, var)`` in the same layout."""
-    m, block = dts.shape
+def _smooth_ends(rows, P_end):
+    """Per block (``rows`` (M, ``TRANS``), ``P_end`` (7, 7)): what its samples need (``ENDS``
+    (M, 43), see :func:`_smooth_samples`): the error corrections at its start ``e``, at its end
+    relative to the gyro-carried prediction ``e' + dx`` and at its last sample ``e'``; the
+    smoothed variances minus the filtered ones at its start and end, and the smoothed ones at its
+    end; ``split``."""
+    m = rows.shape[0]
     P0 = rows[:, TRANS.P0].reshape(m, NE, NE)
-    F = rows[:, TRANS.F].reshape(m, NE, NE)
-    P_prior = rows[:, TRANS.P_prior].reshape(m, NE, NE)
     dx = rows[:, TRANS.dx]
     split = rows[:, TRANS.split] > 0.5
-    e, Ps = rts_backward(P0, F, P_prior, dx, split, P_end)
+    e, Ps = rts_backward(P0, rows[:, TRANS.F].reshape(m, NE, NE),
+                         rows[:, TRANS.P_prior].reshape(m, NE, NE), dx, split, P_end)
     e_end = jnp.concatenate([e[1:], jnp.zeros((1, NE))])
-    Ps_end = jnp.concatenate([Ps[1:], P_end[None]])
+    var_end = jnp.concatenate([_diag(Ps)[1:], _diag(P_end)[None]])
+    var0 = _diag(P0)
+    return jnp.concatenate([e, e_end + dx, e_end, _diag(Ps) - var0, var_end - var0, var_end,
+                            split[:, None].astype(jnp.float64)], axis=1)
 
+
+@jax.jit
+def _smooth_samples(ends, quat, bias, var, dts):
+    """The smoothed samples of a chunk of whole blocks: ``ends`` (M, 43) from
+    :func:`_smooth_ends`, the filter's ``quat`` (M, block, 4), ``bias`` (M, block, 3), ``var``
+    (M, block, 7) and the valid steps ``dts`` (M, block) (0 where a sample's Δt is not valid).
+    Returns the smoothed ``(quat, up, roll, pitch, bias, var)`` in the same layout."""
+    block = dts.shape[1]
+    e0, e1, e_last, v0, v1, v_last = (ends[:, None, i * NE:(i + 1) * NE] for i in range(6))
+    split = ends[:, None, None, 6 * NE] > 0.5
     T = jnp.sum(dts, axis=1, keepdims=True)
     w = (jnp.cumsum(dts, axis=1) / jnp.where(T > 0, T, 1.0))[..., None]  # (M, block, 1)
-    inside = jnp.where(split[:, None, None], 0.0,
-                       (1.0 - w) * e[:, None] + w * (e_end + dx)[:, None])
     last = (jnp.arange(block) == block - 1)[None, :, None]
-    corr = jnp.where(last, e_end[:, None], inside)  # (M, block, 7)
-    dq = so3.quat_exp_components(corr[..., 0], corr[..., 1], jnp.zeros_like(corr[..., 0]))
+    corr = jnp.where(last, e_last, jnp.where(split, 0.0, (1.0 - w) * e0 + w * e1))
+    dq = quat_exp_batched(corr[..., 0], corr[..., 1], jnp.zeros_like(corr[..., 0]))
     q = so3.quat_normalize_components(so3.quat_multiply_components(
         dq, tuple(quat[..., i] for i in range(4))))
     up, roll, pitch = core.up_roll_pitch(q, atan2=atan2)
-    var_in = jnp.where(split[:, None, None], var,
-                       (1.0 - w) * _diag(Ps)[:, None] + w * _diag(Ps_end)[:, None]
-                       + var - _diag(P0)[:, None])
-    var_s = jnp.maximum(jnp.where(last, _diag(Ps_end)[:, None], var_in), 0.0)
+    var_s = jnp.where(last, v_last, jnp.where(split, var, var + (1.0 - w) * v0 + w * v1))
     return (jnp.stack(q, axis=-1), jnp.stack(up, axis=-1), roll, pitch,
-            bias + corr[..., E.bias], var_s)
+            bias + corr[..., E.bias], jnp.maximum(var_s, 0.0))
+
+
+CHUNK_BLOCKS = 1024  # blocks per call of the per-sample pass (one compiled shape)
 
 
 def _padded_blocks(m: int) -> int:
-    """The number of blocks the compiled pass runs for ``m``: the next power of two (a few
-    compiled shapes serve every recording)."""
+    """The number of blocks the compiled backward pass runs for ``m``: the next power of two (a
+    few compiled shapes serve every recording)."""
     return 1 << max(0, (m - 1).bit_length())
 
 
@@ -134,13 +170,12 @@ def smoothed_output(out: core.TiltOutput, trans: Transitions, P_end, dts,
     block updates ``trans`` (``tilt_batch.run(..., transitions=True)``), ``P_end`` (7, 7) the
     final filtered covariance, ``dts`` (N,) the steps. The samples before the first updated
     block (up to the initialization) and after the last (the unfinished block) are the filter's:
-    there the smoothed estimate is the filtered one. Flags and ``measured`` are the filter's."""
+    there the smoothed estimate is the filtered one. Flags and ``measured`` are the filter's.
+    ``out`` is smoothed in place (and returned)."""
     m = trans.rows.shape[0]
-    res = core.TiltOutput(*(np.array(v) for v in out))
     if m == 0:
-        return res
-    s0, mp = trans.start, _padded_blocks(m)
-    sl = slice(s0, s0 + m * block)
+        return out
+    mp = _padded_blocks(m)
     rows = np.zeros((mp, TRANS.size))
     rows[:m] = trans.rows
     eye = np.eye(NE).reshape(-1)  # padding: split blocks with the final covariance
@@ -148,20 +183,25 @@ def smoothed_output(out: core.TiltOutput, trans: Transitions, P_end, dts,
     rows[m:, TRANS.F] = eye
     rows[m:, TRANS.P_prior] = eye
     rows[m:, TRANS.split] = 1.0
-
-    def padded(a, fill):
-        z = np.empty((mp * block,) + a.shape[1:])
-        z[:m * block] = a[sl]
-        z[m * block:] = fill
-        return z.reshape((mp, block) + a.shape[1:])
-
+    ends = np.asarray(_smooth_ends(rows, np.asarray(P_end, dtype=np.float64)))
+    ends = np.concatenate([ends, np.zeros((-mp % CHUNK_BLOCKS, ends.shape[1]))])  # whole chunks
     d = np.asarray(dts, dtype=np.float64)
     d = np.where(core.valid_dt(d), d, 0.0)
-    outs = _smooth_blocks(rows, np.asarray(P_end, dtype=np.float64),
-                          padded(res.quat_E_S, (1.0, 0.0, 0.0, 0.0)),
-                          padded(res.bias_S_rad_s, 0.0), padded(res.var, 0.0), padded(d, 0.0))
-    for dst, src in zip((res.quat_E_S, res.up_S, res.roll_rad, res.pitch_rad, res.bias_S_rad_s,
-                         res.var), outs, strict=True):
-        src = np.asarray(src)
-        dst[sl] = src.reshape((mp * block,) + src.shape[2:])[:m * block]
-    return res
+    fields = (out.quat_E_S, out.up_S, out.roll_rad, out.pitch_rad, out.bias_S_rad_s, out.var)
+    pending = []
+    for j in range(0, m, CHUNK_BLOCKS):  # dispatch every chunk, then copy (overlapping)
+        nb = min(CHUNK_BLOCKS, m - j)
+        lo = trans.start + j * block
+        ins = []
+        for a, fill in ((out.quat_E_S, (1.0, 0.0, 0.0, 0.0)), (out.bias_S_rad_s, 0.0),
+                        (out.var, 0.0), (d, 0.0)):
+            z = np.empty((CHUNK_BLOCKS * block,) + a.shape[1:])
+            z[:nb * block] = a[lo:lo + nb * block]
+            z[nb * block:] = fill
+            ins.append(z.reshape((CHUNK_BLOCKS, block) + a.shape[1:]))
+        pending.append((lo, nb, _smooth_samples(ends[j:j + CHUNK_BLOCKS], *ins)))
+    for lo, nb, res in pending:
+        for dst, src in zip(fields, res, strict=True):
+            src = np.asarray(src)
+            dst[lo:lo + nb * block] = src.reshape((-1,) + src.shape[2:])[:nb * block]
+    return out
