@@ -22,11 +22,21 @@ class ImuEstimate(NamedTuple):
     tilt_sigma_rad: np.ndarray | None  # (N,) our filter's σ of the tilt; None for a peer
 
 
-def estimate_imu(gyr_rad_s, acc_m_s2, dt_s, filter_name: str = OURS) -> ImuEstimate:
+def check_offline(filter_name: str, offline: bool) -> None:
+    """Refuse ``offline`` for a filter other than ours (the smoother is ours)."""
+    if offline and filter_name != OURS:
+        raise InputError(f"--offline: the offline smoother is {OURS}'s; filter {filter_name} "
+                         f"runs causally only (use --filter {OURS}, or leave out --offline)")
+
+
+def estimate_imu(gyr_rad_s, acc_m_s2, dt_s, filter_name: str = OURS,
+                 offline: bool = False) -> ImuEstimate:
     """Roll, pitch, gravity direction, bias and flags of a recording by ``filter_name`` (ours:
-    ``tilt.estimate`` with its σ; a peer: :func:`peer_output` of its quaternions and bias)."""
+    ``tilt.estimate`` with its σ, or with ``offline`` the smoother ``tilt.smooth``; a peer:
+    :func:`peer_output` of its quaternions and bias)."""
+    check_offline(filter_name, offline)
     if filter_name == OURS:
-        out = tilt.estimate(gyr_rad_s, acc_m_s2, dt_s)
+        out = (tilt.smooth if offline else tilt.estimate)(gyr_rad_s, acc_m_s2, dt_s)
         return ImuEstimate(out, tilt.tilt_sigma_rad(out.var))
     quat, bias = run_filter(filter_name, gyr_rad_s, acc_m_s2, dt_s)
     return ImuEstimate(peer_output(np.asarray(quat), np.asarray(bias), dt_s), None)
@@ -104,26 +114,44 @@ class EstimateRun(NamedTuple):
     tilt_sigma_rad: np.ndarray | None = None
 
 
+def count_rows(path, piece_bytes: int = 2**22) -> int:
+    """The number of lines of a text file (read in pieces: nothing is parsed or kept), to size
+    work on the whole recording before reading it."""
+    n, last = 0, b"\n"
+    with open(path, "rb") as fh:
+        while piece := fh.read(piece_bytes):
+            n += piece.count(b"\n")
+            last = piece[-1:]
+    return n + (last != b"\n")
+
+
 def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                   filter_name: str = OURS, sigma: bool = False, keep: bool = False,
-                  piece_rows: int = tilt_batch.PIECE_SAMPLES) -> EstimateRun:
+                  piece_rows: int = tilt_batch.PIECE_SAMPLES,
+                  offline: bool = False) -> EstimateRun:
     """``verticality estimate``: filter the recording in ``path`` and write the estimate CSV to
     ``out_path`` (through a temporary file beside it, renamed at the end: a refusal midway leaves
     no partial file). An IMU CSV through our filter is read, filtered and written piece by piece
     (:func:`verticality.io.imu.iter_imu_csv`, :func:`verticality.estimators.tilt.run_in_pieces`'s
     pieces: the numbers of the in-memory run bit for bit), so that memory stays proportional to a
     piece, not to the file; ``keep`` (a figure) also keeps every output. A BROAD HDF5 file and the
-    peers are read whole."""
+    peers are read whole. ``offline``: our smoother (``tilt.smooth``), which needs the whole
+    recording: read whole, after its size is checked (a CSV's rows counted first), and refused
+    beyond what memory allows."""
+    from verticality.estimators import tilt_smoother
     from verticality.io import broad, imu, imu_layout
     from verticality.io.recording import load_imu, parse_units
 
+    check_offline(filter_name, offline)
+    if offline and not broad.is_broad_file(path):
+        tilt_smoother.check_size(count_rows(path))
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     part = out_path.with_name(out_path.name + ".part")
     try:
-        if filter_name != OURS or broad.is_broad_file(path):
+        if filter_name != OURS or offline or broad.is_broad_file(path):
             rec = load_imu(path, units, columns, time_unit)
-            est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, filter_name)
+            est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, filter_name, offline)
             imu.write_estimate_csv(part, rec.t_s, est.out,
                                    tilt_sigma_rad=est.tilt_sigma_rad if sigma else None)
             os.replace(part, out_path)

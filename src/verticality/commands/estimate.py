@@ -1,10 +1,11 @@
-"""``verticality estimate INPUT --out OUT.csv [--filter NAME] [--plot OUT.png] [--units ...]
-[--columns t=NAME,...] [--time-unit s|ms|us|ns]``.
+"""``verticality estimate INPUT --out OUT.csv [--filter NAME] [--offline] [--plot OUT.png]
+[--units ...] [--columns t=NAME,...] [--time-unit s|ms|us|ns]``.
 
 INPUT is an IMU CSV (``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z``, SI units; an EuRoC / TUM-VI IMU
 file; or any header mapped with ``--columns``) or a BROAD-layout HDF5 file. Writes
 ``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags``; with ``--sigma`` (our filter) a last
-column ``tilt_sigma_rad``, the tilt's standard deviation.
+column ``tilt_sigma_rad``, the tilt's standard deviation. ``--offline``: our smoother
+(``tilt.smooth``) over the whole recording instead of the causal filter.
 """
 
 from __future__ import annotations
@@ -30,6 +31,10 @@ def register(sub):
                         "tilt (our filter only; docs/tilt.md)")
     p.add_argument("--filter", default=OURS, choices=FILTERS,
                    help=f"filter (default {OURS}; peers need the optional peers extra)")
+    p.add_argument("--offline", action="store_true",
+                   help="smooth: every sample's estimate also uses the samples after it (our "
+                        "filter followed by a backward pass over the whole recording, read at "
+                        "once; docs/tilt.md, Offline smoothing)")
     p.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                    help="also draw roll, pitch, bias, the tilt's σ and the flags over time")
     add_layout_options(p)
@@ -64,8 +69,10 @@ def run(args) -> int:
     # a spinner on a terminal (nothing otherwise): a long recording takes a while to read and write
     with Console(stderr=True).status(f"reading, filtering ({args.filter}) and writing …"):
         run = estimate_file(args.input, args.out, args.units, args.columns, args.time_unit,
-                            args.filter, sigma=args.sigma, keep=args.plot is not None)
-    print(f"wrote {args.out} ({run.n} samples, filter {args.filter})")
+                            args.filter, sigma=args.sigma, keep=args.plot is not None,
+                            offline=args.offline)
+    how = ", offline (smoothed)" if args.offline else ""
+    print(f"wrote {args.out} ({run.n} samples, filter {args.filter}{how})")
     if run.sigma_line is not None:
         print(run.sigma_line)
     if run.gap_line is not None:
