@@ -1,9 +1,13 @@
-"""Throughput of the tilt filter (verticality.estimators.tilt) against vqf in the same run.
+"""Throughput of the tilt filter (verticality.estimators.tilt) and its offline smoother against
+vqf in the same run.
 
 - batch: ``tilt.estimate`` (``TiltFilter.run`` from the start) on one BROAD trial (or a synthetic recording if the data are absent) vs
   ``vqf.VQF(Ts).updateBatch`` (C++), samples per second, best of several repetitions (the two
   alternate), compile excluded (one compiled shape serves every recording); also the time of the
   compiled chunks alone, the rest of the run's time being the host side;
+- offline: ``tilt.smooth`` (the filter and its backward pass) vs ``vqf.offlineVQF`` (C++) on
+  the same recording repeated to ``--offline-samples`` samples (10⁶ by default), alternating, best
+  of ``--offline-reps``;
 - streaming, one call per sample as a 1 kHz robot loop would, samples per second:
   ``tilt_stream.Stream.step`` (the plain Python/NumPy reference implementation of the filter, the
   real-time path) and the jitted packed JAX step ``tilt.make_step()`` (bounded by JAX's per-call
@@ -94,6 +98,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=15)
     ap.add_argument("--stream-samples", type=int, default=2000)
+    ap.add_argument("--offline-samples", type=int, default=1_000_000)
+    ap.add_argument("--offline-reps", type=int, default=5)
     args = ap.parse_args()
     gyr, acc, dt, name = _data()
     gyr = np.ascontiguousarray(gyr)
@@ -118,6 +124,23 @@ def main() -> int:
     if t_vqf is not None:
         rows.append(("vqf VQF.updateBatch (C++)", n / t_vqf))
     t_dev, n_chunks = _device_time(gyr, acc, dt, args.reps)
+
+    # offline: the smoother against offlineVQF on a long recording (the trial repeated)
+    m_off = args.offline_samples
+    reps = -(-m_off // n)
+    gyr_l = np.ascontiguousarray(np.tile(gyr, (reps, 1))[:m_off])
+    acc_l = np.ascontiguousarray(np.tile(acc, (reps, 1))[:m_off])
+    tilt.smooth(gyr_l, acc_l, dt)  # compile
+    fns_off = {"smooth": lambda: tilt.smooth(gyr_l, acc_l, dt)}
+    if VQF is not None:
+        from vqf import offlineVQF
+
+        fns_off["offlineVQF"] = lambda: offlineVQF(gyr_l, acc_l, None, dt)
+    best_off = _best_interleaved(fns_off, args.offline_reps)
+    rows.append((f"verticality tilt.smooth (offline, {m_off:.0e} samples)",
+                 m_off / best_off["smooth"]))
+    if "offlineVQF" in best_off:
+        rows.append((f"vqf offlineVQF (C++, {m_off:.0e} samples)", m_off / best_off["offlineVQF"]))
 
     # streaming: jitted step, params and block baked in, one call per sample
     stepper = tilt.make_step()
@@ -156,6 +179,9 @@ def main() -> int:
           f"{1e3 * (t_ours - t_dev):.2f} ms")
     if t_vqf is not None:
         print(f"ratio batch ours/vqf: {t_vqf / t_ours:.2f} (required >= 1)")
+    if "offlineVQF" in best_off:
+        print(f"ratio offline ours/offlineVQF: {best_off['offlineVQF'] / best_off['smooth']:.2f}; "
+              f"smoother {m_off / best_off['smooth'] / 1e6:.2f} M samples/s (required >= 1)")
     print(f"streaming (tilt_stream.Stream): {m / t_stream:,.0f} samples/s (required >= 20,000); "
           f"a 1 kHz loop costs {100 * 1000 * t_stream / m:.1f} % of a core")
     return 0

@@ -114,6 +114,13 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
     assert rmse < cal["rms_sigma_deg"] < 5 * rmse
     assert cli.main(["evaluate", "broad", str(tmp_path), "--filters", "verticality"]) == 0
     assert "within σ / 2σ" in capsys.readouterr().out
+    # the smoother beside the filter in the same run: its own σ calibration, and better here
+    res = evaluate_trials([tmp_path / "slice.hdf5"], ["verticality", "verticality-offline"])
+    smooth = tilt.smooth(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+    assert res["trials"]["slice"]["verticality-offline"] == pytest.approx(
+        broad.inclination_rmse_deg(smooth.quat_E_S, trial), rel=1e-12)
+    assert res["trials"]["slice"]["verticality-offline"] < rmse
+    assert res["sigma_offline"]["slice"]["within_2sigma"] > 0.95
 
 
 def test_sigma_calibration_counts_errors_within_sigma(tmp_path):

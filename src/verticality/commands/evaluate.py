@@ -16,9 +16,7 @@ def register(sub):
     b = ev.add_parser("broad", help="BROAD inclination RMSE per trial (official metric)")
     b.add_argument("directory", type=Path, metavar="DIR", help="folder of BROAD .hdf5 trials")
     b.add_argument("--json", action="store_true",
-                   help='print {"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg}, '
-                        '"sigma": {FILTER: {NAME: {"within_1sigma", "within_2sigma", '
-                        '"rms_sigma_deg"}}}} (sigma: ours and our smoother)')
+                   help='print {"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg}}')
     b.add_argument("--filters", nargs="+", default=None, metavar="NAME",
                    help="filters to run (default: verticality, every installed peer, "
                         "verticality-offline (our smoother) and vqf-offline (offlineVQF))")
@@ -47,8 +45,7 @@ def run_broad(args) -> int:
     sigmas = {name: res[key] for name, key in ((OURS, "sigma"), (OURS_OFFLINE, "sigma_offline"))
               if res[key]}
     if args.json:
-        json.dump({"trials": res["trials"], "mean": res["mean"], "sigma": sigmas}, sys.stdout,
-                  indent=2)
+        json.dump({"trials": res["trials"], "mean": res["mean"]}, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     table = Table(title=f"BROAD inclination RMSE (deg), {len(res['trials'])} trials")
