@@ -137,10 +137,10 @@ def main() -> int:
 
         fns_off["offlineVQF"] = lambda: offlineVQF(gyr_l, acc_l, None, dt)
     best_off = _best_interleaved(fns_off, args.offline_reps)
-    rows.append((f"verticality tilt.smooth (offline, {m_off:.0e} samples)",
+    rows.append((f"verticality tilt.smooth (offline, {m_off:.0e})",
                  m_off / best_off["smooth"]))
     if "offlineVQF" in best_off:
-        rows.append((f"vqf offlineVQF (C++, {m_off:.0e} samples)", m_off / best_off["offlineVQF"]))
+        rows.append((f"vqf offlineVQF (C++, {m_off:.0e})", m_off / best_off["offlineVQF"]))
 
     # streaming: jitted step, params and block baked in, one call per sample
     stepper = tilt.make_step()
