@@ -237,6 +237,8 @@ def estimate_case(seed: int) -> dict:
         argv += ["--units", rng.choice(["deg/s", "g", "rad/s", "furlongs"])]
     if rng.random() < 0.1:
         argv += ["--time-unit", rng.choice(["ms", "s", "ns", "weeks"])]
+    if rng.random() < 0.3:  # (drawn last: the other options of a seed stay as they were)
+        argv.append("--offline")
     return {"kind": "estimate", "files": {"in.csv": raw}, "argv": argv}
 
 
@@ -303,7 +305,8 @@ def hdf5_case(seed: int) -> bytes:
 def api_violations(seed: int) -> list[str]:
     """The Python API on random arrays with random corruption: ``tilt.estimate`` and the
     reference ``Stream`` give one finite row per sample wherever no flag is raised, or refuse
-    with an InputError."""
+    with an InputError; ``tilt.smooth`` gives the filter's rows and flags, finite wherever the
+    filter's estimate is."""
     from verticality.errors import InputError
     from verticality.estimators import tilt
     from verticality.estimators.tilt_stream import Stream
@@ -336,6 +339,16 @@ def api_violations(seed: int) -> list[str]:
     for a in (out.roll_rad, out.pitch_rad, out.quat_E_S, out.var):
         if not np.all(np.isfinite(np.asarray(a)[unflagged])):
             found.append("non-finite in an unflagged row")
+            break
+    try:  # the offline smoother: the filter's rows and flags, finite where the filter's are
+        sm = tilt.smooth(gyr, acc, dt)
+    except Exception as exc:  # noqa: BLE001
+        return found + [f"smooth traceback: {type(exc).__name__}"]
+    if not np.array_equal(sm.flags, out.flags) or sm.roll_rad.shape != (n,):
+        found.append("smooth: flags or row count")
+    for a, b in ((out.quat_E_S, sm.quat_E_S), (out.var, sm.var), (out.roll_rad, sm.roll_rad)):
+        if not np.all(np.isfinite(b[np.isfinite(a)])):
+            found.append("smooth: non-finite where the filter is finite")
             break
     s = Stream()
     for k in range(min(n, 120)):
