@@ -214,3 +214,44 @@ def test_estimate_offline_command(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(verticality.sizing, "MAX_WORK_BYTES", 1000 * tilt_smoother.BYTES_PER_SAMPLE)
     assert cli.main(["estimate", str(path), "--out", str(tmp_path / "e3.csv"), "--offline"]) != 0
     assert "offline smoother" in capsys.readouterr().err and not (tmp_path / "e3.csv").exists()
+
+
+def test_estimate_offline_reads_every_format(tmp_path):
+    """`estimate --offline` on an EuRoC-layout CSV, a CSV with mapped columns and a BROAD-layout
+    HDF5 file: the smoother of the recording as `estimate` reads it."""
+    import h5py
+
+    from verticality.io import imu
+    from verticality.io.recording import load_imu
+
+    gyr, acc, dt, _ = fault_recording("shake", n=1500, seed=6)
+    n = gyr.shape[0]
+    stamps = 1_403_636_579_758_555_392 + int(dt * 1e9) * np.arange(n, dtype=np.int64)
+    euroc = tmp_path / "euroc.csv"
+    euroc.write_text("\n".join(["#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],"
+                                "w_RS_S_z [rad s^-1],a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],"
+                                "a_RS_S_z [m s^-2]"]
+                               + [",".join([str(int(s))] + [f"{v:.17g}" for v in (*g, *a)])
+                                  for s, g, a in zip(stamps, gyr, acc, strict=True)]) + "\n")
+    mapped = tmp_path / "mapped.csv"
+    mapped.write_text("\n".join(["time_ms,wx,wy,wz,ax,ay,az"]
+                                + [",".join(f"{v:.17g}" for v in (1e3 * k * dt, *g, *a))
+                                   for k, (g, a) in enumerate(zip(gyr, acc, strict=True))]) + "\n")
+    hdf5 = tmp_path / "trial.hdf5"
+    with h5py.File(hdf5, "w") as f:
+        f["imu_gyr"], f["imu_acc"] = gyr, acc
+        f["opt_quat"] = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+        f["movement"] = np.ones(n, dtype=bool)
+        f.attrs["sampling_rate"] = 1.0 / dt
+    columns = "t=time_ms,gyr_x=wx,gyr_y=wy,gyr_z=wz,acc_x=ax,acc_y=ay,acc_z=az"
+    for path, extra in ((euroc, []), (mapped, ["--columns", columns, "--time-unit", "ms"]),
+                        (hdf5, [])):
+        out = tmp_path / (path.stem + "_est.csv")
+        assert cli.main(["estimate", str(path), "--out", str(out), "--offline", *extra]) == 0
+        est = imu.read_estimate_csv(out)
+        rec = load_imu(path, columns=columns if extra else None,
+                       time_unit="ms" if extra else None)
+        ref = tilt.smooth(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s)
+        assert est.roll_rad.shape == (n,)
+        np.testing.assert_allclose(est.roll_rad, ref.roll_rad, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(est.flags, ref.flags)
