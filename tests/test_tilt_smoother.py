@@ -179,6 +179,14 @@ def test_backward_pass_equals_the_dense_batch_solution(seed):
     np.testing.assert_allclose(Ps2[2], P0[2], atol=0)
     np.testing.assert_allclose(e2[3:], e[3:], atol=0)
     assert np.max(np.abs(e2[:2] - e[:2])) > 1e-6
+    # a singular prior (a zero variance) cuts the chain there instead of spreading NaN
+    Pp_sing = Pp.copy()
+    Pp_sing[4] = 0.0
+    e3, Ps3 = (np.asarray(v) for v in tilt_smoother.rts_backward(P0, F, Pp_sing, dx,
+                                                                   np.zeros(m, dtype=bool), P_end))
+    assert np.all(np.isfinite(e3)) and np.all(np.isfinite(Ps3))
+    np.testing.assert_array_equal(e3[4], 0.0)
+    np.testing.assert_allclose(e3[5:], e[5:], atol=0)
 
 
 def test_a_recording_beyond_memory_is_refused(monkeypatch):

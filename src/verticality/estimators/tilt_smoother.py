@@ -68,6 +68,7 @@ def solve_spd(A, B):
     """``A⁻¹ B`` for stacks of symmetric positive-definite ``A`` (M, n, n) and ``B`` (M, n, m):
     Gaussian elimination without pivoting (stable for a positive-definite matrix), unrolled over
     the few rows, each step element-wise over the stack."""
+    A, B = jnp.asarray(A), jnp.asarray(B)
     n, m = A.shape[-1], B.shape[-1]
     a = [[A[:, i, j] for j in range(n)] for i in range(n)]
     b = [[B[:, i, j] for j in range(m)] for i in range(n)]
@@ -85,9 +86,12 @@ def solve_spd(A, B):
 
 def rts_gains(P0, F, P_prior, split):
     """The smoother gains ``C = P0 Fᵀ (P⁻)⁻¹`` of a stack of blocks ((M, 7, 7) each; ``split``
-    (M,) bool: ``C = 0``). ``P⁻`` and ``P0`` are symmetric: ``C = ((P⁻)⁻¹ F P0)ᵀ``."""
+    (M,) bool: ``C = 0``). ``P⁻`` and ``P0`` are symmetric: ``C = ((P⁻)⁻¹ F P0)ᵀ``. A gain that
+    is not finite (a covariance singular to rounding) splits there too: nothing finite becomes
+    non-finite."""
     C = jnp.swapaxes(solve_spd(P_prior, matmul(F, P0)), -1, -2)
-    return jnp.where(split[:, None, None], 0.0, C)
+    cut = split | ~jnp.all(jnp.isfinite(C), axis=(-2, -1))
+    return jnp.where(cut[:, None, None], 0.0, C)
 
 
 def rts_backward(P0, F, P_prior, dx, split, P_end):
