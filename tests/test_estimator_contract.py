@@ -18,6 +18,8 @@ from verticality.estimators.kalman import (
     kalman_filter,
     steady_state_kalman_filter,
 )
+from verticality.estimators.laurens import laurens_angelaki
+from verticality.estimators.merfeld import MerfeldZupan
 from verticality.estimators.tilt import TiltFilter
 from verticality.experiments.separation import linear_model
 from verticality.models import head
@@ -28,6 +30,7 @@ from verticality.models.otolith_head import OtolithHeadState
 from verticality.models.pendulum import PendulumState
 from verticality.models.planar import HeadInput, PlanarState
 from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM
+from verticality.perception_params import LAURENS_PRESETS, MERFELD_PRESETS
 
 DT = 0.01
 N = 30
@@ -65,6 +68,13 @@ def _case(name):
         us = head.HeadInput(jnp.asarray(rng.normal(scale=0.01, size=(N, 4, 3))),
                             jnp.asarray(rng.normal(scale=1.0, size=(N, 4, 3))))
         return est, x0, 0.01 * jnp.eye(ekf.N_ERR), us, rng.normal(scale=0.1, size=(N, ekf.N_Y)), 0.02
+    if name in ("merfeld", "laurens"):
+        est = (MerfeldZupan(MERFELD_PRESETS["observer"]) if name == "merfeld"
+               else laurens_angelaki(LAURENS_PRESETS["default"]))
+        x0 = est.init(None)._replace(g_H=jnp.array([0.1, -0.2, -0.97]) / np.linalg.norm([0.1, -0.2, -0.97]))
+        ys = np.concatenate([rng.normal(scale=0.3, size=(N, 3)),
+                             np.array([0.05, 0.1, -1.0]) + rng.normal(scale=0.05, size=(N, 3))], axis=1)
+        return est, x0, None, None, ys, DT
     if name == "tilt":
         x0 = (np.array([0.99, 0.1, -0.05, 0.0]), np.array([0.01, -0.02, 0.0]))
         acc = np.array([0.5, -0.3, 9.8]) + rng.normal(scale=0.05, size=(N, 3))
@@ -84,7 +94,7 @@ def _case(name):
 
 
 NAMES = ["time-varying", "steady-state", "continuous", "luenberger", "disturbance", "newton", "ekf",
-         "tilt"]
+         "tilt", "merfeld", "laurens"]
 WHOLE_SAMPLE = {"tilt"}  # estimators that use a sample all or nothing (one flag per sample)
 
 
@@ -101,8 +111,11 @@ def _leaves(tree):
 
 
 def _estimate(state):
-    """The estimate a state holds (the Newton observer's data buffers are not part of it)."""
-    return _leaves(state.x_hat if hasattr(state, "x_hat") else state.x)
+    """The estimate a state holds (the Newton observer's data buffers are not part of it; the
+    perception models' state is their estimate)."""
+    if hasattr(state, "x_hat"):
+        return _leaves(state.x_hat)
+    return _leaves(state.x if hasattr(state, "x") else state)
 
 
 def test_every_estimator_is_an_estimator():

@@ -1,0 +1,102 @@
+"""Head motions of the classic vestibular-perception paradigms, as MOTION.csv rows.
+
+Each generator returns a :class:`verticality.io.motion.MotionRecord` sampled every ``dt_s``: the
+head orientation ``q_I_H`` (frame I: z up), the head angular velocity ``ω_H`` (head frame; over
+each interval the constant rate that takes one sample's orientation to the next, so that a model
+holding ``ω_H[k]`` over ``[t_k, t_{k+1}]`` follows the orientation exactly) and the acceleration of
+the head centre ``a_I`` (gravity excluded). Head axes: x forward (naso-occipital), y left
+(interaural), z up. Every paradigm starts with ``still_s`` seconds upright and at rest.
+
+* :func:`yaw_step` — Earth-vertical yaw: a velocity step to ``omega_deg_s``, held for ``on_s``,
+  then a step back to rest (per- and post-rotatory responses).
+* :func:`somatogravic` — a sustained forward acceleration (0.2 g) in the dark, head upright.
+* :func:`ovar` — off-vertical-axis rotation: the head pitched ``tilt_deg`` and rotating about its
+  own z axis at ``omega_deg_s`` (a velocity step at the start of rotation).
+* :func:`post_rotatory_tilt` — yaw at ``omega_deg_s``, a stop, then (``tilt=True``) a quick
+  ``pitch_deg`` pitch within ``pitch_s`` seconds after the stop; ``tilt=False`` stays upright.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from verticality import so3
+from verticality.io.motion import MotionRecord
+from verticality.params import G_M_S2
+
+DT_S = 0.01
+
+
+def _record(t, R_I_H, a_I) -> MotionRecord:
+    """Rows from orientations ``R_I_H`` (N, 3, 3) and accelerations ``a_I`` (N, 3)."""
+    R = np.asarray(R_I_H, float)
+    rel = np.einsum("nji,njk->nik", R[:-1], R[1:])  # R_k^T R_{k+1}
+    dt = np.diff(t)
+    w = np.asarray(so3.log_principal(rel)) / dt[:, None]
+    w = np.concatenate([w, w[-1:]], axis=0)
+    q = np.asarray(so3.quat_from_matrix(R))
+    return MotionRecord(np.asarray(t, float), q, w, np.asarray(a_I, float))
+
+
+def _times(total_s, dt_s):
+    return np.arange(int(round(total_s / dt_s)) + 1) * dt_s
+
+
+def _rz(angle):
+    angle = np.asarray(angle, float)
+    c, s = np.cos(angle), np.sin(angle)
+    z, o = np.zeros_like(angle), np.ones_like(angle)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def _ry(angle):
+    angle = np.asarray(angle, float)
+    c, s = np.cos(angle), np.sin(angle)
+    z, o = np.zeros_like(angle), np.ones_like(angle)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+
+
+def _yaw_angle(t, start_s, stop_s, omega_rad_s):
+    """The angle of a velocity step: ω from start to stop, zero before and after."""
+    return omega_rad_s * (np.clip(t, start_s, stop_s) - start_s)
+
+
+def yaw_step(omega_deg_s: float = 60.0, on_s: float = 60.0, after_s: float = 60.0,
+             still_s: float = 1.0, dt_s: float = DT_S) -> MotionRecord:
+    t = _times(still_s + on_s + after_s, dt_s)
+    psi = _yaw_angle(t, still_s, still_s + on_s, np.radians(omega_deg_s))
+    return _record(t, _rz(psi), np.zeros((t.size, 3)))
+
+
+def somatogravic(accel_g: float = 0.2, on_s: float = 30.0, still_s: float = 1.0,
+                 dt_s: float = DT_S) -> MotionRecord:
+    t = _times(still_s + on_s, dt_s)
+    a = np.zeros((t.size, 3))
+    a[t >= still_s, 0] = accel_g * G_M_S2
+    return _record(t, np.broadcast_to(np.eye(3), (t.size, 3, 3)), a)
+
+
+def ovar(tilt_deg: float = 20.0, omega_deg_s: float = 60.0, on_s: float = 120.0,
+         still_s: float = 1.0, dt_s: float = DT_S) -> MotionRecord:
+    """The head pitched nose-down by ``tilt_deg`` from the start (held still for ``still_s``),
+    then spinning about its own z axis."""
+    t = _times(still_s + on_s, dt_s)
+    psi = _yaw_angle(t, still_s, still_s + on_s, np.radians(omega_deg_s))
+    R = _ry(np.full(t.size, np.radians(tilt_deg))) @ _rz(psi)
+    return _record(t, R, np.zeros((t.size, 3)))
+
+
+def post_rotatory_tilt(tilt: bool = True, omega_deg_s: float = 60.0, on_s: float = 60.0,
+                       after_s: float = 60.0, pitch_deg: float = 90.0, pitch_s: float = 1.0,
+                       still_s: float = 1.0, dt_s: float = DT_S) -> MotionRecord:
+    """Yaw about Earth-vertical, stop at ``still_s + on_s``; then pitch (about the head's y axis,
+    nose down for positive angles) at a constant rate over ``pitch_s`` seconds."""
+    t = _times(still_s + on_s + after_s, dt_s)
+    stop = still_s + on_s
+    psi = _yaw_angle(t, still_s, stop, np.radians(omega_deg_s))
+    theta = np.radians(pitch_deg) * np.clip((t - stop) / pitch_s, 0.0, 1.0) if tilt else 0.0 * t
+    return _record(t, _rz(psi) @ _ry(theta), np.zeros((t.size, 3)))
+
+
+PARADIGMS = {"yaw-step": yaw_step, "somatogravic": somatogravic, "ovar": ovar,
+             "post-rotatory-tilt": post_rotatory_tilt}

@@ -1,0 +1,117 @@
+"""The perception models (Merfeld & Zupan 2002 observer, Laurens & Angelaki 2017 Kalman filter)
+driven through perception.perceive by the paradigms' head motions."""
+
+import math
+
+import numpy as np
+import pytest
+
+from verticality import perception as pc
+from verticality import perception_paradigms as pp
+from verticality.errors import InputError
+from verticality.estimators.laurens import steady_gain, tilt_model, yaw_model
+from verticality.io.motion import MotionRecord
+from verticality.perception_params import LAURENS_PRESETS, MERFELD_PRESETS, perception_params
+
+
+def _fit_tau(t, y):
+    """Time constant of an exponential decay y(t) > 0 (log-linear least squares)."""
+    return -1.0 / np.polyfit(t, np.log(y), 1)[0]
+
+
+def _still(R_I_H, seconds=30.0, dt=0.01):
+    from verticality import so3
+
+    t = np.arange(int(seconds / dt) + 1) * dt
+    q = np.broadcast_to(np.asarray(so3.quat_from_matrix(R_I_H)), (t.size, 4))
+    z = np.zeros((t.size, 3))
+    return MotionRecord(t, np.array(q), z, z)
+
+
+@pytest.mark.parametrize("model", ["merfeld", "laurens"])
+def test_still_upright_head_perceives_nothing(model):
+    r = pc.perceive(_still(np.eye(3)), model)
+    np.testing.assert_allclose(r.g_H_perceived, np.tile([0.0, 0.0, -1.0], (r.t_s.size, 1)), atol=1e-12)
+    for a in (r.omega_H_perceived_rad_s, r.a_H_perceived_m_s2, r.v_H_perceived_m_s):
+        assert np.max(np.abs(a)) < 1e-12
+
+
+@pytest.mark.parametrize("model", ["merfeld", "laurens"])
+@pytest.mark.parametrize("otolith", ["unity", "pendulum"])
+def test_held_tilt_is_perceived_in_steady_state(model, otolith):
+    from verticality import so3
+
+    R = np.asarray(so3.exp(np.array([0.3, -0.2, 0.5])))  # roll, pitch and yaw together
+    r = pc.perceive(_still(R, 90.0), model, otolith=otolith)
+    g_true = R.T @ np.array([0.0, 0.0, -1.0])
+    err_deg = np.degrees(np.arccos(np.clip(r.g_H_perceived[-1] @ g_true, -1, 1)))
+    assert err_deg < 0.05
+    assert abs(r.g_H_perceived[0] @ g_true - 1) > 1e-3  # it started upright, not already there
+    assert np.linalg.norm(r.a_H_perceived_m_s2[-1]) < 0.01
+
+
+@pytest.mark.parametrize("model", ["merfeld", "laurens"])
+def test_gravity_estimate_stays_unit_length(model):
+    r = pc.perceive(pp.ovar(on_s=20.0), model)
+    np.testing.assert_allclose(np.linalg.norm(r.g_H_perceived, axis=1), 1.0, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("preset", ["human"])
+def test_merfeld_yaw_step_time_constant_and_gain(preset):
+    p = MERFELD_PRESETS[preset]
+    r = pc.perceive(pp.yaw_step(60.0, on_s=60.0, after_s=1.0), "merfeld", preset)
+    w = np.degrees(r.omega_H_perceived_rad_s[:, 2])
+    on = r.t_s >= 1.0
+    gain = w[on][0] / 60.0
+    assert gain == pytest.approx(p.k_omega / (1 + p.k_omega), rel=0.02)
+    m = (r.t_s > 3.0) & (r.t_s < 40.0)
+    assert _fit_tau(r.t_s[m], w[m]) == pytest.approx((1 + p.k_omega) * p.tau_s, rel=0.02)
+
+
+def test_merfeld_somatogravic_converges_to_the_gif_direction():
+    r = pc.perceive(pp.somatogravic(0.2, on_s=60.0), "merfeld")
+    assert pc.pitch_up_deg(r.g_H_perceived)[-1] == pytest.approx(math.degrees(math.atan(0.2)), abs=0.05)
+
+
+def test_laurens_one_axis_gain_solves_its_own_riccati_equation():
+    """The 1-D filter's steady gain: P from the discrete Riccati equation (python-control's dlqe
+    on the same model) and K = P Tᵀ (T P Tᵀ + R)⁻¹; both variants."""
+    import control
+
+    p = LAURENS_PRESETS["default"]
+    for D, T, Q, R in (yaw_model(p), tilt_model(p)):
+        K = steady_gain(D, T, Q, R)
+        # dlqe: x_{k+1} = A x_k + G w, y = C x + v; its P is the a-priori covariance
+        _, P, _ = control.dlqe(D, np.eye(D.shape[0]), T, Q, R)
+        P = np.asarray(P)
+        np.testing.assert_allclose(P, D @ (P - P @ T.T @ np.linalg.solve(T @ P @ T.T + R, T @ P)) @ D.T + Q,
+                                   rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(K, P @ T.T @ np.linalg.inv(T @ P @ T.T + R), rtol=1e-7, atol=1e-12)
+
+
+def test_laurens_yaw_emergent_time_constant_and_peak_gain():
+    r = pc.perceive(pp.yaw_step(60.0, on_s=60.0, after_s=40.0), "laurens")
+    w = np.degrees(r.omega_H_perceived_rad_s[:, 2])
+    assert w.max() / 60.0 == pytest.approx(0.94, abs=0.01)
+    m = (r.t_s > 63.0) & (r.t_s < 90.0)
+    assert _fit_tau(r.t_s[m] - 61.0, -w[m]) == pytest.approx(16.5, rel=0.05)
+
+
+def test_laurens_somatogravic_pitch_and_time_constant():
+    r = pc.perceive(pp.somatogravic(0.2, on_s=30.0), "laurens")
+    pitch = pc.pitch_up_deg(r.g_H_perceived)
+    assert pitch[-1] == pytest.approx(math.degrees(math.atan(0.2)), abs=0.5)
+    t63 = r.t_s[np.argmax(pitch >= (1 - math.exp(-1)) * pitch[-1])] - 1.0
+    assert t63 == pytest.approx(1.3, rel=0.2)
+
+
+def test_parameters_and_options_are_checked():
+    with pytest.raises(InputError):
+        perception_params("merfeld", "martian")
+    with pytest.raises(InputError):
+        perception_params("merfeld", None, ["k_omega"])
+    with pytest.raises(InputError):
+        perception_params("laurens", None, ["tau_c_s=-1"])
+    assert perception_params("merfeld", "human", ["k_omega=5"]).k_omega == 5.0
+    with pytest.raises(InputError):
+        pc.perceive(_still(np.eye(3), 1.0), "merfeld", otolith="glass")
