@@ -152,3 +152,20 @@ def pitch_up_deg(g_H) -> np.ndarray:
     """Pitch (deg, nose up positive) of the head for gravity ``g_H``: atan2(−g_x, −g_z)."""
     g = np.asarray(g_H, float)
     return np.degrees(np.arctan2(-g[..., 0], -g[..., 2]))
+
+
+def fit_time_constant(t_s, y) -> float:
+    """Time constant (s) of an exponential decay ``y(t) > 0``: log-linear least squares."""
+    t, y = np.asarray(t_s, float), np.asarray(y, float)
+    ok = y > 0
+    if np.count_nonzero(ok) < 2:
+        return float("nan")
+    return float(-1.0 / np.polyfit(t[ok], np.log(y[ok]), 1)[0])
+
+
+def e_fold_time(t_s, y, t0_s: float) -> float:
+    """The time (s) from ``t0_s`` until ``y`` first falls below ``y(t0)/e`` (NaN if it does not)."""
+    t, y = np.asarray(t_s, float), np.asarray(y, float)
+    m = t >= t0_s - 1e-9
+    below = np.nonzero(y[m] < y[m][0] / np.e)[0]
+    return float(t[m][below[0]] - t[m][0]) if below.size else float("nan")

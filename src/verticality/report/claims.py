@@ -472,6 +472,84 @@ CLAIMS: dict[str, Claim] = {
                              "context", 0.0, unit="°", none_text="none converges")),
         pages=("ambiguity.md",),
     ),
+    "perception-yaw": Claim(
+        source="Merfeld & Zupan 2002; Laurens & Angelaki 2017 (F §1.4.3)",
+        claim="After an Earth-vertical yaw velocity step the perceived rotation outlasts the "
+              "canal signal (velocity storage): in the Merfeld–Zupan observer with gain "
+              "kω/(1 + kω) and time constant (1 + kω)·τ, in the Laurens–Angelaki Kalman filter "
+              "with a time constant and a gain that emerge from its noise parameters.",
+        settings=("60°/s for 60 s, then a stop; high-pass canals, unity otolith; dt = 0.01 s",
+                  "Merfeld–Zupan human preset (kω = 3, τ = 5.7 s, no adaptation); "
+                  "Laurens–Angelaki default preset"),
+        readings=("time constants are log-linear fits, 2–40 s after onset and 2–30 s after the "
+                  "stop",
+                  "Laurens–Angelaki σ values chosen to give the paper's emergent numbers (the "
+                  "parameter table was not consulted)"),
+        published=(Published("Merfeld–Zupan initial gain kω/(1 + kω)", "Merfeld & Zupan 2002",
+                             "0.75", ("merfeld", "initial_gain"), "within", 0.75, rel=0.02),
+                   Published("Merfeld–Zupan time constant (1 + kω)·τ", "Merfeld & Zupan 2002",
+                             "22.8 s", ("merfeld", "tau_per_rotatory_s"), "within", 22.8,
+                             rel=0.02, unit=" s"),
+                   Published("Laurens–Angelaki post-rotatory time constant",
+                             "Laurens & Angelaki 2017", "16.5 s",
+                             ("laurens", "tau_post_rotatory_s"), "within", 16.5, rel=0.05,
+                             unit=" s", headline=True),
+                   Published("Laurens–Angelaki peak gain", "Laurens & Angelaki 2017", "≈ 0.94",
+                             ("laurens", "peak_gain"), "within", 0.94, rel=0.02,
+                             headline=True)),
+        pages=("perception.md",),
+    ),
+    "perception-somatogravic": Claim(
+        source="Merfeld & Zupan 2002; Laurens & Angelaki 2017 (F §1.4.3)",
+        claim="A sustained forward acceleration in the dark is perceived, after a delay, as a "
+              "backward (nose-up) pitch along the gravito-inertial force: atan(0.2) = 11.3° for "
+              "0.2 g.",
+        settings=("0.2 g forward, head upright, 60 s (30 s quick)",),
+        readings=("time constant: the time to reach 1 − 1/e of the final pitch",),
+        published=(Published("Laurens–Angelaki final pitch", "Laurens & Angelaki 2017",
+                             "11.3°", ("laurens", "final_pitch_deg"), "within", 11.3,
+                             rel=0.045, unit="°", headline=True),
+                   Published("Laurens–Angelaki time constant", "Laurens & Angelaki 2017",
+                             "≈ 1.3 s", ("laurens", "time_constant_s"), "within", 1.3, rel=0.2,
+                             unit=" s", headline=True),
+                   Published("Merfeld–Zupan final pitch (the GIF direction)",
+                             "Merfeld & Zupan 2002", "11.3°", ("merfeld", "final_pitch_deg"),
+                             "within", 11.3, rel=0.045, unit="°")),
+        pages=("perception.md",),
+    ),
+    "perception-ovar": Claim(
+        source="Merfeld & Zupan 2002; Laurens & Angelaki 2017 (F §1.4.3)",
+        claim="During off-vertical-axis rotation the rotation percept decays (time constant "
+              "10–30 s) to a plateau while a percept of translation builds up.",
+        settings=("head pitched 20°, 60°/s about the head's axis for 120 s (60 s quick)",),
+        readings=("rotation time constant: the e-folding time of the percept's excess over its "
+                  "plateau (mean of the last 20 s), from its peak",
+                  "perceived speed: |v̂| in the head's x–y plane, mean of the last 20 s"),
+        published=(Published("Merfeld–Zupan rotation time constant", "the bound is ours",
+                             "10–30 s", ("merfeld", "rotation_time_constant_s"), "at_most", 30.0,
+                             unit=" s"),
+                   Published("Laurens–Angelaki rotation time constant", "the bound is ours",
+                             "10–30 s", ("laurens", "rotation_time_constant_s"), "at_most", 30.0,
+                             unit=" s"),
+                   Published("Merfeld–Zupan steady perceived speed", "—", "(no number)",
+                             ("merfeld", "steady_speed_xy_m_s"), unit=" m/s"),
+                   Published("Laurens–Angelaki steady perceived speed", "—", "(no number)",
+                             ("laurens", "steady_speed_xy_m_s"), unit=" m/s")),
+        pages=("perception.md",),
+    ),
+    "perception-post-rotatory-tilt": Claim(
+        source="Merfeld & Zupan 2002; Laurens & Angelaki 2017 (F §1.4.3)",
+        claim="Tilting the head right after a stop shortens the post-rotatory decay: the "
+              "otoliths contradict the residual canal signal.",
+        settings=("60 s at 60°/s, stop, 90° nose-down pitch within 1 s; against an upright stop",),
+        readings=("decay time: e-folding time of |ω̂| from 2 s after the stop",),
+        published=(Published("Merfeld–Zupan τ tilted / τ upright", "Zupan et al. 2000 (the bound is ours)", "≤ 0.7",
+                             ("merfeld", "ratio"), "at_most", 0.7, headline=True),
+                   Published("Laurens–Angelaki τ tilted / τ upright",
+                             "Zupan et al. 2000 (the bound is ours)", "≤ 0.7",
+                             ("laurens", "ratio"), "at_most", 0.7, headline=True)),
+        pages=("perception.md",),
+    ),
 }
 
 #: Seed claims whose experiments are not registered yet; they move to :data:`CLAIMS` (with metric

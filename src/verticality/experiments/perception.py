@@ -1,0 +1,222 @@
+"""Vestibular perception paradigms: the Merfeld & Zupan 2002 observer and the Laurens & Angelaki
+2017 Kalman filter (F §1.4.3) driven by the classic head motions of
+:mod:`verticality.perception_paradigms`, with the papers' sensors (high-pass canals, unity-gain
+otolith; :func:`verticality.perception.perceive`).
+
+* ``perception-yaw`` — Earth-vertical yaw velocity step of 60°/s for 60 s, then a stop. Merfeld–
+  Zupan (human, no adaptation): the perceived velocity starts at the gain kω/(1 + kω) and decays
+  with (1 + kω)·τ; Laurens–Angelaki: peak gain ≈ 0.94, post-rotatory time constant 16.5 s. Time
+  constants are log-linear fits from 2 s to 40 s (per-rotatory, Merfeld–Zupan) and from 2 s to
+  30 s after the stop (post-rotatory).
+* ``perception-somatogravic`` — a sustained forward acceleration of 0.2 g, head upright: the
+  perceived pitch (nose up) tends to the GIF direction atan(0.2) = 11.3°; its time constant is the
+  time to reach 1 − 1/e of the final value.
+* ``perception-ovar`` — off-vertical-axis rotation, 20° tilt, 60°/s for 120 s: the rotation
+  percept (about the head's z) decays to a plateau (time constant: the e-folding time of its excess
+  over the mean of the last 20 s, from its peak) and a translation percept builds up (perceived
+  speed in the head's x–y plane, mean over the last 20 s; the Observer preset with its leaky
+  velocity integration beside the two others).
+* ``perception-post-rotatory-tilt`` — 60 s of yaw at 60°/s, a stop, then a 90° nose-down pitch
+  within 1 s, against the same stop staying upright: the e-folding time of the perceived angular
+  speed |ω̂| from 2 s after the stop.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from verticality import perception as pc
+from verticality import perception_paradigms as pp
+from verticality.experiments import Result, check, register
+from verticality.perception_params import MERFELD_PRESETS
+
+MODELS = {"merfeld": ("merfeld", "human"), "laurens": ("laurens", "default")}
+OMEGA_DEG_S = 60.0
+SOMATOGRAVIC_G = 0.2
+GIF_PITCH_DEG = math.degrees(math.atan(SOMATOGRAVIC_G))
+DECIMATE = 10  # figure series every 0.1 s
+
+
+def _series(runs: dict, omega_of) -> dict:
+    """Figure series: perceived vs actual tilt, angular velocity, acceleration, speed."""
+    first = next(iter(runs.values()))
+    s = {"t": first.t_s[::DECIMATE],
+         "actual/tilt_deg": pc.tilt_deg(first.g_H_true)[::DECIMATE],
+         "actual/omega_deg_s": np.degrees(omega_of(first.omega_H_true_rad_s))[::DECIMATE],
+         "actual/accel_m_s2": np.linalg.norm(first.a_H_true_m_s2, axis=1)[::DECIMATE]}
+    for name, r in runs.items():
+        s[f"{name}/tilt_deg"] = pc.tilt_deg(r.g_H_perceived)[::DECIMATE]
+        s[f"{name}/omega_deg_s"] = np.degrees(omega_of(r.omega_H_perceived_rad_s))[::DECIMATE]
+        s[f"{name}/accel_m_s2"] = np.linalg.norm(r.a_H_perceived_m_s2, axis=1)[::DECIMATE]
+        s[f"{name}/speed_m_s"] = np.linalg.norm(r.v_H_perceived_m_s[:, :2], axis=1)[::DECIMATE]
+    return s
+
+
+def _yaw_axis(w):
+    return np.asarray(w)[:, 2]
+
+
+def _speed(w):
+    return np.linalg.norm(np.asarray(w), axis=1)
+
+
+def figures(result: Result, out_dir: Path, name: str, title: str) -> list[Path]:
+    """Perceived (each model) against actual tilt, rotation, acceleration and perceived speed."""
+    from verticality.plots import new_figure, save
+
+    s = result.series
+    t = s["t"]
+    models = [k.split("/")[0] for k in s if k.endswith("/tilt_deg") and not k.startswith("actual")]
+    rows = (("tilt_deg", "tilt (°)"), ("omega_deg_s", "angular velocity (°/s)"),
+            ("accel_m_s2", "|linear acceleration| (m/s²)"), ("speed_m_s", "perceived speed (m/s)"))
+    fig, axes = new_figure(len(rows), 1, width=9, height_per_row=2.2)
+    for ax, (key, label) in zip(axes[:, 0], rows, strict=True):
+        if f"actual/{key}" in s:
+            ax.plot(t, s[f"actual/{key}"], color="k", lw=1.2, label="actual")
+        for m in models:
+            ax.plot(t, s[f"{m}/{key}"], lw=1.0, label=f"perceived: {m}")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_title(title)
+    axes[0, 0].legend(fontsize=8, loc="best")
+    axes[-1, 0].set_xlabel("time (s)")
+    return [save(fig, Path(out_dir) / f"{name}.png")]
+
+
+# ------------------------------------------------------------------------------------ yaw
+
+
+@register("perception-yaw", "Perception: Earth-vertical yaw velocity step (velocity storage)",
+          source="Merfeld & Zupan 2002; Laurens & Angelaki 2017",
+          figures=lambda r, d: figures(r, d, "perception-yaw", "yaw velocity step, 60°/s"))
+def run_yaw(quick: bool = False) -> Result:
+    on_s, after_s = 60.0, (40.0 if quick else 60.0)
+    rec = pp.yaw_step(OMEGA_DEG_S, on_s=on_s, after_s=after_s)
+    runs = {k: pc.perceive(rec, *v) for k, v in MODELS.items()}
+    t = rec.t_s
+    start, stop = 1.0, 1.0 + on_s
+    per = (t > start + 2.0) & (t < start + 40.0)
+    post = (t > stop + 2.0) & (t < stop + 30.0)
+    metrics = {}
+    for k, r in runs.items():
+        w = np.degrees(r.omega_H_perceived_rad_s[:, 2])
+        metrics[k] = {"initial_gain": float(w[t >= start][0] / OMEGA_DEG_S),
+                      "peak_gain": float(w.max() / OMEGA_DEG_S),
+                      "tau_per_rotatory_s": pc.fit_time_constant(t[per] - start, w[per]),
+                      "tau_post_rotatory_s": pc.fit_time_constant(t[post] - stop, -w[post])}
+    mz = MERFELD_PRESETS["human"]
+    gain_mz, tau_mz = mz.k_omega / (1 + mz.k_omega), (1 + mz.k_omega) * mz.tau_s
+    m, la = metrics["merfeld"], metrics["laurens"]
+    metrics["checks"] = {
+        "merfeld_gain_within_2pct": check(m["initial_gain"] / gain_mz - 1, 0.02,
+                                          abs(m["initial_gain"] / gain_mz - 1) <= 0.02),
+        "merfeld_tau_within_2pct": check(m["tau_per_rotatory_s"] / tau_mz - 1, 0.02,
+                                         abs(m["tau_per_rotatory_s"] / tau_mz - 1) <= 0.02),
+        "laurens_tau_post_16.5s_5pct": check(la["tau_post_rotatory_s"], 0.05,
+                                             abs(la["tau_post_rotatory_s"] / 16.5 - 1) <= 0.05),
+        "laurens_peak_gain_0.94": check(la["peak_gain"], 0.01, abs(la["peak_gain"] - 0.94) <= 0.01),
+    }
+    paper = {"merfeld": {"initial_gain": gain_mz, "tau_per_rotatory_s": tau_mz},
+             "laurens": {"peak_gain": 0.94, "tau_post_rotatory_s": 16.5}}
+    return Result(metrics=metrics, paper=paper, series=_series(runs, _yaw_axis),
+                  simulated_s=float(t[-1]) * len(runs))
+
+
+# ----------------------------------------------------------------------------- somatogravic
+
+
+@register("perception-somatogravic", "Perception: somatogravic illusion, 0.2 g forward",
+          source="Merfeld & Zupan 2002; Laurens & Angelaki 2017",
+          figures=lambda r, d: figures(r, d, "perception-somatogravic",
+                                       "somatogravic illusion: 0.2 g forward, upright"))
+def run_somatogravic(quick: bool = False) -> Result:
+    on_s = 30.0 if quick else 60.0
+    rec = pp.somatogravic(SOMATOGRAVIC_G, on_s=on_s)
+    runs = {k: pc.perceive(rec, *v) for k, v in MODELS.items()}
+    metrics = {}
+    for k, r in runs.items():
+        pitch = pc.pitch_up_deg(r.g_H_perceived)
+        final = float(pitch[-1])
+        rise = np.nonzero(pitch >= (1 - math.exp(-1)) * final)[0]
+        metrics[k] = {"final_pitch_deg": final,
+                      "time_constant_s": float(r.t_s[rise[0]] - 1.0) if rise.size else float("nan")}
+    m, la = metrics["merfeld"], metrics["laurens"]
+    metrics["checks"] = {
+        "merfeld_pitch_to_gif": check(m["final_pitch_deg"] - GIF_PITCH_DEG, 0.5,
+                                      abs(m["final_pitch_deg"] - GIF_PITCH_DEG) <= 0.5),
+        "laurens_pitch_11.3deg": check(la["final_pitch_deg"] - GIF_PITCH_DEG, 0.5,
+                                       abs(la["final_pitch_deg"] - GIF_PITCH_DEG) <= 0.5),
+        "laurens_tau_1.3s_20pct": check(la["time_constant_s"], 0.2,
+                                        abs(la["time_constant_s"] / 1.3 - 1) <= 0.2),
+    }
+    paper = {"merfeld": {"final_pitch_deg": GIF_PITCH_DEG},
+             "laurens": {"final_pitch_deg": GIF_PITCH_DEG, "time_constant_s": 1.3}}
+    return Result(metrics=metrics, paper=paper, series=_series(runs, _speed),
+                  simulated_s=float(rec.t_s[-1]) * len(runs))
+
+
+# ------------------------------------------------------------------------------------- OVAR
+
+
+@register("perception-ovar", "Perception: off-vertical-axis rotation, 20° tilt, 60°/s",
+          source="Merfeld & Zupan 2002; Laurens & Angelaki 2017",
+          figures=lambda r, d: figures(r, d, "perception-ovar", "OVAR: 20° tilt, 60°/s"))
+def run_ovar(quick: bool = False) -> Result:
+    on_s = 60.0 if quick else 120.0
+    rec = pp.ovar(20.0, OMEGA_DEG_S, on_s=on_s)
+    models = dict(MODELS, **{"merfeld-observer": ("merfeld", "observer")})
+    runs = {k: pc.perceive(rec, *v) for k, v in models.items()}
+    t = rec.t_s
+    last = t > t[-1] - 20.0
+    metrics = {}
+    for k, r in runs.items():
+        wz = np.degrees(r.omega_H_perceived_rad_s[:, 2])
+        plateau = float(wz[last].mean())
+        speed_xy = np.linalg.norm(r.v_H_perceived_m_s[:, :2], axis=1)
+        metrics[k] = {
+            "peak_rotation_deg_s": float(wz.max()),
+            "plateau_rotation_deg_s": plateau,
+            "rotation_time_constant_s": pc.e_fold_time(t, wz - plateau, float(t[np.argmax(wz)])),
+            "steady_speed_xy_m_s": float(speed_xy[last].mean()),
+            "steady_tilt_deg": float(pc.tilt_deg(r.g_H_perceived)[last].mean()),
+        }
+    metrics["checks"] = {
+        f"{k}_rotation_tau_10_to_30s": check(metrics[k]["rotation_time_constant_s"], 30.0,
+                                             10.0 <= metrics[k]["rotation_time_constant_s"] <= 30.0)
+        for k in MODELS}
+    metrics["checks"].update({
+        f"{k}_translation_builds_up": check(metrics[k]["steady_speed_xy_m_s"], 0.0,
+                                            metrics[k]["steady_speed_xy_m_s"] > 0.1)
+        for k in MODELS})
+    return Result(metrics=metrics, paper={}, series=_series(runs, _yaw_axis),
+                  simulated_s=float(t[-1]) * len(runs))
+
+
+# ------------------------------------------------------------------------ post-rotatory tilt
+
+
+@register("perception-post-rotatory-tilt", "Perception: post-rotatory tilt shortens the decay",
+          source="Merfeld & Zupan 2002; Laurens & Angelaki 2017",
+          figures=lambda r, d: figures(r, d, "perception-post-rotatory-tilt",
+                                       "stop, then 90° pitch within 1 s (perceived |ω|)"))
+def run_post_rotatory_tilt(quick: bool = False) -> Result:
+    after_s = 40.0 if quick else 60.0
+    stop = 61.0
+    metrics, runs = {}, {}
+    for k, v in MODELS.items():
+        taus = {}
+        for cond, tilt in (("upright", False), ("tilted", True)):
+            r = pc.perceive(pp.post_rotatory_tilt(tilt, OMEGA_DEG_S, after_s=after_s), *v)
+            taus[cond] = pc.e_fold_time(r.t_s, _speed(r.omega_H_perceived_rad_s), stop + 2.0)
+            if tilt:
+                runs[k] = r
+        metrics[k] = {"tau_upright_s": taus["upright"], "tau_tilted_s": taus["tilted"],
+                      "ratio": taus["tilted"] / taus["upright"]}
+    metrics["checks"] = {f"{k}_ratio_le_0.7": check(metrics[k]["ratio"], 0.7, metrics[k]["ratio"] <= 0.7)
+                         for k in MODELS}
+    t_end = float(runs["merfeld"].t_s[-1])
+    return Result(metrics=metrics, paper={"ratio_at_most": 0.7}, series=_series(runs, _speed),
+                  simulated_s=t_end * 2 * len(MODELS))
