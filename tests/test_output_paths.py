@@ -27,6 +27,8 @@ def test_check_writable_file(tmp_path):
     ["estimate", "{csv}", "--out", "{dir}/e.csv", "--plot", "{dir}"],
     ["otolith", "{csv}", "--out", "{dir}"],
     ["stabilize", "{csv}", "--out", "{dir}"],
+    ["perceive", "{csv}", "--out", "{dir}"],
+    ["perceive", "{csv}", "--plot", "{dir}"],
 ])
 def test_commands_refuse_a_folder_as_output_before_working(tmp_path, capsys, argv):
     csv = tmp_path / "in.csv"
@@ -53,7 +55,8 @@ def test_an_os_error_during_a_command_is_one_line(tmp_path, capsys, monkeypatch)
 
 
 @pytest.mark.parametrize("command", [["estimate", "{f}", "--out", "{d}/e.csv"], ["stream", "{f}"],
-                                     ["otolith", "{f}", "--out", "{d}/o.csv"], ["stabilize", "{f}"]])
+                                     ["otolith", "{f}", "--out", "{d}/o.csv"], ["stabilize", "{f}"],
+                                     ["perceive", "{f}"]])
 def test_a_binary_file_is_one_line_not_a_traceback(tmp_path, capsys, command):
     f = tmp_path / "binary.csv"
     f.write_bytes(b"\xff\xfe\x00\x01 not text")

@@ -118,10 +118,20 @@ def _run(est, ys, dts):
     return est.run(est.init(None), None, ys, dts)[1]
 
 
+def _interp(t_new, t, a) -> np.ndarray:
+    """Columns of ``a`` (N, k) on times ``t``, linearly interpolated to ``t_new``."""
+    return np.column_stack([np.interp(t_new, t, col) for col in np.asarray(a, float).T])
+
+
 def perceive(record: MotionRecord, model: str = "merfeld", preset: str | None = None, params=(),
              otolith: str = "unity", canal: str = "high-pass") -> Perception:
     """Perceived gravity, rotation, acceleration and velocity for the head motion ``record``
-    (the perception model starts upright and still; ``params``: ``NAME=VALUE`` overrides)."""
+    (the perception model starts upright and still; ``params``: ``NAME=VALUE`` overrides).
+
+    The Merfeld–Zupan observer runs on the record's rows (any sampling). The Laurens–Angelaki
+    filter runs on its own time step δt: for a record sampled otherwise, the sensor signals are
+    interpolated linearly onto a δt grid and the percepts back onto the rows (perceived gravity
+    renormalized)."""
     if otolith not in OTOLITHS:
         raise InputError(f"unknown otolith {otolith!r}; known: {', '.join(OTOLITHS)}")
     if len(record.t_s) < 2:
@@ -131,8 +141,18 @@ def perceive(record: MotionRecord, model: str = "merfeld", preset: str | None = 
     alpha = canal_signals(canal_model(model, p, canal), record.omega_H_rad_s, record.t_s)
     f = otolith_signals(record, otolith)
     t = np.asarray(record.t_s, float)
-    dts = np.diff(t, prepend=t[0] - (t[1] - t[0]))
-    outs = _run(est, jnp.asarray(np.concatenate([alpha, f], axis=1)), jnp.asarray(dts))
+    ys = np.concatenate([alpha, f], axis=1)
+    grid = t
+    if isinstance(p, LaurensParams) and np.max(np.abs(np.diff(t) - p.dt_s)) > 1e-9 * p.dt_s:
+        # the filter's gains are those of its own time step: run it on that grid
+        grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / p.dt_s + 1e-9)) + 1) * p.dt_s
+        ys = _interp(grid, t, ys)
+    dts = np.diff(grid, prepend=grid[0] - (grid[1] - grid[0]) if grid.size > 1 else p.dt_s)
+    outs = _run(est, jnp.asarray(ys), jnp.asarray(dts))
+    if grid is not t:
+        outs = type(outs)(*(_interp(t, grid, np.asarray(a, float)) if a.dtype != bool else a
+                            for a in outs))
+        outs = outs._replace(g_H=outs.g_H / np.linalg.norm(outs.g_H, axis=1, keepdims=True))
     R = np.asarray(so3.matrix_from_quat(jnp.asarray(record.q_I_H_wxyz)))
     g_true = np.einsum("nji,j->ni", R, np.array([0.0, 0.0, -1.0]))
     a_true = np.einsum("nji,nj->ni", R, record.a_I_m_s2)
@@ -169,3 +189,98 @@ def e_fold_time(t_s, y, t0_s: float) -> float:
     m = t >= t0_s - 1e-9
     below = np.nonzero(y[m] < y[m][0] / np.e)[0]
     return float(t[m][below[0]] - t[m][0]) if below.size else float("nan")
+
+
+def _omega_deg_s(w, omega: str):
+    w = np.degrees(np.asarray(w, float))
+    return w[:, 2] if omega == "axis" else np.linalg.norm(w, axis=1)
+
+
+def series(runs: dict, omega: str = "axis", decimate: int = 1) -> dict:
+    """Figure series of perceived (each run of ``runs``: {name: Perception}) against actual
+    motion: tilt (deg), angular velocity (deg/s: about the head's z for ``omega="axis"``, its
+    magnitude for ``"speed"``), |linear acceleration| (m/s²) and the perceived speed in the head's
+    x–y plane (m/s), every ``decimate``-th row."""
+    first = next(iter(runs.values()))
+    k = slice(None, None, decimate)
+    s = {"t": first.t_s[k],
+         "actual/tilt_deg": tilt_deg(first.g_H_true)[k],
+         "actual/omega_deg_s": _omega_deg_s(first.omega_H_true_rad_s, omega)[k],
+         "actual/accel_m_s2": np.linalg.norm(first.a_H_true_m_s2, axis=1)[k]}
+    for name, r in runs.items():
+        s[f"{name}/tilt_deg"] = tilt_deg(r.g_H_perceived)[k]
+        s[f"{name}/omega_deg_s"] = _omega_deg_s(r.omega_H_perceived_rad_s, omega)[k]
+        s[f"{name}/accel_m_s2"] = np.linalg.norm(r.a_H_perceived_m_s2, axis=1)[k]
+        s[f"{name}/speed_m_s"] = np.linalg.norm(r.v_H_perceived_m_s[:, :2], axis=1)[k]
+    return s
+
+
+def plot_series(s: dict, path, title: str = ""):
+    """The figure of :func:`series`: four panels over time, actual in black."""
+    from pathlib import Path
+
+    from verticality.plots import new_figure, save
+
+    t = s["t"]
+    names = [k.split("/")[0] for k in s if k.endswith("/tilt_deg") and not k.startswith("actual/")]
+    rows = (("tilt_deg", "tilt (°)"), ("omega_deg_s", "angular velocity (°/s)"),
+            ("accel_m_s2", "|linear acceleration| (m/s²)"), ("speed_m_s", "perceived speed (m/s)"))
+    fig, axes = new_figure(len(rows), 1, width=9, height_per_row=2.2)
+    for ax, (key, label) in zip(axes[:, 0], rows, strict=True):
+        if f"actual/{key}" in s:
+            ax.plot(t, s[f"actual/{key}"], color="k", lw=1.2, label="actual")
+        for name in names:
+            ax.plot(t, s[f"{name}/{key}"], lw=1.0, label=f"perceived: {name}")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_title(title)
+    axes[0, 0].legend(fontsize=8, loc="best")
+    axes[-1, 0].set_xlabel("time (s)")
+    return save(fig, Path(path))
+
+
+PERCEPTION_COLUMNS = ("t", "gx", "gy", "gz", "tilt_deg", "tilt_true_deg", "pitch_up_deg",
+                      "wx", "wy", "wz", "ax", "ay", "az", "vx", "vy", "vz")
+"""OUT.csv of ``perceive``: perceived gravity (unit, head frame), perceived and true tilt (deg),
+the pitch perceived gravity implies (deg, nose up), perceived angular velocity (rad/s), linear
+acceleration (m/s²) and velocity (m/s), all in the head frame."""
+
+
+def perception_table(r: Perception) -> np.ndarray:
+    """The rows of OUT.csv (:data:`PERCEPTION_COLUMNS`)."""
+    return np.column_stack([r.t_s, r.g_H_perceived, tilt_deg(r.g_H_perceived), tilt_deg(r.g_H_true),
+                            pitch_up_deg(r.g_H_perceived), r.omega_H_perceived_rad_s,
+                            r.a_H_perceived_m_s2, r.v_H_perceived_m_s])
+
+
+def perceive_file(motion_path, model: str = "merfeld", preset: str | None = None, params=(),
+                  otolith: str = "unity", canal: str = "high-pass", out_csv=None,
+                  plot_png=None) -> dict:
+    """``verticality perceive``: :func:`perceive` on a MOTION.csv (or a BROAD-layout recording);
+    writes OUT.csv and the figure when asked; returns a summary (JSON-ready)."""
+    from verticality.io.motion import load_motion, write_columns_csv
+    from verticality.io.output import check_writable_file
+
+    if out_csv is not None:
+        check_writable_file(out_csv, "--out")
+    if plot_png is not None:
+        check_writable_file(plot_png, "--plot")
+    rec = load_motion(motion_path)
+    r = perceive(rec, model, preset, params, otolith, canal)
+    if out_csv is not None:
+        write_columns_csv(out_csv, dict(zip(PERCEPTION_COLUMNS, perception_table(r).T)))
+    if plot_png is not None:
+        plot_series(series({model: r}, "axis"), plot_png, f"{model}: {motion_path}")
+    tilt_err = np.degrees(np.arccos(np.clip(np.sum(r.g_H_perceived * r.g_H_true, axis=1), -1, 1)))
+    return {
+        "model": model, "preset": preset, "otolith": otolith, "canal": canal,
+        "rows": int(r.t_s.size), "duration_s": float(r.t_s[-1] - r.t_s[0]),
+        "final": {"tilt_deg": float(tilt_deg(r.g_H_perceived)[-1]),
+                  "tilt_true_deg": float(tilt_deg(r.g_H_true)[-1]),
+                  "omega_deg_s": np.degrees(r.omega_H_perceived_rad_s[-1]).tolist(),
+                  "a_m_s2": r.a_H_perceived_m_s2[-1].tolist(),
+                  "v_m_s": r.v_H_perceived_m_s[-1].tolist()},
+        "max_tilt_error_deg": float(tilt_err.max()),
+        "out": None if out_csv is None else str(out_csv),
+        "plot": None if plot_png is None else str(plot_png),
+    }

@@ -40,50 +40,9 @@ GIF_PITCH_DEG = math.degrees(math.atan(SOMATOGRAVIC_G))
 DECIMATE = 10  # figure series every 0.1 s
 
 
-def _series(runs: dict, omega_of) -> dict:
-    """Figure series: perceived vs actual tilt, angular velocity, acceleration, speed."""
-    first = next(iter(runs.values()))
-    s = {"t": first.t_s[::DECIMATE],
-         "actual/tilt_deg": pc.tilt_deg(first.g_H_true)[::DECIMATE],
-         "actual/omega_deg_s": np.degrees(omega_of(first.omega_H_true_rad_s))[::DECIMATE],
-         "actual/accel_m_s2": np.linalg.norm(first.a_H_true_m_s2, axis=1)[::DECIMATE]}
-    for name, r in runs.items():
-        s[f"{name}/tilt_deg"] = pc.tilt_deg(r.g_H_perceived)[::DECIMATE]
-        s[f"{name}/omega_deg_s"] = np.degrees(omega_of(r.omega_H_perceived_rad_s))[::DECIMATE]
-        s[f"{name}/accel_m_s2"] = np.linalg.norm(r.a_H_perceived_m_s2, axis=1)[::DECIMATE]
-        s[f"{name}/speed_m_s"] = np.linalg.norm(r.v_H_perceived_m_s[:, :2], axis=1)[::DECIMATE]
-    return s
-
-
-def _yaw_axis(w):
-    return np.asarray(w)[:, 2]
-
-
-def _speed(w):
-    return np.linalg.norm(np.asarray(w), axis=1)
-
-
 def figures(result: Result, out_dir: Path, name: str, title: str) -> list[Path]:
     """Perceived (each model) against actual tilt, rotation, acceleration and perceived speed."""
-    from verticality.plots import new_figure, save
-
-    s = result.series
-    t = s["t"]
-    models = [k.split("/")[0] for k in s if k.endswith("/tilt_deg") and not k.startswith("actual")]
-    rows = (("tilt_deg", "tilt (°)"), ("omega_deg_s", "angular velocity (°/s)"),
-            ("accel_m_s2", "|linear acceleration| (m/s²)"), ("speed_m_s", "perceived speed (m/s)"))
-    fig, axes = new_figure(len(rows), 1, width=9, height_per_row=2.2)
-    for ax, (key, label) in zip(axes[:, 0], rows, strict=True):
-        if f"actual/{key}" in s:
-            ax.plot(t, s[f"actual/{key}"], color="k", lw=1.2, label="actual")
-        for m in models:
-            ax.plot(t, s[f"{m}/{key}"], lw=1.0, label=f"perceived: {m}")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    axes[0, 0].set_title(title)
-    axes[0, 0].legend(fontsize=8, loc="best")
-    axes[-1, 0].set_xlabel("time (s)")
-    return [save(fig, Path(out_dir) / f"{name}.png")]
+    return [pc.plot_series(result.series, Path(out_dir) / f"{name}.png", title)]
 
 
 # ------------------------------------------------------------------------------------ yaw
@@ -121,7 +80,7 @@ def run_yaw(quick: bool = False) -> Result:
     }
     paper = {"merfeld": {"initial_gain": gain_mz, "tau_per_rotatory_s": tau_mz},
              "laurens": {"peak_gain": 0.94, "tau_post_rotatory_s": 16.5}}
-    return Result(metrics=metrics, paper=paper, series=_series(runs, _yaw_axis),
+    return Result(metrics=metrics, paper=paper, series=pc.series(runs, "axis", DECIMATE),
                   simulated_s=float(t[-1]) * len(runs))
 
 
@@ -154,7 +113,7 @@ def run_somatogravic(quick: bool = False) -> Result:
     }
     paper = {"merfeld": {"final_pitch_deg": GIF_PITCH_DEG},
              "laurens": {"final_pitch_deg": GIF_PITCH_DEG, "time_constant_s": 1.3}}
-    return Result(metrics=metrics, paper=paper, series=_series(runs, _speed),
+    return Result(metrics=metrics, paper=paper, series=pc.series(runs, "speed", DECIMATE),
                   simulated_s=float(rec.t_s[-1]) * len(runs))
 
 
@@ -191,7 +150,7 @@ def run_ovar(quick: bool = False) -> Result:
         f"{k}_translation_builds_up": check(metrics[k]["steady_speed_xy_m_s"], 0.0,
                                             metrics[k]["steady_speed_xy_m_s"] > 0.1)
         for k in MODELS})
-    return Result(metrics=metrics, paper={}, series=_series(runs, _yaw_axis),
+    return Result(metrics=metrics, paper={}, series=pc.series(runs, "axis", DECIMATE),
                   simulated_s=float(t[-1]) * len(runs))
 
 
@@ -210,7 +169,7 @@ def run_post_rotatory_tilt(quick: bool = False) -> Result:
         taus = {}
         for cond, tilt in (("upright", False), ("tilted", True)):
             r = pc.perceive(pp.post_rotatory_tilt(tilt, OMEGA_DEG_S, after_s=after_s), *v)
-            taus[cond] = pc.e_fold_time(r.t_s, _speed(r.omega_H_perceived_rad_s), stop + 2.0)
+            taus[cond] = pc.e_fold_time(r.t_s, np.linalg.norm(r.omega_H_perceived_rad_s, axis=1), stop + 2.0)
             if tilt:
                 runs[k] = r
         metrics[k] = {"tau_upright_s": taus["upright"], "tau_tilted_s": taus["tilted"],
@@ -218,5 +177,5 @@ def run_post_rotatory_tilt(quick: bool = False) -> Result:
     metrics["checks"] = {f"{k}_ratio_le_0.7": check(metrics[k]["ratio"], 0.7, metrics[k]["ratio"] <= 0.7)
                          for k in MODELS}
     t_end = float(runs["merfeld"].t_s[-1])
-    return Result(metrics=metrics, paper={"ratio_at_most": 0.7}, series=_series(runs, _speed),
+    return Result(metrics=metrics, paper={"ratio_at_most": 0.7}, series=pc.series(runs, "speed", DECIMATE),
                   simulated_s=t_end * 2 * len(MODELS))
