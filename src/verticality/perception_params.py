@@ -25,13 +25,10 @@ Laurens & Angelaki 2017 Kalman model (:mod:`verticality.estimators.laurens`)
     ``sigma_a_g`` (σA, in g), the canal noise ``sigma_v_rad_s`` (σV) and the otolith noise
     ``sigma_f_g`` (σF, in g).
 
-    * ``default`` — δt = 0.01 s, τc = 4 s, σΩ = 40°/s, σV = 10°/s, σA = 0.3 g, σF = 0.002 g.
-      Reading: the paper's parameter table could not be consulted when this was written; δt, τc
-      and the emergent behaviour (post-rotatory time constant 16.5 s, peak gain 0.94, somatogravic
-      time constant ≈ 1.3 s) are the paper's, and the σ values above are the ones we found to
-      produce that behaviour (only the ratios matter for the mean response: σΩ/σV = 4 gives
-      16.5 s and 0.94; σA/σΩ sets the somatogravic time constant). They are to be checked
-      against the paper's table.
+    * ``default`` — δt = 0.01 s, τc = 4 s, σΩ = 40°/s, σV = 10°/s, σA = 0.3 g, σF = 0.002 g:
+      the published parameter set (the list that accompanies the model, Laurens & Angelaki 2017
+      code). With them the filter's post-rotatory time constant is 16.5 s, its peak gain 0.94
+      and its somatogravic time constant ≈ 1.1–1.3 s: none of these is set by hand.
 """
 
 from __future__ import annotations

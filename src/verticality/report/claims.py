@@ -483,8 +483,8 @@ CLAIMS: dict[str, Claim] = {
                   "Laurens–Angelaki default preset"),
         readings=("time constants are log-linear fits, 2–40 s after onset and 2–30 s after the "
                   "stop",
-                  "Laurens–Angelaki σ values chosen to give the paper's emergent numbers (the "
-                  "parameter table was not consulted)"),
+                  "Laurens–Angelaki in 3-D: the yaw variant about gravity, the tilt/translation "
+                  "variant across it (docs/perception.md)"),
         published=(Published("Merfeld–Zupan initial gain kω/(1 + kω)", "Merfeld & Zupan 2002",
                              "0.75", ("merfeld", "initial_gain"), "within", 0.75, rel=0.02),
                    Published("Merfeld–Zupan time constant (1 + kω)·τ", "Merfeld & Zupan 2002",
