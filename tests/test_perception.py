@@ -115,3 +115,17 @@ def test_parameters_and_options_are_checked():
     assert perception_params("merfeld", "human", ["k_omega=5"]).k_omega == 5.0
     with pytest.raises(InputError):
         pc.perceive(_still(np.eye(3), 1.0), "merfeld", otolith="glass")
+
+
+def test_stabilized_head_keeps_heading_and_acceleration_and_is_upright():
+    from verticality import so3
+    from verticality.recorded_trajectory import built_in_motion
+
+    rec, _ = built_in_motion("walking", 100.0, 0.0, 3.0)
+    st = pp.stabilized(rec)
+    R, Rs = (np.asarray(so3.matrix_from_quat(q)) for q in (rec.q_I_H_wxyz, st.q_I_H_wxyz))
+    np.testing.assert_allclose(Rs[:, :, 2], np.tile([0.0, 0.0, 1.0], (rec.t_s.size, 1)), atol=1e-12)
+    np.testing.assert_allclose(np.arctan2(Rs[:, 1, 0], Rs[:, 0, 0]), np.arctan2(R[:, 1, 0], R[:, 0, 0]),
+                               atol=1e-12)
+    np.testing.assert_array_equal(st.a_I_m_s2, rec.a_I_m_s2)
+    assert np.max(np.abs(pc.tilt_deg(np.einsum("nji,j->ni", R, [0.0, 0.0, -1.0])))) > 1.0

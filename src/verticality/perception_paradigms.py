@@ -14,6 +14,8 @@ the head centre ``a_I`` (gravity excluded). Head axes: x forward (naso-occipital
   own z axis at ``omega_deg_s`` (a velocity step at the start of rotation).
 * :func:`post_rotatory_tilt` — yaw at ``omega_deg_s``, a stop, then (``tilt=True``) a quick
   ``pitch_deg`` pitch within ``pitch_s`` seconds after the stop; ``tilt=False`` stays upright.
+* :func:`stabilized` — any head motion with the head servoed upright (heading and acceleration
+  kept), to ask a perception model the thesis's question.
 """
 
 from __future__ import annotations
@@ -96,6 +98,15 @@ def post_rotatory_tilt(tilt: bool = True, omega_deg_s: float = 60.0, on_s: float
     psi = _yaw_angle(t, still_s, stop, np.radians(omega_deg_s))
     theta = np.radians(pitch_deg) * np.clip((t - stop) / pitch_s, 0.0, 1.0) if tilt else 0.0 * t
     return _record(t, _rz(psi) @ _ry(theta), np.zeros((t.size, 3)))
+
+
+def stabilized(record: MotionRecord) -> MotionRecord:
+    """The head of ``record`` (rigid on the trunk) servoed upright: the same centre acceleration
+    and heading, no tilt (reading: an ideal stabilizer, keeping the head's yaw, the heading of its
+    x axis, and putting its z axis on the vertical)."""
+    R = np.asarray(so3.matrix_from_quat(record.q_I_H_wxyz))
+    yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+    return _record(record.t_s, _rz(np.unwrap(yaw)), record.a_I_m_s2)
 
 
 PARADIGMS = {"yaw-step": yaw_step, "somatogravic": somatogravic, "ovar": ovar,

@@ -179,3 +179,45 @@ def run_post_rotatory_tilt(quick: bool = False) -> Result:
     t_end = float(runs["merfeld"].t_s[-1])
     return Result(metrics=metrics, paper={"ratio_at_most": 0.7}, series=pc.series(runs, "speed", DECIMATE),
                   simulated_s=t_end * 2 * len(MODELS))
+
+
+# ------------------------------------------------------------------------- stabilized head
+
+SETTLE_S = 2.0
+
+
+def tilt_error_deg(r: pc.Perception) -> np.ndarray:
+    """Angle (deg) between perceived and true gravity, per row."""
+    return np.degrees(np.arccos(np.clip(np.sum(r.g_H_perceived * r.g_H_true, axis=1), -1.0, 1.0)))
+
+
+@register("perception-stabilized-head",
+          "Perception: does a stabilized head perceive the vertical better? (walking)",
+          source="F §1.4.3, Fig. 4.13; Merfeld & Zupan 2002; Laurens & Angelaki 2017",
+          figures=lambda r, d: figures(r, d, "perception-stabilized-head",
+                                       "walking: head fixed on the trunk (perceived |ω|)"))
+def run_stabilized_head(quick: bool = False) -> Result:
+    """The walking-like head motion of F Fig. 4.13 (100 Hz), the head rigid on the trunk
+    (``fixed``) or servoed upright (``stabilized``, :func:`perception_paradigms.stabilized`),
+    perceived by both models with the unity otolith and with the project's otolith pendulum;
+    metrics: the max and RMS angle between perceived and true gravity after 2 s."""
+    from verticality.recorded_trajectory import built_in_motion
+
+    rec, _ = built_in_motion("walking", 100.0, 0.0, 10.0 if quick else None)
+    heads = {"fixed": rec, "stabilized": pp.stabilized(rec)}
+    metrics, runs = {}, {}
+    for k, v in MODELS.items():
+        for otolith in ("unity", "pendulum"):
+            row = {}
+            for head, motion in heads.items():
+                r = pc.perceive(motion, *v, otolith=otolith)
+                err = tilt_error_deg(r)[r.t_s - r.t_s[0] >= SETTLE_S]
+                row[head] = {"max_tilt_error_deg": float(err.max()),
+                             "rms_tilt_error_deg": float(np.sqrt(np.mean(err**2)))}
+                if head == "fixed" and otolith == "unity":
+                    runs[k] = r
+            row["rms_ratio_stabilized_over_fixed"] = (row["stabilized"]["rms_tilt_error_deg"]
+                                                      / row["fixed"]["rms_tilt_error_deg"])
+            metrics.setdefault(k, {})[otolith] = row
+    return Result(metrics=metrics, paper={}, series=pc.series(runs, "speed", DECIMATE),
+                  simulated_s=float(rec.t_s[-1] - rec.t_s[0]) * 8)

@@ -550,6 +550,16 @@ CLAIMS: dict[str, Claim] = {
                              ("laurens", "ratio"), "at_most", 0.7, headline=True)),
         pages=("perception.md",),
     ),
+    "perception-stabilized-head": Claim(
+        source="F §1.4.3, Fig. 4.13; Merfeld & Zupan 2002; Laurens & Angelaki 2017",
+        claim="Not a published result: the thesis's question (does a head held upright estimate "
+              "the vertical better?) asked of the two perception models, on the walking-like "
+              "head motion, with the unity otolith and with the project's otolith pendulum.",
+        settings=("walking (F Fig. 4.13) at 100 Hz; errors after 2 s",),
+        readings=("stabilized: an ideal stabilizer keeping the head's heading and acceleration "
+                  "and putting its z axis on the vertical",),
+        pages=("perception.md",),
+    ),
 }
 
 #: Seed claims whose experiments are not registered yet; they move to :data:`CLAIMS` (with metric
