@@ -129,3 +129,16 @@ def test_stabilized_head_keeps_heading_and_acceleration_and_is_upright():
                                atol=1e-12)
     np.testing.assert_array_equal(st.a_I_m_s2, rec.a_I_m_s2)
     assert np.max(np.abs(pc.tilt_deg(np.einsum("nji,j->ni", R, [0.0, 0.0, -1.0])))) > 1.0
+
+
+def test_centrifuge_gif_rolls_by_atan_omega2_r_over_g_while_the_head_stays_upright():
+    from verticality.params import G_M_S2
+
+    rec = pp.centrifuge(radius_m=1.5, omega_deg_s=120.0, ramp_s=5.0, on_s=10.0)
+    f = pc.otolith_signals(rec)
+    w = math.radians(120.0)
+    end = rec.t_s > 7.0
+    np.testing.assert_allclose(np.degrees(np.arctan2(-f[end, 1], -f[end, 2])),
+                               math.degrees(math.atan2(w * w * 1.5, G_M_S2)), atol=1e-9)
+    np.testing.assert_allclose(rec.omega_H_rad_s[end], np.tile([0.0, 0.0, w], (end.sum(), 1)), atol=1e-9)
+    assert np.max(pc.tilt_deg(pc.perceive(rec, "laurens").g_H_true)) < 1e-9

@@ -14,6 +14,7 @@ the head centre ``a_I`` (gravity excluded). Head axes: x forward (naso-occipital
   own z axis at ``omega_deg_s`` (a velocity step at the start of rotation).
 * :func:`post_rotatory_tilt` — yaw at ``omega_deg_s``, a stop, then (``tilt=True``) a quick
   ``pitch_deg`` pitch within ``pitch_s`` seconds after the stop; ``tilt=False`` stays upright.
+* :func:`centrifuge` — fixed-radius centrifuge spin-up, the interaural axis along the radius.
 * :func:`stabilized` — any head motion with the head servoed upright (heading and acceleration
   kept), to ask a perception model the thesis's question.
 """
@@ -100,6 +101,25 @@ def post_rotatory_tilt(tilt: bool = True, omega_deg_s: float = 60.0, on_s: float
     return _record(t, _rz(psi) @ _ry(theta), np.zeros((t.size, 3)))
 
 
+def centrifuge(radius_m: float = 1.0, omega_deg_s: float = 180.0, ramp_s: float = 10.0,
+               on_s: float = 60.0, still_s: float = 1.0, dt_s: float = DT_S) -> MotionRecord:
+    """Fixed-radius centrifuge spin-up: the head ``radius_m`` from an Earth-vertical axis, upright,
+    facing the direction of travel with its left ear (y) toward the axis; the rotation rate ramps
+    linearly to ``omega_deg_s`` over ``ramp_s`` and is held. The centripetal acceleration ω²r
+    points along the head's +y, so the GIF is rolled by atan(ω²r/g)."""
+    t = _times(still_s + on_s, dt_s)
+    w = np.radians(omega_deg_s)
+    s = t - still_s
+    rate = np.where(s <= 0, 0.0, np.where(s < ramp_s, w * s / ramp_s, w))
+    accel = np.where((s > 0) & (s < ramp_s), w / ramp_s, 0.0)
+    psi = np.where(s <= 0, 0.0, np.where(s < ramp_s, 0.5 * w * s**2 / ramp_s,
+                                         0.5 * w * ramp_s + w * (s - ramp_s)))
+    c, si = np.cos(psi), np.sin(psi)
+    a = radius_m * (accel[:, None] * np.stack([-si, c, 0 * c], -1)
+                    - (rate**2)[:, None] * np.stack([c, si, 0 * c], -1))
+    return _record(t, _rz(psi + np.pi / 2), a)
+
+
 def stabilized(record: MotionRecord) -> MotionRecord:
     """The head of ``record`` (rigid on the trunk) servoed upright: the same centre acceleration
     and heading, no tilt (reading: an ideal stabilizer, keeping the head's yaw, the heading of its
@@ -110,4 +130,4 @@ def stabilized(record: MotionRecord) -> MotionRecord:
 
 
 PARADIGMS = {"yaw-step": yaw_step, "somatogravic": somatogravic, "ovar": ovar,
-             "post-rotatory-tilt": post_rotatory_tilt}
+             "post-rotatory-tilt": post_rotatory_tilt, "centrifuge": centrifuge}

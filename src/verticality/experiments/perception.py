@@ -31,6 +31,7 @@ import numpy as np
 from verticality import perception as pc
 from verticality import perception_paradigms as pp
 from verticality.experiments import Result, check, register
+from verticality.params import G_M_S2
 from verticality.perception_params import MERFELD_PRESETS
 
 MODELS = {"merfeld": ("merfeld", "human"), "laurens": ("laurens", "default")}
@@ -221,3 +222,41 @@ def run_stabilized_head(quick: bool = False) -> Result:
             metrics.setdefault(k, {})[otolith] = row
     return Result(metrics=metrics, paper={}, series=pc.series(runs, "speed", DECIMATE),
                   simulated_s=float(rec.t_s[-1] - rec.t_s[0]) * 8)
+
+
+# ------------------------------------------------------------------------------ centrifuge
+
+CENTRIFUGE_RADIUS_M, CENTRIFUGE_DEG_S, CENTRIFUGE_RAMP_S = 1.0, 180.0, 10.0
+
+
+def roll_deg(g_H) -> np.ndarray:
+    """Roll (deg) that gravity ``g_H`` implies, positive with the GIF toward the head's −y
+    (right ear down for a left ear toward the centrifuge's axis): atan2(−g_y, −g_z)."""
+    g = np.asarray(g_H, float)
+    return np.degrees(np.arctan2(-g[:, 1], -g[:, 2]))
+
+
+@register("perception-centrifuge", "Perception: fixed-radius centrifuge spin-up",
+          source="Merfeld & Zupan 2002; Laurens & Angelaki 2017",
+          figures=lambda r, d: figures(r, d, "perception-centrifuge",
+                                       "centrifuge: r = 1 m, 180°/s after a 10 s ramp"))
+def run_centrifuge(quick: bool = False) -> Result:
+    """A head 1 m from the axis, upright, left ear toward it, spun up to 180°/s in 10 s: the GIF
+    rolls by atan(ω²r/g) = 45.2° while the head stays upright; the perceived roll builds up toward
+    the GIF (the somatogravic effect of centrifugation) as the canals' yaw signal fades. Metrics:
+    the final perceived roll, the time from the start of the spin-up to 1 − 1/e of it, the final
+    perceived yaw rate."""
+    on_s = 40.0 if quick else 90.0
+    rec = pp.centrifuge(CENTRIFUGE_RADIUS_M, CENTRIFUGE_DEG_S, CENTRIFUGE_RAMP_S, on_s=on_s)
+    runs = {k: pc.perceive(rec, *v) for k, v in MODELS.items()}
+    w = math.radians(CENTRIFUGE_DEG_S)
+    gif_roll = math.degrees(math.atan2(w * w * CENTRIFUGE_RADIUS_M, G_M_S2))
+    metrics = {"gif_roll_deg": gif_roll}
+    for k, r in runs.items():
+        roll = roll_deg(r.g_H_perceived)
+        rise = np.nonzero(roll >= (1 - math.exp(-1)) * roll[-1])[0]
+        metrics[k] = {"final_roll_deg": float(roll[-1]),
+                      "time_constant_s": float(r.t_s[rise[0]] - 1.0) if rise.size else float("nan"),
+                      "final_yaw_rate_deg_s": float(np.degrees(r.omega_H_perceived_rad_s[-1, 2]))}
+    return Result(metrics=metrics, paper={}, series=pc.series(runs, "axis", DECIMATE),
+                  simulated_s=float(rec.t_s[-1]) * len(runs))

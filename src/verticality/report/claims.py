@@ -550,6 +550,16 @@ CLAIMS: dict[str, Claim] = {
                              ("laurens", "ratio"), "at_most", 0.7, headline=True)),
         pages=("perception.md",),
     ),
+    "perception-centrifuge": Claim(
+        source="Merfeld & Zupan 2002; Laurens & Angelaki 2017 (F §1.4.3)",
+        claim="On a centrifuge the gravito-inertial force rolls while the head stays upright; "
+              "the perceived roll builds up toward the GIF's as the canals' yaw signal fades.",
+        settings=("radius 1 m, left ear toward the axis, 180°/s after a linear 10 s ramp; GIF "
+                  "roll atan(ω²r/g) = 45.2°",),
+        published=(Published("GIF roll the percept tends to", "geometry", "45.2°",
+                             ("laurens", "final_roll_deg"), "within", 45.2, rel=0.03, unit="°"),),
+        pages=("perception.md",),
+    ),
     "perception-stabilized-head": Claim(
         source="F §1.4.3, Fig. 4.13; Merfeld & Zupan 2002; Laurens & Angelaki 2017",
         claim="Not a published result: the thesis's question (does a head held upright estimate "
