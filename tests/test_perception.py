@@ -142,3 +142,14 @@ def test_centrifuge_gif_rolls_by_atan_omega2_r_over_g_while_the_head_stays_uprig
                                math.degrees(math.atan2(w * w * 1.5, G_M_S2)), atol=1e-9)
     np.testing.assert_allclose(rec.omega_H_rad_s[end], np.tile([0.0, 0.0, w], (end.sum(), 1)), atol=1e-9)
     assert np.max(pc.tilt_deg(pc.perceive(rec, "laurens").g_H_true)) < 1e-9
+
+
+def test_torsion_pendulum_canal_is_the_high_pass_canal_at_low_frequency():
+    rec = pp.yaw_step(60.0, on_s=20.0, after_s=1.0)
+    hp = pc.perceive(rec, "merfeld")
+    tp = pc.perceive(rec, "merfeld", canal="torsion")
+    w_hp, w_tp = (np.degrees(r.omega_H_perceived_rad_s[:, 2]) for r in (hp, tp))
+    t = rec.t_s  # away from the steps (at 1 s and 21 s), where the 5 ms pole shows
+    late = ((t > 2.0) & (t < 20.9)) | (t > 21.5)
+    np.testing.assert_allclose(w_tp[late], w_hp[late], atol=0.3)
+    assert np.max(np.abs(w_tp - w_hp)) > 1e-3  # but it is another sensor

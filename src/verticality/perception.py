@@ -79,7 +79,6 @@ def _canal_signals(canal, omega, dts):
         w, dt = inp
         return step_rk4(canal, x, w, dt), canal.output(x, w)
 
-    dts = jnp.concatenate([dts, dts[-1:]])
     return jax.lax.scan(body, canal.rest_state(), (omega, dts))[1]
 
 
@@ -87,7 +86,8 @@ def canal_signals(canal, omega_H_rad_s, t_s) -> np.ndarray:
     """The canal signals on the rows: ``y_k = output(x_k, ω_k)``, then ``x_{k+1}`` by RK4 with
     ``ω_k`` held (the torsion pendulum with sub-steps of at most 1 ms)."""
     omega = jnp.asarray(omega_H_rad_s, dtype=jnp.float64)
-    dts = jnp.asarray(np.diff(np.asarray(t_s, float)))
+    dts = np.diff(np.asarray(t_s, float))
+    dts = jnp.asarray(np.concatenate([dts, dts[-1:]]))  # the last row's step is not used
     if isinstance(canal, canal_models.TorsionPendulumCanal):
         n = max(1, int(np.ceil(float(np.max(np.diff(t_s))) / 1e-3 - 1e-9)))
         fine = jnp.repeat(omega, n, axis=0)
