@@ -134,7 +134,7 @@ class LaurensAngelaki:
         K, Ky = self.K_tilt, self.K_yaw
         omega = Ky[0, 0] * dV_par + K[0, 0] * dV_perp + K[0, 1] * e_F
         c = c_p + Ky[1, 0] * dV_par + K[1, 0] * dV_perp + K[1, 1] * e_F
-        g_new = so3.exp(-(K[2, 0] * dV_perp + K[2, 1] * e_F)) @ g
+        g_new = so3.quat_rotate(so3.quat_exp(-(K[2, 0] * dV_perp + K[2, 1] * e_F)), g)
         a = jnp.cross(K[3, 0] * dV_perp + K[3, 1] * e_F, g) - self.k_a_parallel * dF_par * g
         v = state.v_H_m_s + dt * (G_M_S2 * a - jnp.cross(omega, state.v_H_m_s))
         new, _ = keep_finite(LaurensState(g_new, omega, c, a, v), state)
