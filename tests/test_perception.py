@@ -112,6 +112,8 @@ def test_parameters_and_options_are_checked():
         perception_params("merfeld", None, ["k_omega"])
     with pytest.raises(InputError):
         perception_params("laurens", None, ["tau_c_s=-1"])
+    with pytest.raises(InputError, match="k_a < 1"):
+        perception_params("merfeld", None, ["k_a=1"])
     assert perception_params("merfeld", "human", ["k_omega=5"]).k_omega == 5.0
     with pytest.raises(InputError):
         pc.perceive(_still(np.eye(3), 1.0), "merfeld", otolith="glass")

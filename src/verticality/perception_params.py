@@ -102,4 +102,8 @@ def perception_params(model: str, preset: str | None = None, items=()):
                 "sigma_v_rad_s", "sigma_a_g", "sigma_f_g"):
         if key in p._fields and not getattr(p, key) > 0.0:
             raise InputError(f"{model}: {key} must be positive, got {getattr(p, key)}")
+    if isinstance(p, MerfeldParams) and not (p.k_omega >= 0.0 and p.k_a < 1.0 and p.k_f >= 0.0
+                                             and p.k_f_omega >= 0.0):
+        raise InputError(f"merfeld: need k_omega, k_f, k_f_omega >= 0 and k_a < 1 (the observer's "
+                         f"algebraic loops), got {p}")
     return p
