@@ -155,3 +155,13 @@ def test_torsion_pendulum_canal_is_the_high_pass_canal_at_low_frequency():
     late = ((t > 2.0) & (t < 20.9)) | (t > 21.5)
     np.testing.assert_allclose(w_tp[late], w_hp[late], atol=0.3)
     assert np.max(np.abs(w_tp - w_hp)) > 1e-3  # but it is another sensor
+
+
+def test_post_rotatory_tilt_and_ovar_experiments_pass_their_checks():
+    from verticality.experiments import perception as exp
+
+    for run in (exp.run_post_rotatory_tilt, exp.run_ovar):
+        result = run(quick=True)
+        failed = [k for k, c in result.metrics["checks"].items() if not c["pass"]]
+        assert not failed, failed
+    assert result.metrics["merfeld-observer"]["plateau_rotation_deg_s"] < 2.0  # adaptation
