@@ -257,18 +257,14 @@ def perceive_file(motion_path, model: str = "merfeld", preset: str | None = None
                   otolith: str = "unity", canal: str = "high-pass", out_csv=None,
                   plot_png=None) -> dict:
     """``verticality perceive``: :func:`perceive` on a MOTION.csv (or a BROAD-layout recording);
-    writes OUT.csv and the figure when asked; returns a summary (JSON-ready)."""
+    writes OUT.csv and the figure when asked; returns a summary (JSON-ready). The caller checks the
+    paths first (:func:`verticality.io.paths.check_paths`, as the command does)."""
     from verticality.io.motion import load_motion, write_columns_csv
-    from verticality.io.output import check_writable_file
 
-    if out_csv is not None:
-        check_writable_file(out_csv, "--out")
-    if plot_png is not None:
-        check_writable_file(plot_png, "--plot")
     rec = load_motion(motion_path)
     r = perceive(rec, model, preset, params, otolith, canal)
     if out_csv is not None:
-        write_columns_csv(out_csv, dict(zip(PERCEPTION_COLUMNS, perception_table(r).T)))
+        write_columns_csv(out_csv, dict(zip(PERCEPTION_COLUMNS, perception_table(r).T, strict=True)))
     if plot_png is not None:
         plot_series(series({model: r}, "axis"), plot_png, f"{model}: {motion_path}")
     tilt_err = np.degrees(np.arccos(np.clip(np.sum(r.g_H_perceived * r.g_H_true, axis=1), -1, 1)))

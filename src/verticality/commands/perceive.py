@@ -39,8 +39,11 @@ def register(sub):
 
 
 def run(args) -> int:
+    from verticality.io.paths import check_input_file, check_paths
     from verticality.perception import perceive_file
 
+    check_input_file(args.motion)
+    check_paths({"--out": args.out, "--plot": args.plot}, [args.motion], figures=["--plot"])
     summary = perceive_file(args.motion, args.model, args.preset, args.param, args.otolith,
                             args.canal, args.out, args.plot)
     if args.json:
