@@ -206,8 +206,8 @@ def violations(case: dict) -> list[str]:
         elif code == 0 and kind == "stream":
             names, data = _estimate_table(out)
             _check_estimate(names, data, _data_row_count(inputs["in.csv"]), found)
-        elif code == 0 and kind in ("otolith", "ambiguity"):
-            out_csv = d / ("out.csv" if kind == "otolith" else "a.csv")
+        elif code == 0 and kind in ("otolith", "ambiguity", "perceive"):
+            out_csv = d / {"otolith": "out.csv", "ambiguity": "a.csv", "perceive": "p.csv"}[kind]
             names, data = _estimate_table(out_csv.read_text()) if out_csv.is_file() else (None, None)
             if data is None or data.shape[0] != _data_row_count(inputs["m.csv"]):
                 found.append("row count")
@@ -436,3 +436,39 @@ def test_ambiguity_on_malformed_motion_files_never_breaks_an_invariant(tmp_path)
                            None)
     assert code == 0, err
     assert len((tmp_path / "a.csv").read_text().splitlines()) == 121
+
+
+def test_perceive_on_malformed_motion_files_never_breaks_an_invariant(tmp_path):
+    """`perceive` compiles its model per recording length, so a few fixed seeds only, both models
+    in turn; every other file is well formed (then the run completes, one output row per input
+    row, all finite), and one case in three names the input as `--out` or `--plot` (under another
+    spelling)."""
+    for seed in range(6):
+        rng = random.Random(seed)
+        rows = motion_rows(rng, 120)
+        raw = corrupt_csv(rng, MOTION_HEADER, rows, 11) if seed % 2 \
+            else ("\n".join([MOTION_HEADER, *rows]) + "\n").encode()
+        argv = ["perceive", "{d}/m.csv", "--model", ("merfeld", "laurens")[seed // 2 % 2],
+                "--out", "{d}/p.csv", "--plot", "{d}/p.png"]
+        if seed % 3 == 2:
+            argv[rng.choice([5, 7])] = rng.choice(["{d}/./m.csv", "{d}/sub/../m.csv"])
+        assert violations({"kind": "perceive", "files": {"m.csv": raw}, "argv": argv}) == []
+    # what the random corruption rarely draws: an extreme but finite cell (the observer's
+    # gravity-inertial force overflowed to NaN percepts) and a time jump (the Laurens–Angelaki grid
+    # of a 10⁶ s span hung allocating 10⁸ steps; a 10¹² s step made RK4 on the canal diverge)
+    rows = motion_rows(random.Random(3), 120)
+    for col, value in ((8, "1e308"), (6, "1e308"), (0, "1e6"), (0, "1e12")):
+        k = 119 if col == 0 else 50
+        cells = rows[k].split(",")
+        cells[col] = value
+        raw = ("\n".join([MOTION_HEADER, *rows[:k], ",".join(cells), *rows[k + 1:]]) + "\n").encode()
+        for model in ("merfeld", "laurens"):
+            argv = ["perceive", "{d}/m.csv", "--model", model, "--out", "{d}/p.csv"]
+            assert violations({"kind": "perceive", "files": {"m.csv": raw}, "argv": argv}) == []
+    (tmp_path / "m.csv").write_text("\n".join([MOTION_HEADER, *motion_rows(random.Random(9), 120)]))
+    for model in ("merfeld", "laurens"):
+        out = tmp_path / f"{model}.csv"
+        code, _, err = run_cli(["perceive", str(tmp_path / "m.csv"), "--model", model,
+                                "--out", str(out)], None)
+        assert code == 0, err
+        assert len(out.read_text().splitlines()) == 121

@@ -37,6 +37,7 @@ from verticality.models import canal as canal_models
 from verticality.models.base import step_rk4
 from verticality.params import G_M_S2, gravity_I
 from verticality.perception_params import LaurensParams, MerfeldParams, perception_params
+from verticality.sizing import check_work_size
 
 MODELS = ("merfeld", "laurens")
 OTOLITHS = ("unity", "pendulum")
@@ -82,18 +83,39 @@ def _canal_signals(canal, omega, dts):
     return jax.lax.scan(body, canal.rest_state(), (omega, dts))[1]
 
 
+CANAL_SUBSTEP_BYTES = 64  # per RK4 sub-step: ω (24 B), its length (8 B), the signal (24 B), index
+GRID_STEP_BYTES = 256  # per step of the Laurens–Angelaki grid: signals, percepts, interpolation
+
+
+def canal_substep_s(canal) -> float:
+    """The longest RK4 sub-step for ``canal``: half its fastest time constant (the torsion
+    pendulum's fastest rate is Π/Θ, the sum of its two), and at most 1 ms for the torsion
+    pendulum."""
+    if isinstance(canal, canal_models.TorsionPendulumCanal):
+        return min(1e-3, 0.5 / float(canal.Pi_over_Theta_s_inv))
+    return 0.5 * min(float(canal.tau_s), float(canal.tau_a_s))
+
+
 def canal_signals(canal, omega_H_rad_s, t_s) -> np.ndarray:
     """The canal signals on the rows: ``y_k = output(x_k, ω_k)``, then ``x_{k+1}`` by RK4 with
-    ``ω_k`` held (the torsion pendulum with sub-steps of at most 1 ms)."""
-    omega = jnp.asarray(omega_H_rad_s, dtype=jnp.float64)
-    dts = np.diff(np.asarray(t_s, float))
-    dts = jnp.asarray(np.concatenate([dts, dts[-1:]]))  # the last row's step is not used
-    if isinstance(canal, canal_models.TorsionPendulumCanal):
-        n = max(1, int(np.ceil(float(np.max(np.diff(t_s))) / 1e-3 - 1e-9)))
-        fine = jnp.repeat(omega, n, axis=0)
-        y = _canal_signals(canal, fine, jnp.repeat(dts / n, n))
-        return np.asarray(y[::n])
-    return np.asarray(_canal_signals(canal, omega, dts))
+    ``ω_k`` held, in ⌈Δt / h⌉ equal sub-steps of at most ``h`` (:func:`canal_substep_s`), so that a
+    long interval between rows stays inside RK4's stability region. The work is sized before
+    anything is allocated (:func:`verticality.sizing.check_work_size`)."""
+    t = np.asarray(t_s, float)
+    dt = np.diff(t)
+    h = canal_substep_s(canal)
+    n_sub = np.maximum(np.ceil(dt / h - 1e-9), 1.0)
+    k = int(np.argmax(dt))
+    check_work_size(float(np.sum(n_sub)) + 1.0, CANAL_SUBSTEP_BYTES,
+                    f"canal RK4 sub-steps of {h:.3g} s",
+                    f"the largest time step is {dt[k]:.6g} s (data row {k + 2}); cut the recording "
+                    "into shorter files or remove the jump")
+    n_sub = n_sub.astype(int)
+    counts = np.append(n_sub, 1)  # the last row's step is not used
+    fine_w = jnp.asarray(np.repeat(np.asarray(omega_H_rad_s, float), counts, axis=0))
+    fine_dt = jnp.asarray(np.repeat(np.append(dt / n_sub, dt[-1] / n_sub[-1]), counts))
+    y = _canal_signals(canal, fine_w, fine_dt)
+    return np.asarray(y)[np.concatenate([[0], np.cumsum(n_sub)])]
 
 
 def otolith_signals(record: MotionRecord, otolith: str = "unity") -> np.ndarray:
@@ -145,10 +167,15 @@ def perceive(record: MotionRecord, model: str = "merfeld", preset: str | None = 
     grid = t
     if isinstance(p, LaurensParams) and np.max(np.abs(np.diff(t) - p.dt_s)) > 1e-9 * p.dt_s:
         # the filter's gains are those of its own time step: run it on that grid
-        grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / p.dt_s + 1e-9)) + 1) * p.dt_s
+        n_grid = np.floor((t[-1] - t[0]) / p.dt_s + 1e-9) + 1.0
+        check_work_size(n_grid, GRID_STEP_BYTES, f"steps of the filter's {p.dt_s:g} s grid",
+                        f"the recording spans {t[-1] - t[0]:.6g} s; cut it into shorter files or "
+                        "remove its time jumps")
+        grid = t[0] + np.arange(int(n_grid)) * p.dt_s
         ys = _interp(grid, t, ys)
     dts = np.diff(grid, prepend=grid[0] - (grid[1] - grid[0]) if grid.size > 1 else p.dt_s)
     outs = _run(est, jnp.asarray(ys), jnp.asarray(dts))
+    check_finite_percepts(grid, outs, record)
     if grid is not t:
         outs = type(outs)(*(_interp(t, grid, np.asarray(a, float)) if a.dtype != bool else a
                             for a in outs))
@@ -159,6 +186,29 @@ def perceive(record: MotionRecord, model: str = "merfeld", preset: str | None = 
     return Perception(t, np.asarray(outs.g_H), g_true, np.asarray(outs.omega_H_rad_s),
                       np.asarray(record.omega_H_rad_s, float), np.asarray(outs.a_H_m_s2), a_true,
                       np.asarray(outs.v_H_m_s))
+
+
+def check_finite_percepts(t_run_s, outs, record: MotionRecord) -> None:
+    """Refuse (:class:`InputError`) percepts that are not finite (``outs`` on the times
+    ``t_run_s`` the model ran at), naming the record's row at the first such time: the head's
+    motion is beyond what the model integrates; no row is written as NaN."""
+    t_run = np.asarray(t_run_s, float)
+    ok = np.ones(t_run.size, bool)
+    for a in outs:
+        a = np.asarray(a)
+        if a.dtype != bool:
+            ok &= np.all(np.isfinite(a.reshape(a.shape[0], -1)), axis=1)
+    if np.all(ok):
+        return
+    t = np.asarray(record.t_s, float)
+    k = min(int(np.searchsorted(t, t_run[int(np.argmin(ok))], side="left")), t.size - 1)
+    a = np.asarray(record.a_I_m_s2, float)[:k + 1]
+    w = np.asarray(record.omega_H_rad_s, float)[:k + 1]
+    dt = np.diff(t[:k + 1])
+    raise InputError(f"the perception model became non-finite at row {k + 1} (t = {t[k]:g} s): "
+                     "the head's motion is beyond what the model integrates (an acceleration of "
+                     f"{np.max(np.abs(a)):.3g} m/s², a rate of {np.max(np.abs(w)):.3g} rad/s or a "
+                     f"time step of {np.max(dt, initial=0.0):.3g} s by then); no row is written")
 
 
 def tilt_deg(g_H) -> np.ndarray:
