@@ -539,16 +539,23 @@ MIN_SUBSTEP_S = 1e-7
 SUBSTEP_BYTES = 112  # sub-step tables (32 B) and outputs (40 B per pendulum)
 
 
+@jax.jit
+def _A_at_rest(pendulum, still: RigidMotion):
+    """A of the pendulum linearized at rest on ``still``, compiled: op by op, the autodiff cost
+    seconds of dispatch and compilation per process."""
+    from verticality.models.linearize import linearize
+
+    return linearize(pendulum, pendulum.rest_state(still), still).A
+
+
 def fastest_rate_1_s(pendula) -> float:
     """The largest |eigenvalue| (1/s) of the pendulums' dynamics linearized at rest on a still,
     upright head (:func:`verticality.models.linearize.linearize` of each model value): one over
     the fastest time constant (the damped spin about the arm, β/J_zz, for the P13 pendulum)."""
-    from verticality.models.linearize import linearize
-
     still = RigidMotion(jnp.eye(3), jnp.zeros(3), jnp.zeros(3), jnp.zeros(3))
     rho = 0.0
     for p in pendula:
-        A = np.asarray(linearize(p, p.rest_state(still), still).A)
+        A = np.asarray(_A_at_rest(p, still))
         rho = max(rho, float(np.max(np.abs(np.linalg.eigvals(A)))))
     return rho
 
