@@ -165,3 +165,45 @@ def test_post_rotatory_tilt_and_ovar_experiments_pass_their_checks():
         failed = [k for k, c in result.metrics["checks"].items() if not c["pass"]]
         assert not failed, failed
     assert result.metrics["merfeld-observer"]["plateau_rotation_deg_s"] < 2.0  # adaptation
+
+
+def test_roll_swing_acceleration_is_the_second_derivative_of_the_head_position():
+    """y-null: the head 1.22 m below the axis, p = −r z_H; its acceleration by central differences
+    equals the record's a_I (the generator's analytic derivatives)."""
+    from verticality import so3
+
+    rec = pp.roll_swing("y-null", on_s=8.0, dt_s=0.001)
+    R = np.asarray(so3.matrix_from_quat(rec.q_I_H_wxyz))
+    p = -1.22 * R[:, :, 2]
+    dt = 0.001
+    a_fd = (p[2:] - 2 * p[1:-1] + p[:-2]) / dt**2
+    np.testing.assert_allclose(a_fd, rec.a_I_m_s2[1:-1], atol=2e-3)
+
+
+def test_roll_swing_conditions_null_and_double_the_forces():
+    from verticality.experiments.perception import swing_forces
+
+    amp = {}
+    for c in pp.SWING_CONDITIONS:
+        rec = pp.roll_swing(c, on_s=12.0)
+        f = swing_forces(rec)
+        last = rec.t_s > rec.t_s[-1] - 2 / 0.45
+        amp[c] = {k: np.ptp(f[k][last]) / 2 for k in ("f_y_m_s2", "f_z_m_s2")}
+    g_sin = 9.80665 * np.sin(np.radians(10.0))
+    assert abs(amp["center"]["f_y_m_s2"] / g_sin - 1) < 0.01  # a pure tilt
+    assert amp["y-null"]["f_y_m_s2"] < 0.05 * g_sin  # the pendulum frequency nulls it
+    assert amp["z-null"]["f_z_m_s2"] < 0.05 * amp["y-null"]["f_z_m_s2"]
+    assert abs(amp["z-double"]["f_z_m_s2"] / amp["y-null"]["f_z_m_s2"] - 2) < 0.05
+    with pytest.raises(ValueError):
+        pp.roll_swing("x-null")
+
+
+def test_roll_swing_experiment_passes_its_checks():
+    from verticality.experiments import perception as exp
+
+    result = exp.run_roll_swing(quick=True)
+    failed = [k for k, c in result.metrics["checks"].items() if not c["pass"]]
+    assert not failed, failed
+    cond = result.metrics["conditions"]
+    assert abs(cond["center"]["actual"]["tilt_deg"] - 10.0) < 0.05
+    assert abs(cond["y-null"]["actual"]["peak_vy_cm_s"] - 1.22 * np.radians(10) * 2 * np.pi * 0.45 * 100) < 1.0

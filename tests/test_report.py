@@ -232,7 +232,12 @@ def test_page_has_every_section_status_and_figure_and_needs_no_network(tmp_path)
     assert "Quick mode" in page  # the run's mode is stated
 
 
-def test_registered_but_not_run_and_unclaimed_experiments_are_covered(tmp_path):
+def test_registered_but_not_run_and_unclaimed_experiments_are_covered(tmp_path, monkeypatch):
+    from verticality.report import claims, html
+
+    # every seed claim has its experiment now: a pending one stands in for a later seed
+    monkeypatch.setattr(html, "PENDING", {"vection": claims.Claim(
+        source="a later seed", claim="Visual vection paradigms against the somatogravic model.")})
     results = _results(tmp_path, names=("separation", "brand-new"))
     data = json.loads((results / "results.json").read_text())
     data["registry"]["ekf-impact"] = {"title": "EKF", "source": "P13 §5"}
@@ -243,7 +248,7 @@ def test_registered_but_not_run_and_unclaimed_experiments_are_covered(tmp_path):
     assert "not run" in parsed.text_by_section[anchor("ekf-impact")]
     assert "No seed claim is recorded" in parsed.text_by_section[anchor("brand-new")]
     # the seed claims without an experiment are listed with their published figures
-    assert "perception paradigms" in parsed.text_by_section["pending"]
+    assert "vection" in parsed.text_by_section["pending"]
     assert "somatogravic" in parsed.text_by_section["pending"]
 
 

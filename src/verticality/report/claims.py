@@ -560,6 +560,56 @@ CLAIMS: dict[str, Claim] = {
                              ("laurens", "final_roll_deg"), "within", 45.2, rel=0.03, unit="°"),),
         pages=("perception.md",),
     ),
+    "perception-roll-swing": Claim(
+        source="Rader et al. 2009, Table 4; Merfeld & Zupan 2002; Laurens & Angelaki 2017",
+        claim="On a roll swing whose interaural force is nulled (the ears 1.22 m below the axis, "
+              "swung at that pendulum's 0.45 Hz), the perceived translation falls short of the "
+              "actual one; nulling or doubling the vertical force as well is a second condition "
+              "pair. Rader et al. report that subjects then overestimate tilt and underestimate "
+              "translation, more so with the vertical force nulled.",
+        settings=("roll swing ±10° at 0.45 Hz, 1.22 m below the axis (C: ears on the axis); 2 "
+                  "raised-cosine start cycles, 16 s (quick: 7 cycles) or 40 s; measured over the "
+                  "last two cycles",
+                  "Merfeld–Zupan with Rader et al.'s Table 4 parameters (the `observer` preset: "
+                  "kω = 3, kf = 2, kfω = 2, ka = −2, τ = 5.7 s, τa = 80 s; velocity leak 20 s, "
+                  "ours); Laurens–Angelaki default preset; unity otolith, high-pass canals"),
+        readings=("the radial oscillation that nulls or doubles the vertical force is computed "
+                  "from the swing's geometry (0.22 m/s² at 0.9 Hz; the paper applied 0.25 m/s²)",
+                  "amplitudes are half the peak-to-peak over the last two cycles"),
+        published=(Published("interaural force left by y-nulling", "Rader et al. 2009",
+                             "≈ 0.035 m/s² (bound ≤ 0.05, ours)",
+                             ("conditions", "y-null", "actual", "f_y_variation_m_s2"), "at_most",
+                             0.05, unit=" m/s²"),
+                   Published("vertical force, z-doubling over y-nulling", "Rader et al. 2009",
+                             "2×", ("z_double_over_y_null_f_z",), "within", 2.0, rel=0.05),
+                   Published("Merfeld–Zupan perceived y velocity, ears on the axis",
+                             "Rader et al. 2009, Table 4 (Observer model)", "10 cm/s",
+                             ("conditions", "center", "merfeld", "peak_vy_cm_s"), "context", 10.0,
+                             unit=" cm/s"),
+                   Published("Merfeld–Zupan perceived y velocity, y-nulling",
+                             "Rader et al. 2009, Table 4 (Observer model)", "38 cm/s",
+                             ("conditions", "y-null", "merfeld", "peak_vy_cm_s"), "context", 38.0,
+                             unit=" cm/s", headline=True),
+                   Published("Merfeld–Zupan perceived tilt, y-nulling",
+                             "Rader et al. 2009, Table 4 (Observer model)", "11°",
+                             ("conditions", "y-null", "merfeld", "tilt_deg"), "context", 11.0,
+                             unit="°"),
+                   Published("Laurens–Angelaki perceived tilt, y-nulling",
+                             "Rader et al. 2009, Table 4 (subjects)", "14°",
+                             ("conditions", "y-null", "laurens", "tilt_deg"), "context", 14.0,
+                             unit="°"),
+                   Published("Laurens–Angelaki perceived tilt, z-nulling",
+                             "Rader et al. 2009, Table 4 (subjects)", "13°",
+                             ("conditions", "z-null", "laurens", "tilt_deg"), "context", 13.0,
+                             unit="°"),
+                   Published("Laurens–Angelaki perceived tilt, z-doubling",
+                             "Rader et al. 2009, Table 4 (subjects)", "15°",
+                             ("conditions", "z-double", "laurens", "tilt_deg"), "context", 15.0,
+                             unit="°")),
+        pages=("perception.md",),
+        note="Neither model's tilt or y-velocity percept depends on the vertical force: both read "
+             "the otolith's direction for tilt, and its magnitude goes to the z acceleration.",
+    ),
     "perception-stabilized-head": Claim(
         source="F §1.4.3, Fig. 4.13; Merfeld & Zupan 2002; Laurens & Angelaki 2017",
         claim="Not a published result: the thesis's question (does a head held upright estimate "
@@ -574,14 +624,7 @@ CLAIMS: dict[str, Claim] = {
 
 #: Seed claims whose experiments are not registered yet; they move to :data:`CLAIMS` (with metric
 #: paths) when their experiments exist. Shown in the report under "not reproduced yet".
-PENDING: dict[str, Claim] = {
-    "perception paradigms": Claim(
-        source="beyond the seeds (Merfeld & Zupan 2002; Laurens & Angelaki 2017)",
-        claim="Vestibular perception paradigms (earth-vertical yaw step, somatogravic 0.2 g "
-              "step, off-vertical-axis rotation, post-rotatory tilt, centrifuge, variable-radius "
-              "swing) against published perception models.",
-    ),
-}
+PENDING: dict[str, Claim] = {}
 
 
 DIFFERENCES: tuple[Difference, ...] = (
