@@ -115,6 +115,10 @@ def test_parameters_and_options_are_checked():
     with pytest.raises(InputError, match="k_a < 1"):
         perception_params("merfeld", None, ["k_a=1"])
     assert perception_params("merfeld", "human", ["k_omega=5"]).k_omega == 5.0
+    # the parser shared with `otolith --param`: NaN refused, an infinite time constant allowed
+    with pytest.raises(InputError, match="NaN"):
+        perception_params("merfeld", None, ["k_f=nan"])
+    assert math.isinf(perception_params("merfeld", "human", ["tau_a_s=inf"]).tau_a_s)
     with pytest.raises(InputError):
         pc.perceive(_still(np.eye(3), 1.0), "merfeld", otolith="glass")
 

@@ -104,36 +104,48 @@ from the final m and l: m·diag(l², l², l²/20)), r (m, the lateral model's pi
 OTOLITH_MODELS = ("medial", "lateral")
 
 
-def parse_overrides(items, model: str = "medial") -> dict[str, float]:
-    """``["NAME=VALUE", ...]`` → ``{NAME: value}`` for :data:`OTOLITH_PARAM_NAMES`, checked: known
-    names, finite numbers, positive m, l and J, non-negative β, r only for the lateral model
-    (:class:`verticality.errors.InputError`, one line each)."""
+def parse_name_values(items, names, allow_inf: bool = False) -> dict[str, float]:
+    """``["NAME=VALUE", ...]`` (the ``--param`` options of a command) → ``{NAME: value}``, each NAME
+    one of ``names`` and each VALUE a number: finite, or also ±inf with ``allow_inf`` (an infinite
+    time constant, say); never NaN (:class:`verticality.errors.InputError`, one line each)."""
     import math
 
     from verticality.errors import InputError
 
     out: dict[str, float] = {}
     for item in items:
-        name, sep, value = item.partition("=")
+        name, sep, value = str(item).partition("=")
         name = name.strip()
         if not sep:
             raise InputError(f"--param {item!r}: expected NAME=VALUE")
-        if name not in OTOLITH_PARAM_NAMES:
-            raise InputError(f"--param {name}: unknown name; choose from "
-                             f"{', '.join(OTOLITH_PARAM_NAMES)}")
+        if name not in names:
+            raise InputError(f"--param {name}: unknown name; choose from {', '.join(names)}")
         try:
             v = float(value)
         except ValueError:
             raise InputError(f"--param {name}: not a number: {value!r}") from None
-        if not math.isfinite(v):
-            raise InputError(f"--param {name}: {value} is not finite")
+        if math.isnan(v):
+            raise InputError(f"--param {name}: NaN is not a value")
+        if math.isinf(v) and not allow_inf:
+            raise InputError(f"--param {name}: {value.strip()} is not finite")
+        out[name] = v
+    return out
+
+
+def parse_overrides(items, model: str = "medial") -> dict[str, float]:
+    """``["NAME=VALUE", ...]`` → ``{NAME: value}`` for :data:`OTOLITH_PARAM_NAMES`, checked: known
+    names, finite numbers (:func:`parse_name_values`), positive m, l and J, non-negative β, r only
+    for the lateral model (:class:`verticality.errors.InputError`, one line each)."""
+    from verticality.errors import InputError
+
+    out = parse_name_values(items, OTOLITH_PARAM_NAMES)
+    for name, v in out.items():
         if name in ("m", "l", "Jxx", "Jyy", "Jzz") and v <= 0.0:
             raise InputError(f"--param {name}: must be positive, not {v:g}")
         if name == "beta" and v < 0.0:
             raise InputError(f"--param beta: must not be negative, not {v:g}")
         if name == "r" and model != "lateral":
             raise InputError("--param r applies to the lateral model only (use --model lateral)")
-        out[name] = v
     return out
 
 

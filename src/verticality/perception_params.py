@@ -37,6 +37,7 @@ import math
 from typing import NamedTuple
 
 from verticality.errors import InputError
+from verticality.params import parse_name_values
 
 
 class MerfeldParams(NamedTuple):
@@ -83,21 +84,7 @@ def perception_params(model: str, preset: str | None = None, items=()):
     if name not in presets:
         raise InputError(f"unknown preset {name!r} for {model}; known: {', '.join(presets)}")
     p = presets[name]
-    changes = {}
-    for item in items:
-        key, sep, value = str(item).partition("=")
-        key = key.strip()
-        if not sep or key not in p._fields:
-            raise InputError(f"--param {item!r}: expected NAME=VALUE with NAME one of "
-                             f"{', '.join(p._fields)}")
-        try:
-            v = float(value)
-        except ValueError:
-            raise InputError(f"--param {item!r}: {value.strip()!r} is not a number") from None
-        if math.isnan(v):
-            raise InputError(f"--param {item!r}: NaN is not a value")
-        changes[key] = v
-    p = p._replace(**changes)
+    p = p._replace(**parse_name_values(items, p._fields, allow_inf=True))
     for key in ("tau_s", "tau_a_s", "tau_v_s", "dt_s", "tau_c_s", "sigma_omega_rad_s",
                 "sigma_v_rad_s", "sigma_a_g", "sigma_f_g"):
         if key in p._fields and not getattr(p, key) > 0.0:
