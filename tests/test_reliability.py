@@ -418,41 +418,46 @@ def test_stabilize_on_malformed_motion_files_never_breaks_an_invariant():
         assert violations(case) == []
 
 
+def fixed_motion_case(seed: int, kind: str, argv: list[str], outputs: tuple[int, ...]) -> dict:
+    """A MOTION.csv case for a command that compiles per recording length (so fixed seeds only):
+    an odd seed's file is corrupted, an even seed's well formed; one seed in three names the input,
+    under another spelling, at one of the argument positions ``outputs`` (an output option)."""
+    rng = random.Random(seed)
+    rows = motion_rows(rng, 120)
+    raw = corrupt_csv(rng, MOTION_HEADER, rows, 11) if seed % 2 \
+        else ("\n".join([MOTION_HEADER, *rows]) + "\n").encode()
+    argv = list(argv)
+    if seed % 3 == 2:
+        argv[rng.choice(outputs)] = rng.choice(["{d}/./m.csv", "{d}/sub/../m.csv"])
+    return {"kind": kind, "files": {"m.csv": raw}, "argv": argv}
+
+
+def well_formed_motion(folder: Path) -> Path:
+    """A well-formed 120-row MOTION.csv in ``folder``."""
+    path = folder / "m.csv"
+    path.write_text("\n".join([MOTION_HEADER, *motion_rows(random.Random(9), 120)]))
+    return path
+
+
 def test_ambiguity_on_malformed_motion_files_never_breaks_an_invariant(tmp_path):
-    """`ambiguity` replays the otolith at the motion's own length, so a few fixed seeds only;
-    every other file is well formed (then the run completes, one output row per input row), and
-    one case in three names the input as `--out` or `--plot` (under another spelling)."""
+    """`ambiguity` on :func:`fixed_motion_case` files; a well-formed one completes with one output
+    row per input row."""
     for seed in range(6):
-        rng = random.Random(seed)
-        rows = motion_rows(rng, 120)
-        raw = corrupt_csv(rng, MOTION_HEADER, rows, 11) if seed % 2 \
-            else ("\n".join([MOTION_HEADER, *rows]) + "\n").encode()
         argv = ["ambiguity", "{d}/m.csv", "--out", "{d}/a.csv", "--plot", "{d}/a.png"]
-        if seed % 3 == 2:
-            argv[rng.choice([3, 5])] = rng.choice(["{d}/./m.csv", "{d}/sub/../m.csv"])
-        assert violations({"kind": "ambiguity", "files": {"m.csv": raw}, "argv": argv}) == []
-    (tmp_path / "m.csv").write_text("\n".join([MOTION_HEADER, *motion_rows(random.Random(9), 120)]))
-    code, _, err = run_cli(["ambiguity", str(tmp_path / "m.csv"), "--out", str(tmp_path / "a.csv")],
-                           None)
+        assert violations(fixed_motion_case(seed, "ambiguity", argv, (3, 5))) == []
+    motion = well_formed_motion(tmp_path)
+    code, _, err = run_cli(["ambiguity", str(motion), "--out", str(tmp_path / "a.csv")], None)
     assert code == 0, err
     assert len((tmp_path / "a.csv").read_text().splitlines()) == 121
 
 
 def test_perceive_on_malformed_motion_files_never_breaks_an_invariant(tmp_path):
-    """`perceive` compiles its model per recording length, so a few fixed seeds only, both models
-    in turn; every other file is well formed (then the run completes, one output row per input
-    row, all finite), and one case in three names the input as `--out` or `--plot` (under another
-    spelling)."""
+    """`perceive` on :func:`fixed_motion_case` files, both models in turn; a well-formed file
+    completes with one output row per input row, all finite."""
     for seed in range(6):
-        rng = random.Random(seed)
-        rows = motion_rows(rng, 120)
-        raw = corrupt_csv(rng, MOTION_HEADER, rows, 11) if seed % 2 \
-            else ("\n".join([MOTION_HEADER, *rows]) + "\n").encode()
         argv = ["perceive", "{d}/m.csv", "--model", ("merfeld", "laurens")[seed // 2 % 2],
                 "--out", "{d}/p.csv", "--plot", "{d}/p.png"]
-        if seed % 3 == 2:
-            argv[rng.choice([5, 7])] = rng.choice(["{d}/./m.csv", "{d}/sub/../m.csv"])
-        assert violations({"kind": "perceive", "files": {"m.csv": raw}, "argv": argv}) == []
+        assert violations(fixed_motion_case(seed, "perceive", argv, (5, 7))) == []
     # what the random corruption rarely draws: an extreme but finite cell (the observer's
     # gravity-inertial force overflowed to NaN percepts) and a time jump (the Laurens–Angelaki grid
     # of a 10⁶ s span hung allocating 10⁸ steps; a 10¹² s step made RK4 on the canal diverge)
@@ -465,10 +470,10 @@ def test_perceive_on_malformed_motion_files_never_breaks_an_invariant(tmp_path):
         for model in ("merfeld", "laurens"):
             argv = ["perceive", "{d}/m.csv", "--model", model, "--out", "{d}/p.csv"]
             assert violations({"kind": "perceive", "files": {"m.csv": raw}, "argv": argv}) == []
-    (tmp_path / "m.csv").write_text("\n".join([MOTION_HEADER, *motion_rows(random.Random(9), 120)]))
+    motion = well_formed_motion(tmp_path)
     for model in ("merfeld", "laurens"):
         out = tmp_path / f"{model}.csv"
-        code, _, err = run_cli(["perceive", str(tmp_path / "m.csv"), "--model", model,
-                                "--out", str(out)], None)
+        code, _, err = run_cli(["perceive", str(motion), "--model", model, "--out", str(out)],
+                               None)
         assert code == 0, err
         assert len(out.read_text().splitlines()) == 121
