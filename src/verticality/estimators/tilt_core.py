@@ -242,6 +242,15 @@ def add_tilt_variance(P, var_rad2, xp=jnp):
     return P + xp.asarray(var_rad2)[..., None, None] * _TILT_DIAG
 
 
+def add_fix_variance(P, fix):
+    """Covariance ``P`` (7, 7) with the corrections ``fix`` (5,: tilt (2,) rad, bias (3,) rad/s)
+    that may not be real added as variance: ``|fix_tilt|²`` to both tilt variances, ``fix_b²`` to
+    each bias variance."""
+    P = add_tilt_variance(P, jnp.sum(fix[:2] * fix[:2]))
+    i = jnp.arange(E.bias.start, E.bias.stop)
+    return P.at[i, i].add(fix[2:] * fix[2:])
+
+
 def widen_tilt(P, sigma_rad, xp=jnp):
     """Covariance ``P`` (7, 7) with ``sigma_rad²`` added to both tilt variances (the accelerometer
     sample that initializes the filter may hold an inertial acceleration of unknown size)."""
@@ -275,7 +284,7 @@ def initialize(x, acc_m_s2, p, xp=jnp):
     P = widen_tilt(x[X.P].reshape(NE, NE), p.init_tilt_rad, xp)
     return X.pack(xp=xp, q=quat_from_acc(acc_m_s2, xp), b=x[X.b], v=x[X.v], P=P.reshape(-1),
                   acc_dev_var=x[X.acc_dev_var], rest_s=x[X.rest_s], reacquire=1.0,
-                  reacq_f_E=xp.zeros(3), reacq_t=0.0, vel_inn=xp.zeros(2), vel_tilt=xp.zeros(2))
+                  reacq_f_E=xp.zeros(3), reacq_t=0.0, vel_inn=xp.zeros(2), vel_fix=xp.zeros(5))
 
 
 # --- the block update ---
@@ -475,19 +484,22 @@ def block_update(x, c, p, gaps: bool = True):
     inn = lam * x[X.vel_inn] + (1.0 - lam) * whiten2(P, E.vel, -vel, r_v0)
     persist = eligible & ~jump & (jnp.sum(inn * inn) * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
     dx1, P1 = joseph_update(P, E.vel, -vel, r_v)
-    tilt_fix = x[X.vel_tilt]
+    fix = x[X.vel_fix]  # the tilt and bias corrections the velocity made over the window
     jump = jump | persist
     use = has_acc & ~jump
     dx = jnp.where(use, dx1, 0.0)
-    # the tilt corrections that velocity made over the window may not be the tilt's doing; which
-    # part is, the filter cannot tell: their size is added to the tilt's variance (undoing them
-    # would also undo the real corrections among them)
-    P = jnp.where(persist, add_tilt_variance(P, jnp.sum(tilt_fix * tilt_fix)), P)
+    # the tilt and bias corrections that velocity made over the window may not be the tilt's
+    # and the bias's doing; which part is, the filter cannot tell: their sizes are added to the
+    # tilt's and the bias's variances (undoing them would also undo the real corrections among
+    # them). The bias matters: a bias the kicks made wrong drifts the tilt while the velocity,
+    # forgotten block after block, can no longer show it
+    P = jnp.where(persist, add_fix_variance(P, fix), P)
     P = jnp.where(jump, reset_velocity(P, p.vel_m_s**2), P)
     keep = eligible & ~jump
     reset = has_acc | gap | collecting
     inn = jnp.where(keep, inn, jnp.where(reset, 0.0, x[X.vel_inn]))
-    tilt_fix = jnp.where(keep, lam * tilt_fix + dx1[E.tilt], jnp.where(reset, 0.0, tilt_fix))
+    fix = jnp.where(keep, lam * fix + jnp.concatenate([dx1[E.tilt], dx1[E.bias]]),
+                    jnp.where(reset, 0.0, fix))
     vel = jnp.where(jump, 0.0, vel)
     vel_prior = vel  # the velocity before the updates (after a reset)
     disturbed = disturbed | jump
@@ -542,7 +554,7 @@ def block_update(x, c, p, gaps: bool = True):
     q_new = so3.quat_normalize(q_new)
     x_new = X.pack(q=q_new, b=b + dx[E.bias], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
-                   vel_inn=inn, vel_tilt=tilt_fix)
+                   vel_inn=inn, vel_fix=fix)
     vel_reset = jump | gap | collecting
     transition = BlockTransition(jnp.where(vel_reset, F * _KEEP_VEL[:, None], F), P_pred,
                                  dx.at[E.vel].set(vel - vel_prior),

@@ -89,7 +89,7 @@ NE = 7  # error-state dimension
 E = Packed([("tilt", 2), ("vel", 2), ("bias", 3)])
 X = Packed([("q", 4), ("b", 3), ("v", 2), ("P", NE * NE), ("acc_dev_var", None),
             ("rest_s", None), ("reacquire", None), ("reacq_f_E", 3), ("reacq_t", None),
-            ("vel_inn", 2), ("vel_tilt", 2)])
+            ("vel_inn", 2), ("vel_fix", 5)])
 P_DIAG = slice(X.P.start, X.P.stop, NE + 1)  # the diagonal of the packed P
 S = Packed([("dquat", 4), ("tau", None), ("f", 3), ("t_acc", None), ("dev2", None),
             ("w2", None), ("t", None), ("qmiss", None), ("gsum", 3), ("asum", 3), ("a2", None),

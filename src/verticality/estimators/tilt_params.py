@@ -41,8 +41,8 @@ class TiltParams(NamedTuple):
     percentile) is a kick that left the sensor moving, not a tilt error: the velocity is forgotten
     and the block flagged ``ACC_DISTURBED``. The same χ² bounds the running mean of the whitened
     velocity innovations over ``vel_corr_s`` (a smaller kick whose velocity persists beyond the
-    prior's correlation time): the velocity is then forgotten too, and the tilt variance widened by
-    the tilt corrections that velocity made. ``gyr_scale_noise`` (√s):
+    prior's correlation time): the velocity is then forgotten too, and the tilt and bias variances
+    widened by the tilt and bias corrections that velocity made. ``gyr_scale_noise`` (√s):
     gyro errors that grow with the rate (scale factor, axis misalignment), process noise density
     ``(k |ω|)²``. Rest (T eq. 1 with ω = 0, so the canal signal is the drift): when for
     ``rest_min_s`` every block has gyro deviation below ``rest_gyr_rad_s`` and accelerometer

@@ -121,7 +121,7 @@ class Stream:
         self.reacq_f_E = np.zeros(3)
         self.reacq_t = 0.0
         self.vel_inn = np.zeros(2)  # running mean of the whitened velocity innovations
-        self.vel_tilt = np.zeros(2)  # the tilt corrections the velocity made over that window
+        self.vel_fix = np.zeros(5)  # the tilt and bias corrections the velocity made over it
         self._zero()
 
     @property
@@ -274,15 +274,16 @@ class Stream:
             persist = not jump and bool(inn @ inn * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
             v_dist = math.sqrt(self.acc_dev_var) / (2.0 * math.pi * p.vel_disturbed_hz)
             widen = max(1.0, (v_dist / p.vel_m_s) ** 2)  # the speed a disturbance makes
-            if persist:  # the tilt corrections of that window may be wrong: widen by their size
-                P = _widen_tilt(P, float(self.vel_tilt @ self.vel_tilt))
+            if persist:  # that window's tilt and bias corrections may be wrong: widen by them
+                P = _widen_tilt(P, float(self.vel_fix[:2] @ self.vel_fix[:2]))
+                P[4:, 4:] += np.diag(self.vel_fix[2:] ** 2)  # and the bias's
             elif not jump:
                 dx, P1 = _kf(P, 2, 2, -vel, widen * s_vel / t_acc_s)
-                self.vel_tilt = lam * self.vel_tilt + dx[:2]
+                self.vel_fix = lam * self.vel_fix + np.concatenate([dx[:2], dx[4:]])
                 self.vel_inn, kept, P = inn, True, P1
             jump = jump or persist
         if not kept and (has_acc or gap or collecting):
-            self.vel_inn, self.vel_tilt = np.zeros(2), np.zeros(2)
+            self.vel_inn, self.vel_fix = np.zeros(2), np.zeros(5)
         disturbed = disturbed or jump
         forget = gap or collecting or jump
         if forget:  # the velocity integrated across a gap (or a kick) means nothing
