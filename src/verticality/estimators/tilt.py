@@ -123,7 +123,7 @@ class TiltFilter:
             q0, initialized = q0 / np.sqrt(np.sum(q0 * q0)), True
         x = X.pack(xp=np, q=q0, b=b0, v=np.zeros(2), P=P0.reshape(-1), acc_dev_var=0.0,
                    rest_s=0.0, reacquire=0.0, reacq_f_E=np.zeros(3), reacq_t=0.0,
-                   vel_inn=np.zeros(2), vel_fix=np.zeros(5))
+                   vel_inn=np.zeros(2), vel_fix=np.zeros(5), speed_var=0.0, dv_var=0.0)
         return TiltState(x, _EMPTY_SUMS, np.int32(0), np.bool_(initialized))
 
     def predict(self, state: TiltState, gyr, dt) -> TiltState:

@@ -284,7 +284,8 @@ def initialize(x, acc_m_s2, p, xp=jnp):
     P = widen_tilt(x[X.P].reshape(NE, NE), p.init_tilt_rad, xp)
     return X.pack(xp=xp, q=quat_from_acc(acc_m_s2, xp), b=x[X.b], v=x[X.v], P=P.reshape(-1),
                   acc_dev_var=x[X.acc_dev_var], rest_s=x[X.rest_s], reacquire=1.0,
-                  reacq_f_E=xp.zeros(3), reacq_t=0.0, vel_inn=xp.zeros(2), vel_fix=xp.zeros(5))
+                  reacq_f_E=xp.zeros(3), reacq_t=0.0, vel_inn=xp.zeros(2), vel_fix=xp.zeros(5),
+                  speed_var=x[X.speed_var], dv_var=x[X.dv_var])
 
 
 # --- the block update ---
@@ -472,7 +473,23 @@ def block_update(x, c, p, gaps: bool = True):
     # specific force rotated by the estimate, its error grows as g J δ: this observes the tilt
     # (T eq. 5) with the inertial part integrated out rather than taken as white noise.
     r_v0 = jnp.where(at_rest, c[C.r_vel_rest], c[C.r_vel])
-    r_v = r_v0 * disturbed_velocity_scale(acc_dev_var, p)
+    # the motion's own correlation time τ (docs/tilt.md, "The filter (choices)"): a velocity of
+    # correlation time τ changes over a block of length T by E[Δv²] = 2 E[v²] (1 − e^(−T/τ)) per
+    # axis; the low-passed (over vel_corr_s) mean squares of the predicted velocity and of the
+    # block's change (its horizontal specific force in Earth) give τ, which replaces vel_corr_s
+    # in the noise while moving: never longer (a tilt error's ramp, a slow motion keep the
+    # prior) and never shorter than the block (the block is one measurement; an oscillation
+    # slower than it has a lag-T correlation near or below zero, which no exponential fits)
+    lam = jnp.exp(-T / p.vel_corr_s)
+    dv = f_E[:2]
+    ok = has_acc & ~gap & ~collecting
+    speed_var = jnp.where(ok, lam * x[X.speed_var] + (1 - lam) * 0.5 * jnp.sum(vel * vel),
+                          x[X.speed_var])
+    dv_var = jnp.where(ok, lam * x[X.dv_var] + (1 - lam) * 0.5 * jnp.sum(dv * dv), x[X.dv_var])
+    rho = jnp.clip(dv_var / jnp.maximum(2.0 * speed_var, 1e-12), 1.0 - lam, 1.0 - math.exp(-1.0))
+    tau_motion = -T / jnp.log1p(-rho)
+    r_v = r_v0 * disturbed_velocity_scale(acc_dev_var, p) * jnp.where(
+        at_rest, 1.0, tau_motion / p.vel_corr_s)
     # a velocity far beyond what its covariance allows under the undisturbed prior (a kick that
     # leaves the sensor moving) is not the tilt's doing: it is forgotten, not turned into tilt
     eligible = has_acc & ~gap & ~collecting
@@ -480,7 +497,6 @@ def block_update(x, c, p, gaps: bool = True):
     # a velocity that stays beyond the prior for longer than its correlation time (a kick too
     # small for the one-block test): the running mean of the whitened innovations over
     # ~vel_corr_s (N(0, (1 − λ)/(1 + λ) I) when the filter is consistent) against the same χ²
-    lam = jnp.exp(-T / p.vel_corr_s)
     inn = lam * x[X.vel_inn] + (1.0 - lam) * whiten2(P, E.vel, -vel, r_v0)
     persist = eligible & ~jump & (jnp.sum(inn * inn) * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
     dx1, P1 = joseph_update(P, E.vel, -vel, r_v)
@@ -554,7 +570,7 @@ def block_update(x, c, p, gaps: bool = True):
     q_new = so3.quat_normalize(q_new)
     x_new = X.pack(q=q_new, b=b + dx[E.bias], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
-                   vel_inn=inn, vel_fix=fix)
+                   vel_inn=inn, vel_fix=fix, speed_var=speed_var, dv_var=dv_var)
     vel_reset = jump | gap | collecting
     transition = BlockTransition(jnp.where(vel_reset, F * _KEEP_VEL[:, None], F), P_pred,
                                  dx.at[E.vel].set(vel - vel_prior),

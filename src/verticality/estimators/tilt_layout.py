@@ -12,7 +12,10 @@ arrays. The layouts:
   gyro bias (rad/s), ``v`` the horizontal velocity ``v_E`` (m/s), ``P`` (7 × 7, row-major), the
   low-passed ``(|f| − g)²`` ``acc_dev_var``, the time at rest ``rest_s``, and the re-acquisition
   after a gap or the start: ``reacquire`` (1.0 while pending), ``reacq_f_E`` (Σ R f Δt since the
-  gap, Earth) and ``reacq_t`` (its Σ Δt).
+  gap, Earth) and ``reacq_t`` (its Σ Δt); the persistence test's running mean of the whitened
+  velocity innovations ``vel_inn`` and the tilt and bias corrections the velocity made over it
+  ``vel_fix`` (5); the low-passed per-axis mean squares of the velocity ``speed_var`` and of its
+  change over a block ``dv_var`` (m²/s², the motion's correlation time).
 * :data:`S` the sums of the samples of the current block (``TiltState.sums``, the per-sample
   pre-integration): ``dquat`` the raw gyro rotation since the block start, ``tau`` the time
   integrated by a valid gyro, ``f`` Σ f Δt (block-start sensor frame) over valid accelerometer
@@ -89,7 +92,7 @@ NE = 7  # error-state dimension
 E = Packed([("tilt", 2), ("vel", 2), ("bias", 3)])
 X = Packed([("q", 4), ("b", 3), ("v", 2), ("P", NE * NE), ("acc_dev_var", None),
             ("rest_s", None), ("reacquire", None), ("reacq_f_E", 3), ("reacq_t", None),
-            ("vel_inn", 2), ("vel_fix", 5)])
+            ("vel_inn", 2), ("vel_fix", 5), ("speed_var", None), ("dv_var", None)])
 P_DIAG = slice(X.P.start, X.P.stop, NE + 1)  # the diagonal of the packed P
 S = Packed([("dquat", 4), ("tau", None), ("f", 3), ("t_acc", None), ("dev2", None),
             ("w2", None), ("t", None), ("qmiss", None), ("gsum", 3), ("asum", 3), ("a2", None),

@@ -20,7 +20,9 @@ class TiltParams(NamedTuple):
     ``gyr_noise`` gyro white noise (rad/s/√Hz, T's δ_c); ``bias_walk`` gyro bias random walk
     (rad/s/√s, T's δ_drift, eq. 2); ``acc_noise`` accelerometer white noise entering the integrated
     velocity (m/s²/√Hz, T's δ_a). Velocity prior: ``vel_m_s`` typical speed of the motion with
-    correlation time ``vel_corr_s``; ``vel_rest_m_s`` at rest. ``acc_missing_m_s2``: unknown
+    correlation time ``vel_corr_s`` (the longest: while moving, the motion's own correlation time,
+    estimated from its velocity moments, replaces it when shorter, down to a block; also the
+    window of those moments); ``vel_rest_m_s`` at rest. ``acc_missing_m_s2``: unknown
     acceleration assumed while the accelerometer drops out; ``acc_tau_s``: low-pass of ``(|f|−g)²``
     used for the ACC_DISTURBED flag. ``omega_missing_rad_s``: unknown rate assumed while the gyro
     drops out. ``gap_flag_s``: a step Δt above it is a gap in the recording (flag ``DT_GAP``):

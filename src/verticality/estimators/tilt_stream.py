@@ -122,6 +122,8 @@ class Stream:
         self.reacq_t = 0.0
         self.vel_inn = np.zeros(2)  # running mean of the whitened velocity innovations
         self.vel_fix = np.zeros(5)  # the tilt and bias corrections the velocity made over it
+        self.speed2 = 0.0  # low-passed per-axis mean square of the velocity
+        self.dv2 = 0.0  # and of its change over a block
         self._zero()
 
     @property
@@ -270,6 +272,13 @@ class Stream:
             # a velocity beyond the prior for longer than its correlation time: the running mean
             # of the whitened innovations, N(0, (1 − λ)/(1 + λ) I) when consistent
             lam = math.exp(-T / p.vel_corr_s)
+            # the motion's own correlation time from its velocity and velocity-change moments:
+            # a block changes a velocity of correlation time τ by E[Δv²] = 2 E[v²] (1 − e^(−T/τ))
+            dv = np.array(f_E)[:2]
+            self.speed2 = lam * self.speed2 + (1.0 - lam) * float(vel @ vel) / 2.0
+            self.dv2 = lam * self.dv2 + (1.0 - lam) * float(dv @ dv) / 2.0
+            share = min(max(self.dv2 / max(2.0 * self.speed2, 1e-12), 1.0 - lam), 1.0 - math.exp(-1.0))
+            tau_motion = p.vel_corr_s if at_rest else -T / math.log(1.0 - share)
             inn = lam * self.vel_inn + (1.0 - lam) * np.linalg.solve(np.linalg.cholesky(S), -vel)
             persist = not jump and bool(inn @ inn * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
             v_dist = math.sqrt(self.acc_dev_var) / (2.0 * math.pi * p.vel_disturbed_hz)
@@ -278,7 +287,8 @@ class Stream:
                 P = _widen_tilt(P, float(self.vel_fix[:2] @ self.vel_fix[:2]))
                 P[4:, 4:] += np.diag(self.vel_fix[2:] ** 2)  # and the bias's
             elif not jump:
-                dx, P1 = _kf(P, 2, 2, -vel, widen * s_vel / t_acc_s)
+                dx, P1 = _kf(P, 2, 2, -vel,
+                             widen * s_vel / t_acc_s * tau_motion / p.vel_corr_s)
                 self.vel_fix = lam * self.vel_fix + np.concatenate([dx[:2], dx[4:]])
                 self.vel_inn, kept, P = inn, True, P1
             jump = jump or persist
