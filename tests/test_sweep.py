@@ -1,0 +1,161 @@
+"""`verticality sweep`: the spec's errors, the design's order, a real local Dask cluster of two
+worker processes, worker-count independence and resume."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("distributed")
+pq = pytest.importorskip("pyarrow.parquet")
+
+from verticality.cli import main  # noqa: E402
+from verticality.errors import InputError  # noqa: E402
+from verticality.experiments import newton as E  # noqa: E402
+from verticality.sweep import distribute  # noqa: E402
+from verticality.sweep import spec as S  # noqa: E402
+from verticality.sweep.kernels import NEWTON_LISSAJOUS  # noqa: E402
+
+# 8 runs of 1.5 s (fixed/stabilized × K̂ −20 / +30 % × 2 seeds) in tasks of 2 runs, batches of 2
+TINY = """
+kernel = "newton-lissajous"
+batch = 2
+runs_per_task = 2
+[options]
+duration_s = 1.5
+[knobs]
+head = ["fixed", "stabilized"]
+K_rel_error = [-0.2, 0.3]
+[seeds]
+values = [3, 5]
+"""
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("jax-cache")
+
+
+@pytest.fixture(scope="module")
+def two_workers(tmp_path_factory, cache):
+    out = tmp_path_factory.mktemp("sweep2")
+    spec = S.parse(TINY)
+    summary = distribute.run(spec, out, workers=2, progress=False, compile_cache=cache)
+    return spec, out, summary
+
+
+def test_design_order_and_columns():
+    spec = S.parse(TINY)
+    d = S.design(spec)
+    assert d.n_runs == 8 and S.n_tasks(spec, d.n_runs) == 4
+    assert list(d.seeds) == [3, 5] * 4
+    assert list(d.columns["head"]) == ["fixed"] * 4 + ["stabilized"] * 4
+    assert list(d.columns["K_rel_error"]) == [-0.2, -0.2, 0.3, 0.3] * 2
+    assert set(d.columns) == set(NEWTON_LISSAJOUS.knobs)  # knobs left out are columns too
+    assert np.all(d.columns["noise_rad"] == NEWTON_LISSAJOUS.knobs["noise_rad"].default)
+
+
+def test_random_design_is_reproducible_and_in_range():
+    text = TINY.replace("[knobs]", '[design]\nkind = "random"\nn = 5\nseed = 7\n[knobs]').replace(
+        "K_rel_error = [-0.2, 0.3]", "K_rel_error = {min = -0.5, max = 0.5}")
+    a, b = S.design(S.parse(text)), S.design(S.parse(text))
+    assert a.n_runs == 10
+    np.testing.assert_array_equal(a.columns["K_rel_error"], b.columns["K_rel_error"])
+    k = a.columns["K_rel_error"]
+    assert np.all((k >= -0.5) & (k <= 0.5)) and len(set(k)) == 5
+
+
+@pytest.mark.parametrize("change, words", [
+    (("kernel = \"newton-lissajous\"", "kernel = \"nope\""), "kernel must be one of"),
+    (("K_rel_error = [-0.2, 0.3]", "K_rel_error = [-1.0]"), "outside (-1.0"),
+    (("K_rel_error = [-0.2, 0.3]", "Q_rel_error = [0.1]"), "has no knob 'Q_rel_error'"),
+    (("head = [\"fixed\", \"stabilized\"]", "head = [\"floating\"]"), "not one of fixed, stabilized"),
+    (("values = [3, 5]", "values = [3, 3]"), "seeds repeat"),
+    (("duration_s = 1.5", "duration_s = 1.51"), "multiple of the observer's 25 ms"),
+    (("runs_per_task = 2", "runs_per_task = 3"), "runs_per_task must be a positive multiple of batch"),
+    (("[seeds]", "[seed]"), "unknown key(s) seed"),
+    (("K_rel_error = [-0.2, 0.3]", "K_rel_error = {min = 0, max = 1}"), "random design"),
+    (("[knobs]", "[knobs"), "not valid TOML"),
+])
+def test_bad_spec_is_one_clear_error(change, words, tmp_path, capsys):
+    text = TINY.replace(*change)
+    with pytest.raises(InputError, match=None) as exc:
+        S.parse(text)
+    assert words in str(exc.value)
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    assert main(["sweep", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0] and "Traceback" not in err[0]
+
+
+def test_local_cluster_two_workers_writes_the_table(two_workers):
+    spec, out, summary = two_workers
+    assert summary.n_runs == 8 and summary.computed_tasks == (0, 1, 2, 3)
+    t = pq.read_table(out / "results.parquet")
+    assert t.column_names == (["run", *NEWTON_LISSAJOUS.knobs, "seed", *NEWTON_LISSAJOUS.metrics,
+                               "diverged"])
+    assert t.column("run").to_pylist() == list(range(8))
+    err = np.asarray(t.column("max_error_deg"))
+    head = np.asarray(t.column("head"))
+    assert np.all(np.isfinite(err)) and not np.any(t.column("diverged").to_numpy())
+    # the stabilized head's error is far below the fixed head's with the same wrong K̂
+    assert np.max(err[head == "stabilized"]) < 0.2 * np.min(err[head == "fixed"])
+    assert (out / "spec.toml").read_text() == TINY
+    prov = json.loads((out / "provenance.json").read_text())
+    assert prov["runs"] == 8 and prov["tasks_computed"] == 4 and prov["libraries"]["dask"]
+
+
+def test_one_worker_table_is_bit_identical(two_workers, tmp_path, cache):
+    """One worker and tasks of 6 runs (two full tasks' worth and a short one): the same table."""
+    spec, out2, _ = two_workers
+    other = S.parse(TINY.replace("runs_per_task = 2", "runs_per_task = 6"))
+    assert distribute.run(other, tmp_path, workers=1, progress=False,
+                          compile_cache=cache).n_tasks == 2
+    assert pq.read_table(tmp_path / "results.parquet").equals(pq.read_table(out2 / "results.parquet"))
+
+
+def test_task_size_does_not_change_a_run(two_workers, cache):
+    """One task of all 8 runs, computed in this process, gives the same numbers as the cluster's
+    tasks of 2."""
+    spec, out2, _ = two_workers
+    d = S.design(spec)
+    one = distribute.task_table(spec.kernel, spec.options, d, 0, spec.batch)
+    assert one.equals(pq.read_table(out2 / "results.parquet"))
+
+
+def test_resume_recomputes_only_the_missing_part(two_workers, tmp_path, cache):
+    spec, out2, _ = two_workers
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "parts").mkdir()
+    for p in sorted((out2 / "parts").iterdir()):
+        (out / "parts" / p.name).write_bytes(p.read_bytes())
+    (out / "spec.toml").write_text(TINY)
+    before = {p.name: p.read_bytes() for p in (out / "parts").iterdir()}
+    (out / "parts" / "part-000002.parquet").unlink()
+    (out / "parts" / "part-000001.parquet").write_bytes(before["part-000001.parquet"][:100])  # torn
+    summary = distribute.run(spec, out, workers=1, resume=True, progress=False, compile_cache=cache)
+    assert summary.computed_tasks == (1, 2)
+    for name in ("part-000000.parquet", "part-000003.parquet"):
+        assert (out / "parts" / name).read_bytes() == before[name]
+    assert pq.read_table(out / "results.parquet").equals(pq.read_table(out2 / "results.parquet"))
+    with pytest.raises(InputError, match="already holds a sweep"):
+        distribute.run(spec, out, workers=1, progress=False)
+    with pytest.raises(InputError, match="another spec"):
+        distribute.run(S.parse(TINY.replace("[3, 5]", "[3, 6]")), out, resume=True, progress=False)
+
+
+def test_kernel_reproduces_the_experiment_run():
+    """A sweep run with the experiment's perturbed observer (every mass-like parameter 10 % high)
+    and seed is the experiment's run: same maximum error as `newton-lissajous`'s computation."""
+    cols = {k: np.array([v.default]) for k, v in NEWTON_LISSAJOUS.knobs.items()}
+    for k in ("m_rel_error", "J_rel_error", "beta_rel_error", "K_rel_error"):
+        cols[k] = np.array([0.1])
+    got = NEWTON_LISSAJOUS.run_batch({k: np.repeat(v, 2) for k, v in cols.items()},
+                                     np.array([11, 11]), duration_s=1.5)  # the tests' batch shape
+    ref = E.max_error_after(E.RunSeries(*(np.asarray(a[0]) for a in E.run_batch(
+        [True], [0.1], [E.NOISE_RAD], seed=11, duration_s=1.5))))
+    np.testing.assert_allclose(got["max_error_deg"][0], ref, rtol=1e-9)
