@@ -4,19 +4,18 @@ worker processes, worker-count independence and resume."""
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
+import pyarrow.parquet as pq  # the extra 'sweep' is part of the test extra: missing, this fails
 import pytest
 
-pytest.importorskip("distributed")
-pq = pytest.importorskip("pyarrow.parquet")
-
-from verticality.cli import main  # noqa: E402
-from verticality.errors import InputError  # noqa: E402
-from verticality.experiments import newton as E  # noqa: E402
-from verticality.sweep import distribute  # noqa: E402
-from verticality.sweep import spec as S  # noqa: E402
-from verticality.sweep.kernels import NEWTON_LISSAJOUS  # noqa: E402
+from verticality.cli import main
+from verticality.errors import InputError
+from verticality.experiments import newton as E
+from verticality.sweep import distribute
+from verticality.sweep import spec as S
+from verticality.sweep.kernels import NEWTON_LISSAJOUS
 
 # 8 runs of 1.5 s (fixed/stabilized × K̂ −20 / +30 % × 2 seeds) in tasks of 2 runs, batches of 2
 TINY = """
@@ -89,6 +88,18 @@ def test_bad_spec_is_one_clear_error(change, words, tmp_path, capsys):
     assert main(["sweep", str(path), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0] and "Traceback" not in err[0]
+
+
+@pytest.mark.parametrize("module", ["distributed", "pyarrow.parquet"])
+def test_without_the_extra_the_command_says_what_to_install(module, monkeypatch, tmp_path, capsys):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    monkeypatch.setitem(sys.modules, module, None)  # makes `import module` raise ImportError
+    assert main(["sweep", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install 'verticality[sweep]'" in err[0]
+    assert module.split(".")[0] in err[0]
+    assert not (tmp_path / "o").exists()
 
 
 def test_local_cluster_two_workers_writes_the_table(two_workers):

@@ -30,6 +30,23 @@ from verticality.sweep import spec as sweep_spec
 from verticality.sweep.kernels import KERNELS
 
 PART_DIGITS = 6
+INSTALL_HINT = "pip install 'verticality[sweep]'"
+
+
+def require_engine() -> None:
+    """Raise one :class:`InputError` line if Dask's ``distributed`` or ``pyarrow`` (the optional
+    extra ``sweep``) is not installed."""
+    import importlib
+
+    missing = []
+    for module in ("distributed", "pyarrow.parquet"):
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            missing.append(module.split(".")[0])
+    if missing:
+        raise InputError(f"a sweep needs {' and '.join(missing)} (the optional extra 'sweep'): "
+                         f"{INSTALL_HINT}")
 
 
 @dataclass(frozen=True)
@@ -125,6 +142,7 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     """Run the sweep ``spec`` into ``out_dir`` (see the module docstring). ``compile_cache``:
     JAX's persistent compilation cache folder for the workers (default: this process's, which
     the ``verticality`` command sets)."""
+    require_engine()
     import jax
     import pyarrow as pa
     import pyarrow.parquet as pq
