@@ -33,15 +33,12 @@ values = [3, 5]
 
 
 @pytest.fixture(scope="module")
-def cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("jax-cache")
-
-
-@pytest.fixture(scope="module")
-def two_workers(tmp_path_factory, cache):
+def two_workers(tmp_path_factory):
+    """The tiny sweep on a real local cluster of two worker processes; they load the kernel from
+    the session's compilation cache (``run`` compiles it there first)."""
     out = tmp_path_factory.mktemp("sweep2")
     spec = S.parse(TINY)
-    summary = distribute.run(spec, out, workers=2, progress=False, compile_cache=cache)
+    summary = distribute.run(spec, out, workers=2, progress=False)
     return spec, out, summary
 
 
@@ -119,16 +116,15 @@ def test_local_cluster_two_workers_writes_the_table(two_workers):
     assert prov["runs"] == 8 and prov["tasks_computed"] == 4 and prov["libraries"]["dask"]
 
 
-def test_one_worker_table_is_bit_identical(two_workers, tmp_path, cache):
+def test_one_worker_table_is_bit_identical(two_workers, tmp_path):
     """One worker and tasks of 6 runs (two full tasks' worth and a short one): the same table."""
     spec, out2, _ = two_workers
     other = S.parse(TINY.replace("runs_per_task = 2", "runs_per_task = 6"))
-    assert distribute.run(other, tmp_path, workers=1, progress=False,
-                          compile_cache=cache).n_tasks == 2
+    assert distribute.run(other, tmp_path, workers=1, progress=False).n_tasks == 2
     assert pq.read_table(tmp_path / "results.parquet").equals(pq.read_table(out2 / "results.parquet"))
 
 
-def test_task_size_does_not_change_a_run(two_workers, cache):
+def test_task_size_does_not_change_a_run(two_workers):
     """One task of all 8 runs, computed in this process, gives the same numbers as the cluster's
     tasks of 2."""
     spec, out2, _ = two_workers
@@ -137,7 +133,7 @@ def test_task_size_does_not_change_a_run(two_workers, cache):
     assert one.equals(pq.read_table(out2 / "results.parquet"))
 
 
-def test_resume_recomputes_only_the_missing_part(two_workers, tmp_path, cache):
+def test_resume_recomputes_only_the_missing_part(two_workers, tmp_path):
     spec, out2, _ = two_workers
     out = tmp_path / "r"
     out.mkdir()
@@ -148,7 +144,7 @@ def test_resume_recomputes_only_the_missing_part(two_workers, tmp_path, cache):
     before = {p.name: p.read_bytes() for p in (out / "parts").iterdir()}
     (out / "parts" / "part-000002.parquet").unlink()
     (out / "parts" / "part-000001.parquet").write_bytes(before["part-000001.parquet"][:100])  # torn
-    summary = distribute.run(spec, out, workers=1, resume=True, progress=False, compile_cache=cache)
+    summary = distribute.run(spec, out, workers=1, resume=True, progress=False)
     assert summary.computed_tasks == (1, 2)
     for name in ("part-000000.parquet", "part-000003.parquet"):
         assert (out / "parts" / name).read_bytes() == before[name]
@@ -161,7 +157,8 @@ def test_resume_recomputes_only_the_missing_part(two_workers, tmp_path, cache):
 
 def test_kernel_reproduces_the_experiment_run():
     """A sweep run with the experiment's perturbed observer (every mass-like parameter 10 % high)
-    and seed is the experiment's run: same maximum error as `newton-lissajous`'s computation."""
+    and seed is the experiment's run: computed in a batch of two, the same maximum error to 1e-12
+    as `newton-lissajous`'s computation of that run alone."""
     cols = {k: np.array([v.default]) for k, v in NEWTON_LISSAJOUS.knobs.items()}
     for k in ("m_rel_error", "J_rel_error", "beta_rel_error", "K_rel_error"):
         cols[k] = np.array([0.1])
@@ -169,4 +166,4 @@ def test_kernel_reproduces_the_experiment_run():
                                      np.array([11, 11]), duration_s=1.5)  # the tests' batch shape
     ref = E.max_error_after(E.RunSeries(*(np.asarray(a[0]) for a in E.run_batch(
         [True], [0.1], [E.NOISE_RAD], seed=11, duration_s=1.5))))
-    np.testing.assert_allclose(got["max_error_deg"][0], ref, rtol=1e-9)
+    np.testing.assert_allclose(got["max_error_deg"][0], ref, rtol=1e-12)

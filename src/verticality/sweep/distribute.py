@@ -159,7 +159,12 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     start = time.perf_counter()
     n_workers = workers or min(os.cpu_count() or 1, max(len(todo), 1))
     if todo:
-        cache = compile_cache if compile_cache is not None else jax.config.jax_compilation_cache_dir
+        own = jax.config.jax_compilation_cache_dir
+        cache = compile_cache if compile_cache is not None else own
+        if not scheduler and cache and str(cache) == str(own):
+            # compile once here, into the cache the local workers load from (else every worker
+            # process compiles the same kernel, ~10 s each on this machine's shared cores)
+            spec.kernel_value.compile_batch(spec.batch, **spec.options)
         _compute(spec, design, bounds, todo, parts, scheduler, n_workers, progress,
                  str(cache) if cache else None)
     wall = time.perf_counter() - start

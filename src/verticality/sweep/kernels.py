@@ -71,6 +71,9 @@ class Kernel:
     metrics: tuple[str, ...]  # float64 columns, besides the bool column ``diverged``
     run_batch: Callable[..., dict[str, np.ndarray]]  # (columns, seeds, **options) -> metrics
     check_options: Callable[[dict[str, Any]], str | None] = field(default=lambda o: None)
+    # (batch, **options) -> None: compile the batch function without running it (ahead of time,
+    # so that JAX's persistent compilation cache holds it before worker processes need it)
+    compile_batch: Callable[..., None] = field(default=lambda batch, **options: None)
 
 
 # ----------------------------------------------------------------------- newton-lissajous
@@ -109,16 +112,27 @@ def newton_lissajous_batch(rel_errors, fixed, noise_rad, seeds, n_blocks: int):
     return jax.vmap(one)(rel_errors, fixed, noise_rad, seeds)
 
 
-def _newton_lissajous(columns: dict[str, np.ndarray], seeds: np.ndarray, *,
-                      duration_s: float) -> dict[str, np.ndarray]:
+def _newton_lissajous_args(columns: dict[str, np.ndarray], seeds: np.ndarray, duration_s: float):
     n = seeds.shape[0]
     rel = PlanarHead(**{leaf: jnp.asarray(columns[_rel_name(leaf)], dtype=jnp.float64)
                         for leaf in PARAMETERS}, g_m_s2=jnp.zeros(n))
     n_blocks = int(round(duration_s / (E.SUBSTEPS * E.DT_S)))
-    out = newton_lissajous_batch(rel, jnp.asarray(columns["head"] == "fixed"),
-                                 jnp.asarray(columns["noise_rad"], dtype=jnp.float64),
-                                 jnp.asarray(seeds, dtype=jnp.int64), n_blocks)
+    return (rel, jnp.asarray(columns["head"] == "fixed"),
+            jnp.asarray(columns["noise_rad"], dtype=jnp.float64),
+            jnp.asarray(seeds, dtype=jnp.int64), n_blocks)
+
+
+def _newton_lissajous(columns: dict[str, np.ndarray], seeds: np.ndarray, *,
+                      duration_s: float) -> dict[str, np.ndarray]:
+    out = newton_lissajous_batch(*_newton_lissajous_args(columns, seeds, duration_s))
     return {k: np.asarray(v) for k, v in out.items()}
+
+
+def _compile_newton_lissajous(batch: int, *, duration_s: float) -> None:
+    columns = {k: np.full(batch, v.default, dtype=object if v.choices else np.float64)
+               for k, v in NEWTON_LISSAJOUS.knobs.items()}
+    args = _newton_lissajous_args(columns, np.zeros(batch, dtype=np.int64), duration_s)
+    newton_lissajous_batch.lower(*args[:-1], n_blocks=args[-1]).compile()
 
 
 def _check_newton_options(o: dict[str, Any]) -> str | None:
@@ -142,6 +156,7 @@ NEWTON_LISSAJOUS = Kernel(
     metrics=("max_error_deg", "rms_error_deg", "converged_fraction"),
     run_batch=_newton_lissajous,
     check_options=_check_newton_options,
+    compile_batch=_compile_newton_lissajous,
 )
 
 KERNELS: dict[str, Kernel] = {k.name: k for k in (NEWTON_LISSAJOUS,)}
