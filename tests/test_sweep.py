@@ -13,7 +13,7 @@ import pytest
 from verticality.cli import main
 from verticality.errors import InputError
 from verticality.experiments import newton as E
-from verticality.sweep import distribute
+from verticality.sweep import distribute, maps
 from verticality.sweep import spec as S
 from verticality.sweep.kernels import NEWTON_LISSAJOUS
 
@@ -167,3 +167,82 @@ def test_kernel_reproduces_the_experiment_run():
     ref = E.max_error_after(E.RunSeries(*(np.asarray(a[0]) for a in E.run_batch(
         [True], [0.1], [E.NOISE_RAD], seed=11, duration_s=1.5))))
     np.testing.assert_allclose(got["max_error_deg"][0], ref, rtol=1e-12)
+
+
+def _groupby(columns, x, y):
+    """The per-(head, x, y) divergence share and median max error (of the runs that did not
+    diverge), by pyarrow's group_by: an independent computation of the maps' cells."""
+    import pyarrow as pa
+
+    t = pa.table({"head": columns["head"], "x": columns[x], "y": columns[y],
+                  "div": np.asarray(columns["diverged"], dtype=float),
+                  "err": columns["max_error_deg"]})
+    p = {(r["head"], r["x"], r["y"]): r["div_mean"]
+         for r in t.group_by(["head", "x", "y"]).aggregate([("div", "mean")]).to_pylist()}
+    kept = t.filter(pa.compute.equal(t["div"], 0.0))
+    med = {(r["head"], r["x"], r["y"]): float(np.median(r["err_list"]))
+           for r in kept.group_by(["head", "x", "y"]).aggregate([("err", "list")]).to_pylist()}
+    return p, med
+
+
+def _assert_maps_match(m, columns):
+    p, med = _groupby(columns, m.x, m.y)
+    seen = 0
+    for h in maps.HEADS:
+        for j, yv in enumerate(m.y_values):
+            for i, xv in enumerate(m.x_values):
+                key = (h, xv, yv)
+                if key in p:
+                    seen += 1
+                    assert m.p_diverged[h][j, i] == p[key]
+                    if key in med:
+                        assert m.median_max_error_deg[h][j, i] == med[key]
+                    else:
+                        assert np.isnan(m.median_max_error_deg[h][j, i])
+                else:
+                    assert m.runs[h][j, i] == 0 and np.isnan(m.p_diverged[h][j, i])
+    assert seen == len(p)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.testing.assert_array_equal(
+            m.ratio, m.median_max_error_deg["fixed"] / m.median_max_error_deg["stabilized"])
+
+
+def test_sweep_plot_writes_the_maps_of_the_table(two_workers, tmp_path, capsys):
+    _, out, _ = two_workers
+    png = tmp_path / "maps.png"
+    assert main(["sweep-plot", str(out), "--x", "K_rel_error", "--y", "noise_rad",
+                 "--out", str(png)]) == 0
+    assert capsys.readouterr().out.strip() == str(png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    kernel, columns = maps.read(out)
+    m = maps.compute(kernel, columns, "K_rel_error", "noise_rad")
+    assert list(m.x_values) == [-0.2, 0.3] and m.runs["fixed"].sum() == 4
+    _assert_maps_match(m, columns)
+    assert np.all(m.ratio > 5.0)  # the stabilized head's error is far below the fixed head's
+    assert m.published == (0.1, E.NOISE_RAD)  # P11's perturbed run, marked
+    assert main(["sweep-plot", str(out), "--x", "head"]) == 2
+    assert "cannot map over 'head'" in capsys.readouterr().err
+
+
+def test_maps_of_diverged_runs_and_binned_knobs():
+    """A made-up table: divergence shares and medians per cell equal the group-by; a knob with
+    many values is cut into equal bins (counts = a histogram); P11's point is marked."""
+    rng = np.random.default_rng(0)
+    n = 400
+    cols = {k: np.full(n, v.default) for k, v in NEWTON_LISSAJOUS.knobs.items()}
+    cols["head"] = rng.choice(["fixed", "stabilized"], n)
+    cols["K_rel_error"] = rng.choice([-0.2, 0.1, 0.3], n)
+    cols["m_rel_error"] = rng.choice([0.0, 0.1], n)
+    cols["diverged"] = rng.random(n) < 0.3
+    cols["max_error_deg"] = np.where(cols["diverged"], np.nan, rng.gamma(2.0, 1.0, n))
+    cols["diverged"][:3] = True  # diverged with a finite error: still left out of the median
+    cols["max_error_deg"][:3] = 99.0
+    m = maps.compute(NEWTON_LISSAJOUS, cols, "K_rel_error", "m_rel_error")
+    _assert_maps_match(m, cols)
+    assert 0.1 < np.nanmean(m.p_diverged["fixed"]) < 0.5
+    assert m.published == (0.1, 0.1)
+    cols["J_rel_error"] = rng.uniform(-0.5, 0.5, n)
+    b = maps.compute(NEWTON_LISSAJOUS, cols, "J_rel_error", "K_rel_error")
+    assert b.binned == (True, False) and b.x_values.size == maps.BINS
+    counts, _ = np.histogram(cols["J_rel_error"], bins=maps.BINS)
+    np.testing.assert_array_equal((b.runs["fixed"] + b.runs["stabilized"]).sum(axis=0), counts)

@@ -74,6 +74,9 @@ class Kernel:
     # (batch, **options) -> None: compile the batch function without running it (ahead of time,
     # so that JAX's persistent compilation cache holds it before worker processes need it)
     compile_batch: Callable[..., None] = field(default=lambda batch, **options: None)
+    # a published single point in the knobs (knob → value) and what was published there
+    published: dict[str, float] = field(default_factory=dict)
+    published_label: str = ""
 
 
 # ----------------------------------------------------------------------- newton-lissajous
@@ -157,6 +160,13 @@ NEWTON_LISSAJOUS = Kernel(
     run_batch=_newton_lissajous,
     check_options=_check_newton_options,
     compile_batch=_compile_newton_lissajous,
+    # P11's perturbed Lissajous run: m, b, J, K 10 % high (l exact), σ = 1e-4 rad
+    published={_rel_name(leaf): (0.0 if leaf == "l_m" else 0.1) for leaf in PARAMETERS}
+    | {"noise_rad": E.NOISE_RAD},
+    published_label=("P11 (+10 %): max error fixed "
+                     f"{E.PAPER_LISSAJOUS['max_tilt_error_deg']['fixed']['perturbed']:g}°, "
+                     "stabilized "
+                     f"{E.PAPER_LISSAJOUS['max_tilt_error_deg']['stabilized']['perturbed']:g}°"),
 )
 
 KERNELS: dict[str, Kernel] = {k.name: k for k in (NEWTON_LISSAJOUS,)}
