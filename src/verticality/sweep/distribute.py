@@ -156,6 +156,9 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     parts = prepare(spec, out_dir, resume)
     bounds = [(t * size, min((t + 1) * size, n_runs)) for t in range(n_tasks)]
     todo = [t for t, (a, b) in enumerate(bounds) if not part_complete(part_path(parts, t), b - a)]
+    from verticality.report import provenance
+
+    commit = provenance.git_commit()  # the code the tasks run, before they run
     start = time.perf_counter()
     n_workers = workers or min(os.cpu_count() or 1, max(len(todo), 1))
     if todo:
@@ -171,7 +174,7 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     table = pa.concat_tables([pq.read_table(part_path(parts, t)) for t in range(n_tasks)])
     pq.write_table(table, out_dir / "results.parquet")
     n_div = int(np.sum(table.column("diverged").to_numpy()))
-    _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers)
+    _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers, commit)
     return Summary(out_dir, n_runs, n_tasks, tuple(todo), wall, n_div)
 
 
@@ -215,12 +218,13 @@ def _compute(spec, design, bounds, todo, parts, scheduler, n_workers, progress, 
             cluster.close()
 
 
-def _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers) -> None:
+def _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers,
+                      commit) -> None:
     from verticality import __version__
     from verticality.report import provenance
 
     record = {
-        "package": "verticality", "version": __version__, "git": provenance.git_commit(),
+        "package": "verticality", "version": __version__, "git": commit,
         "kernel": spec.kernel, "options": spec.options, "runs": n_runs, "tasks": n_tasks,
         "runs_per_task": spec.runs_per_task, "batch": spec.batch, "tasks_computed": len(todo),
         "scheduler": scheduler or f"LocalCluster({n_workers} worker processes)",
