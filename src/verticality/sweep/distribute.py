@@ -1,0 +1,237 @@
+"""Run a sweep's tasks on Dask and assemble the results table.
+
+:func:`run` starts a ``LocalCluster`` of worker processes (one thread each) or connects to a
+running scheduler, submits one task per slice of the design (:func:`run_task`), and shows a
+progress bar with tasks done and the time left. A task writes its Parquet part to
+``OUT/parts/part-NNNNNN.parquet`` under a temporary name and renames it when complete, so a part
+that exists is finished; ``resume`` keeps the finished parts and computes only the others. The
+parts, in task order, make ``OUT/results.parquet`` (column ``run``, the knobs, ``seed``, the
+metrics, ``diverged``); ``OUT/spec.toml`` is the spec as given and ``OUT/provenance.json`` says
+how the table was made.
+
+A task computes its runs in vmap batches of the spec's ``batch`` runs, the last one padded (its
+last run repeated, then dropped), so all tasks share one compiled batch shape and a run's numbers
+do not depend on the task size or the worker.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from verticality.errors import InputError
+from verticality.sweep import spec as sweep_spec
+from verticality.sweep.kernels import KERNELS
+
+PART_DIGITS = 6
+INSTALL_HINT = "pip install 'verticality[sweep]'"
+
+
+def require_engine() -> None:
+    """Raise one :class:`InputError` line if Dask's ``distributed`` or ``pyarrow`` (the optional
+    extra ``sweep``) is not installed."""
+    import importlib
+
+    missing = []
+    for module in ("distributed", "pyarrow.parquet"):
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            missing.append(module.split(".")[0])
+    if missing:
+        raise InputError(f"a sweep needs {' and '.join(missing)} (the optional extra 'sweep'): "
+                         f"{INSTALL_HINT}")
+
+
+@dataclass(frozen=True)
+class Summary:
+    out_dir: Path
+    n_runs: int
+    n_tasks: int
+    computed_tasks: tuple[int, ...]  # tasks run this time (the others were already complete)
+    wall_s: float
+    n_diverged: int
+
+    @property
+    def results(self) -> Path:
+        return self.out_dir / "results.parquet"
+
+
+def part_path(parts_dir: Path, task: int) -> Path:
+    return Path(parts_dir) / f"part-{task:0{PART_DIGITS}d}.parquet"
+
+
+def task_table(kernel_name: str, options: dict, design: sweep_spec.Design, first_run: int,
+               batch: int):
+    """The results of the runs of ``design`` (the first one is run ``first_run``, a multiple of
+    ``batch``), computed in vmap batches of ``batch``, as a ``pyarrow.Table``."""
+    import pyarrow as pa
+
+    kernel = KERNELS[kernel_name]
+    n = design.n_runs
+    chunks = []
+    for a in range(0, n, batch):
+        rows = np.minimum(np.arange(a, a + batch), n - 1)  # the last batch repeats its last run
+        chunks.append(kernel.run_batch({k: v[rows] for k, v in design.columns.items()},
+                                       design.seeds[rows], **options))
+    metrics = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
+    cols = {"run": pa.array(np.arange(first_run, first_run + n, dtype=np.int64))}
+    cols |= {k: pa.array(v) for k, v in design.columns.items()}
+    cols["seed"] = pa.array(design.seeds)
+    cols |= {m: pa.array(np.asarray(metrics[m], dtype=np.float64)[:n]) for m in kernel.metrics}
+    cols["diverged"] = pa.array(np.asarray(metrics["diverged"], dtype=bool)[:n])
+    return pa.table(cols)
+
+
+def run_task(kernel_name: str, options: dict, design: sweep_spec.Design, task: int,
+             first_run: int, batch: int, parts_dir: str, compile_cache: str | None = None) -> int:
+    """Compute one task and write its part (temporary name, then an atomic rename).
+    ``compile_cache``: JAX's persistent compilation cache for the worker, so that a worker
+    process loads the kernel compiled once instead of compiling it again."""
+    import jax
+    import pyarrow.parquet as pq
+
+    if compile_cache and jax.config.jax_compilation_cache_dir != compile_cache:
+        jax.config.update("jax_compilation_cache_dir", compile_cache)
+
+    table = task_table(kernel_name, options, design, first_run, batch)
+    final = part_path(Path(parts_dir), task)
+    tmp = final.with_name(final.name + f".tmp-{os.getpid()}")
+    pq.write_table(table, tmp)
+    os.replace(tmp, final)
+    return task
+
+
+def part_complete(path: Path, n_rows: int) -> bool:
+    """Whether the part at ``path`` exists, is readable Parquet and holds ``n_rows`` rows."""
+    import pyarrow.parquet as pq
+
+    try:
+        return pq.read_metadata(path).num_rows == n_rows
+    except (OSError, ValueError, Exception):  # a truncated or foreign file is not complete
+        return False
+
+
+def prepare(spec: sweep_spec.Spec, out_dir: Path, resume: bool) -> Path:
+    """Make ``out_dir`` and check it matches ``spec`` (resume) or holds no sweep yet."""
+    out_dir = Path(out_dir)
+    parts = out_dir / "parts"
+    old_spec = out_dir / "spec.toml"
+    if old_spec.exists():
+        if not resume:
+            raise InputError(f"{out_dir} already holds a sweep; use --resume to finish it or "
+                             "another --out")
+        old = sweep_spec.parse(old_spec.read_text(encoding="utf-8"), str(old_spec))
+        if replace(old, text="") != replace(spec, text=""):
+            raise InputError(f"{out_dir} holds a sweep of another spec ({old_spec}); "
+                             "cannot resume it with this one")
+    parts.mkdir(parents=True, exist_ok=True)
+    old_spec.write_text(spec.text, encoding="utf-8")
+    return parts
+
+
+def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
+        workers: int | None = None, resume: bool = False, progress: bool = True,
+        compile_cache: Path | str | None = None) -> Summary:
+    """Run the sweep ``spec`` into ``out_dir`` (see the module docstring). ``compile_cache``:
+    JAX's persistent compilation cache folder for the workers (default: this process's, which
+    the ``verticality`` command sets)."""
+    require_engine()
+    import jax
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be at least 1 (got {workers})")
+    out_dir = Path(out_dir)
+    design = sweep_spec.design(spec)
+    n_runs, size = design.n_runs, spec.runs_per_task
+    n_tasks = sweep_spec.n_tasks(spec, n_runs)
+    parts = prepare(spec, out_dir, resume)
+    bounds = [(t * size, min((t + 1) * size, n_runs)) for t in range(n_tasks)]
+    todo = [t for t, (a, b) in enumerate(bounds) if not part_complete(part_path(parts, t), b - a)]
+    from verticality.report import provenance
+
+    commit = provenance.git_commit()  # the code the tasks run, before they run
+    start = time.perf_counter()
+    n_workers = workers or min(os.cpu_count() or 1, max(len(todo), 1))
+    if todo:
+        own = jax.config.jax_compilation_cache_dir
+        cache = compile_cache if compile_cache is not None else own
+        if not scheduler and cache and str(cache) == str(own):
+            # compile once here, into the cache the local workers load from (else every worker
+            # process compiles the same kernel, ~10 s each on this machine's shared cores)
+            spec.kernel_value.compile_batch(spec.batch, **spec.options)
+        _compute(spec, design, bounds, todo, parts, scheduler, n_workers, progress,
+                 str(cache) if cache else None)
+    wall = time.perf_counter() - start
+    table = pa.concat_tables([pq.read_table(part_path(parts, t)) for t in range(n_tasks)])
+    pq.write_table(table, out_dir / "results.parquet")
+    n_div = int(np.sum(table.column("diverged").to_numpy()))
+    _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers, commit)
+    return Summary(out_dir, n_runs, n_tasks, tuple(todo), wall, n_div)
+
+
+def _compute(spec, design, bounds, todo, parts, scheduler, n_workers, progress, cache) -> None:
+    from distributed import Client, LocalCluster, as_completed
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+        cluster = None
+    else:
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+    try:
+        futures = [client.submit(run_task, spec.kernel, spec.options, design.rows(*bounds[t]), t,
+                                 bounds[t][0], spec.batch, str(parts), cache, pure=False,
+                                 key=f"sweep-task-{t}")
+                   for t in todo]
+        columns = (TextColumn("sweep {task.description}"), BarColumn(), MofNCompleteColumn(),
+                   TextColumn("tasks"), TimeElapsedColumn(), TextColumn("left"),
+                   TimeRemainingColumn())
+        with Progress(*columns, disable=not progress, transient=False) as bar:
+            task_bar = bar.add_task(spec.kernel, total=len(todo))
+            for fut in as_completed(futures):
+                fut.result()  # a task's error is raised here
+                bar.advance(task_bar)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers,
+                      commit) -> None:
+    from verticality import __version__
+    from verticality.report import provenance
+
+    record = {
+        "package": "verticality", "version": __version__, "git": commit,
+        "kernel": spec.kernel, "options": spec.options, "runs": n_runs, "tasks": n_tasks,
+        "runs_per_task": spec.runs_per_task, "batch": spec.batch, "tasks_computed": len(todo),
+        "scheduler": scheduler or f"LocalCluster({n_workers} worker processes)",
+        "wall_s": wall,
+        "date_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        "libraries": provenance.library_versions(provenance.LIBRARIES
+                                                 + ("dask", "distributed", "pyarrow")),
+        "jax_backend": provenance.jax_backend(), "machine": provenance.machine(),
+    }
+    (out_dir / "provenance.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")

@@ -1,0 +1,202 @@
+"""Maps of a sweep's results over two knobs: where head stabilization pays.
+
+For each cell of two knobs (``x``, ``y``) and each head (``fixed``, ``stabilized``): the
+**probability of divergence** (share of the cell's runs flagged ``diverged``), the **median max
+error** (degrees, over the cell's runs that did not diverge; NaN when all did), the number of runs,
+and the **ratio** of the fixed head's median max error to the stabilized head's. A knob with at
+most :data:`MAX_LEVELS` distinct values is mapped value by value; a knob with more (a random
+design) is cut into :data:`BINS` equal-width bins, each cell labelled by its centre. The kernel's
+published point (:attr:`~verticality.sweep.kernels.Kernel.published`), when both knobs are among
+its settings, is marked on every panel.
+
+:func:`compute` makes the maps from the table's columns; :func:`write` reads ``DIR/results.parquet``
+and ``DIR/spec.toml`` and writes ``DIR/maps-X-Y.png``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from verticality.errors import InputError
+from verticality.sweep import spec as sweep_spec
+from verticality.sweep.kernels import Kernel
+
+HEADS = ("fixed", "stabilized")
+MAX_LEVELS = 12
+BINS = 10
+NEEDED = ("head", "diverged", "max_error_deg")
+
+
+@dataclass(frozen=True)
+class Maps:
+    """The maps over knobs ``x`` (columns) and ``y`` (rows); every array is (len(y_values),
+    len(x_values)); the per-head arrays are keyed by head."""
+
+    x: str
+    y: str
+    x_values: np.ndarray  # the knob's values, or the bins' centres
+    y_values: np.ndarray
+    binned: tuple[bool, bool]  # (x, y) cut into bins
+    runs: dict[str, np.ndarray]
+    p_diverged: dict[str, np.ndarray]
+    median_max_error_deg: dict[str, np.ndarray]  # over the runs that did not diverge
+    published: tuple[float, float] | None  # the kernel's published point in (x, y), if any
+    published_label: str = ""
+
+    @property
+    def ratio(self) -> np.ndarray:
+        """Fixed over stabilized median max error."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.median_max_error_deg["fixed"] / self.median_max_error_deg["stabilized"]
+
+
+def cells(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """``(centres, index of each value's cell, binned)`` for one knob's column."""
+    values = np.asarray(values, dtype=np.float64)
+    levels = np.unique(values)
+    if levels.size <= MAX_LEVELS:
+        return levels, np.searchsorted(levels, values), False
+    edges = np.linspace(levels[0], levels[-1], BINS + 1)
+    index = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, BINS - 1)
+    return 0.5 * (edges[:-1] + edges[1:]), index, True
+
+
+def choose_knobs(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None,
+                 y: str | None) -> tuple[str, str]:
+    """The two knobs to map: those given, else the numeric knobs that vary most (kernel order)."""
+    numeric = [k for k, v in kernel.knobs.items() if not v.choices]
+    for name in (x, y):
+        if name is not None and name not in numeric:
+            raise InputError(f"cannot map over {name!r}; the numeric knobs of {kernel.name} are "
+                             f"{', '.join(numeric)}")
+    by_spread = sorted(numeric, key=lambda k: -np.unique(columns[k]).size)
+    rest = [k for k in by_spread if k not in (x, y)]
+    x = x or rest.pop(0)
+    y = y or next(k for k in rest if k != x)
+    if x == y:
+        raise InputError(f"--x and --y are the same knob ({x})")
+    return x, y
+
+
+def compute(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None = None,
+            y: str | None = None) -> Maps:
+    """The maps of the table ``columns`` (name → array) of a sweep of ``kernel``."""
+    missing = [c for c in NEEDED if c not in columns]
+    if missing:
+        raise InputError(f"a sweep of {kernel.name} has no {', '.join(missing)}: no head maps")
+    x, y = choose_knobs(kernel, columns, x, y)
+    xv, xi, xb = cells(columns[x])
+    yv, yi, yb = cells(columns[y])
+    head = np.asarray(columns["head"]).astype(str)
+    diverged = np.asarray(columns["diverged"], dtype=bool)
+    err = np.asarray(columns["max_error_deg"], dtype=np.float64)
+    runs, p_div, med = {}, {}, {}
+    for h in HEADS:
+        n = np.zeros((yv.size, xv.size))
+        p = np.full((yv.size, xv.size), np.nan)
+        m = np.full((yv.size, xv.size), np.nan)
+        for j in range(yv.size):
+            for i in range(xv.size):
+                sel = (head == h) & (xi == i) & (yi == j)
+                n[j, i] = np.sum(sel)
+                if n[j, i]:
+                    p[j, i] = np.mean(diverged[sel])
+                    kept = err[sel & ~diverged]
+                    if kept.size:
+                        m[j, i] = np.median(kept)
+        runs[h], p_div[h], med[h] = n, p, m
+    point = None
+    if x in kernel.published and y in kernel.published:
+        point = (kernel.published[x], kernel.published[y])
+    return Maps(x, y, xv, yv, (xb, yb), runs, p_div, med, point, kernel.published_label)
+
+
+def read(out_dir: Path) -> tuple[Kernel, dict[str, np.ndarray]]:
+    """The kernel and the table's columns of the sweep in ``out_dir``."""
+    import pyarrow.parquet as pq
+
+    out_dir = Path(out_dir)
+    table, spec_path = out_dir / "results.parquet", out_dir / "spec.toml"
+    if not table.is_file() or not spec_path.is_file():
+        raise InputError(f"{out_dir} holds no finished sweep (results.parquet and spec.toml)")
+    spec = sweep_spec.read(spec_path)
+    t = pq.read_table(table)
+    return spec.kernel_value, {name: t.column(name).to_numpy(zero_copy_only=False)
+                               for name in t.column_names}
+
+
+def write(out_dir: Path, x: str | None = None, y: str | None = None,
+          path: Path | None = None) -> tuple[Path, Maps]:
+    """Read the sweep in ``out_dir``, compute its maps and write them as a PNG (default
+    ``out_dir/maps-X-Y.png``)."""
+    from verticality.sweep.distribute import require_engine
+
+    require_engine()
+    kernel, columns = read(out_dir)
+    maps = compute(kernel, columns, x, y)
+    path = Path(path) if path is not None else Path(out_dir) / f"maps-{maps.x}-{maps.y}.png"
+    return figure(maps, path, f"{kernel.name}: {columns['run'].size} runs"), maps
+
+
+def figure(maps: Maps, path: Path, title: str) -> Path:
+    """Six panels: divergence probability and median max error for each head, run counts per
+    cell, and the fixed/stabilized ratio."""
+    from matplotlib.colors import LogNorm, Normalize
+
+    from verticality import plots
+
+    fig, axes = plots.new_figure(2, 3, width=13.0, height_per_row=3.6, sharex=False)
+    positive = [a[np.isfinite(a) & (a > 0)] for a in (*maps.median_max_error_deg.values(),)]
+    pos = np.concatenate(positive) if positive else np.array([])
+    err_norm = LogNorm(pos.min(), max(pos.max(), pos.min() * 1.01)) if pos.size else Normalize()
+    ratio = maps.ratio
+    rpos = ratio[np.isfinite(ratio) & (ratio > 0)]
+    ratio_norm = (LogNorm(rpos.min(), max(rpos.max(), rpos.min() * 1.01)) if rpos.size
+                  else Normalize())
+    panels = [
+        (axes[0, 0], maps.p_diverged["fixed"], "P(diverged), fixed head", Normalize(0, 1), "magma_r"),
+        (axes[0, 1], maps.p_diverged["stabilized"], "P(diverged), stabilized head", Normalize(0, 1),
+         "magma_r"),
+        (axes[0, 2], maps.runs["fixed"] + maps.runs["stabilized"], "runs per cell", Normalize(),
+         "Greys"),
+        (axes[1, 0], maps.median_max_error_deg["fixed"], "median max error (°), fixed head",
+         err_norm, "viridis"),
+        (axes[1, 1], maps.median_max_error_deg["stabilized"],
+         "median max error (°), stabilized head", err_norm, "viridis"),
+        (axes[1, 2], ratio, "ratio fixed / stabilized (median max error)", ratio_norm, "cividis"),
+    ]
+    for ax, values, label, norm, cmap in panels:
+        im = ax.imshow(np.ma.masked_invalid(values), origin="lower", aspect="auto", norm=norm,
+                       cmap=cmap, interpolation="nearest")
+        fig.colorbar(im, ax=ax)
+        ax.set_title(label, fontsize=9)
+        _axis(ax.set_xticks, ax.set_xticklabels, maps.x_values)
+        _axis(ax.set_yticks, ax.set_yticklabels, maps.y_values)
+        ax.set_xlabel(maps.x + (" (bin centre)" if maps.binned[0] else ""))
+        ax.set_ylabel(maps.y + (" (bin centre)" if maps.binned[1] else ""))
+        if maps.published is not None:
+            px, py = (_position(maps.x_values, maps.published[0]),
+                      _position(maps.y_values, maps.published[1]))
+            ax.plot([px], [py], marker="*", color="red", markersize=12, linestyle="none",
+                    label=maps.published_label)
+    if maps.published is not None:
+        axes[1, 2].legend(loc="upper left", fontsize=7)
+    fig.suptitle(title)
+    return plots.save(fig, path)
+
+
+def _axis(set_ticks, set_labels, values) -> None:
+    step = max(1, int(np.ceil(values.size / 8)))
+    idx = np.arange(0, values.size, step)
+    set_ticks(idx)
+    set_labels([f"{v:.3g}" for v in values[idx]], fontsize=7)
+
+
+def _position(values: np.ndarray, v: float) -> float:
+    """Where ``v`` falls on a cell axis whose cell ``i`` is centred at ``values[i]``."""
+    if values.size == 1:
+        return 0.0
+    return float(np.interp(v, values, np.arange(values.size)))
