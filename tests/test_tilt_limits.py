@@ -185,3 +185,32 @@ def test_a_logger_faster_than_its_sensor_costs_nothing():
     held = outs["400 held"].flags & HELD > 0
     assert held.shape == (n,) and np.array_equal(held, np.arange(n) % 4 != 0)
     assert 0.67 < rms["400 held"] / rms["100"] < 1.5, rms
+
+
+def test_estimate_command_finds_the_limits_of_a_csv_read_in_pieces(tmp_path):
+    """``verticality estimate`` on a CSV read in pieces: the clipped rows (range given in °/s, or
+    inferred) and the held rows (one straddling a piece boundary) are flagged as ``tilt.estimate``
+    flags them on the whole recording; a range is refused for a peer filter."""
+    from verticality import cli
+    from verticality.analysis.imu_estimate import check_ranges, estimate_file
+    from verticality.io import imu
+
+    gyr, acc, _ = fast_roll(n=1500, peak=12.0, centers_s=(5.0,), seed=4)
+    gyr = np.clip(gyr, -CLIP_RAD_S, CLIP_RAD_S)
+    gyr[600:603], acc[600:603] = gyr[599], acc[599]  # held across the boundary at 601
+    t = np.arange(1500) * 0.01
+    path = imu.write_imu_csv(tmp_path / "roll.csv", imu.ImuRecording(t, gyr, acc))
+    rec = imu.read_imu_csv(path)  # the values as the CSV holds them
+    ref = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, gyr_range_rad_s=CLIP_RAD_S)
+    assert np.flatnonzero(ref.flags & HELD).tolist() == [600, 601, 602]
+    assert np.count_nonzero(ref.flags & CLIPPED) > 10
+    for ranges in ({"gyr_range_rad_s": CLIP_RAD_S}, {}):
+        run = estimate_file(path, tmp_path / "out.csv", piece_rows=601, keep=True, ranges=ranges)
+        np.testing.assert_array_equal(run.out.flags, ref.flags)
+        np.testing.assert_allclose(run.out.up_S, ref.up_S, rtol=0, atol=1e-12)
+    out = tmp_path / "cli.csv"
+    assert cli.main(["estimate", str(path), "--out", str(out),
+                     "--gyr-range", str(np.degrees(CLIP_RAD_S))]) == 0
+    np.testing.assert_array_equal(imu.read_estimate_csv(out).flags, ref.flags)
+    with pytest.raises(InputError, match="does not take a sensor range"):
+        check_ranges("vqf", {"gyr_range_rad_s": 1.0})

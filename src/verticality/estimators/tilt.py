@@ -151,17 +151,18 @@ _EMPTY_SUMS = np.asarray(tilt_core.empty_sums(xp=np))
 
 
 def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
-                     detect_clipping: bool = True):
-    """The clipped and held samples of a recording (:func:`tilt_limits.find_limits`), or None when
-    its shapes are wrong (the filter's own checks then say so). ``detect_clipping=False``: no
-    clipping at all, given ranges or not (held rows are still flagged)."""
+                     detect_clipping: bool = True, prev=None):
+    """The clipped and held samples of a recording (:func:`tilt_limits.find_limits`; ``prev`` the
+    row before the first when it is read in pieces), or None when its shapes are wrong (the
+    filter's own checks then say so). ``detect_clipping=False``: no clipping at all, given ranges
+    or not (held rows are still flagged)."""
     n = gyr.shape[0] if gyr.ndim == 2 and gyr.shape[1:] == (3,) else -1
     if n < 0 or acc.shape != gyr.shape or dt.ndim > 1 or (dt.ndim == 1 and dt.shape[0] != n):
         return None
     if not detect_clipping:
         gyr_range_rad_s = acc_range_m_s2 = None
     lim = tilt_limits.find_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2,
-                                  infer=detect_clipping)
+                                  infer=detect_clipping, prev=prev)
     # (the filter sees a clipped accelerometer sample as missing: its other components' range is
     # judged here, on the reading)
     beyond = tilt_core.out_of_range(gyr.T, acc.T, xp=np)

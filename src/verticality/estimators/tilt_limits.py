@@ -78,14 +78,27 @@ class Limits(NamedTuple):
         return np.where(self.acc_clipped[:, None], np.nan, acc_m_s2)
 
 
-def held_rows(gyr, acc) -> np.ndarray:
-    """(N,) bool: row k's six channels equal row k−1's bit for bit (the first row is never held;
-    a row with a NaN is held when its bits repeat)."""
-    rows = np.ascontiguousarray(np.concatenate([gyr, acc], axis=1), dtype=np.float64)
-    bits = rows.view(np.int64)
-    held = np.zeros(rows.shape[0], dtype=bool)
-    held[1:] = np.all(bits[1:] == bits[:-1], axis=1)
-    return held
+def held_rows(gyr, acc, prev=None) -> np.ndarray:
+    """(N,) bool: row k's six channels equal row k−1's bit for bit (a row with a NaN is never
+    held: a missing reading is no repeated one). ``prev`` (6,): the row before the first (gyro,
+    accelerometer), when the recording is read in pieces; else the first row is never held."""
+    gyr = np.asarray(gyr, dtype=np.float64)
+    acc = np.asarray(acc, dtype=np.float64)
+    if prev is not None:
+        prev = np.asarray(prev, dtype=np.float64)
+        gyr = np.concatenate([prev[None, :3], gyr])
+        acc = np.concatenate([prev[None, 3:], acc])
+    n = gyr.shape[0]
+    # candidates by one channel (a noisy channel rarely repeats), then all six, bit for bit
+    k = np.flatnonzero(gyr[1:, 0] == gyr[:-1, 0]) + 1
+    if k.size:
+        rows = np.concatenate([gyr, acc], axis=1)
+        now = np.ascontiguousarray(rows[k]).view(np.int64)
+        before = np.ascontiguousarray(rows[k - 1]).view(np.int64)
+        k = k[np.all(now == before, axis=1)]
+    held = np.zeros(n, dtype=bool)
+    held[k] = True
+    return held[1:] if prev is not None else held
 
 
 def _longest_run(at) -> int:
@@ -102,13 +115,18 @@ def inferred_levels(x, held, floor: float, min_run: int = MIN_RUN):
     at least ``min_run`` consecutive identical samples (rows where ``held`` are left out), else
     ∓inf (no clipping seen on that side)."""
     lo, hi = np.full(3, -np.inf), np.full(3, np.inf)
-    new = x[~held]
+    if x.shape[0] == 0:
+        return lo, hi
+    new = x[~held] if held.any() else x
     for i in range(x.shape[1]):
         col = new[:, i]
-        col = col[np.isfinite(col)]
-        if col.size < min_run:
-            continue
-        for level, out, sign in ((col.max(), hi, 1.0), (col.min(), lo, -1.0)):
+        top, bottom = col.max(), col.min()  # (per column: NumPy reduces (N, 3) along N slowly)
+        if not (np.isfinite(top) and np.isfinite(bottom)):  # a NaN or ±inf sample: finite only
+            ok = np.isfinite(col)
+            top = np.max(col, where=ok, initial=-np.inf)
+            bottom = np.min(col, where=ok, initial=np.inf)
+        for level, out, sign in ((top, hi, 1.0), (bottom, lo, -1.0)):
+            # (the run test only for an extreme beyond the floor: rare on clean data)
             if sign * level > floor and _longest_run(col == level) >= min_run:
                 out[i] = level
     return lo, hi
@@ -158,27 +176,34 @@ def clip_variance(clipped, sigma_rad_s, dts) -> np.ndarray:
 
 
 def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=None,
-                infer: bool = True) -> Limits:
+                infer: bool = True, prev=None) -> Limits:
     """The clipped and held samples of a recording (module doc): gyro (N, 3) rad/s, accelerometer
     (N, 3) m/s², ``dt_s`` scalar or (N,). ``gyr_range_rad_s``, ``acc_range_m_s2``: the sensor's
     full-scale readings (scalar or (3,)); a component at or beyond them is clipped. Without them
     the levels are inferred from flat tops when ``infer`` (else nothing is clipped on that
-    sensor)."""
+    sensor). ``prev``: the row before the first, for a recording read in pieces
+    (:func:`held_rows`; the levels are then inferred per piece, and a clipped run that spans two
+    pieces restarts its unknown excess at the second)."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     n = gyr.shape[0]
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,))
-    held = held_rows(gyr, acc)
+    held = held_rows(gyr, acc, prev)
     g_lo, g_hi = _levels(gyr, held, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S, infer)
     a_lo, a_hi = _levels(acc, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2, infer)
-    g_top, g_bottom = gyr >= g_hi, gyr <= g_lo
-    gyr_clipped = (g_top | g_bottom) & np.isfinite(gyr)
-    acc_clipped = np.any(((acc >= a_hi) | (acc <= a_lo)) & np.isfinite(acc), axis=1)
+    # (±inf levels: no clipping on that side, and nothing to compare; the usual case)
+    g_any, a_any = np.isfinite(np.concatenate([g_lo, g_hi])).any(), \
+        np.isfinite(np.concatenate([a_lo, a_hi])).any()
+    g_top = (gyr >= g_hi) & np.isfinite(gyr) if g_any else np.zeros(gyr.shape, dtype=bool)
+    gyr_clipped = g_top | ((gyr <= g_lo) & np.isfinite(gyr)) if g_any else g_top
+    acc_clipped = (np.any(((acc >= a_hi) | (acc <= a_lo)) & np.isfinite(acc), axis=1) if a_any
+                   else np.zeros(n, dtype=bool))
+    flags = np.where(held, np.int32(HELD), np.int32(0))
+    var = np.zeros(n)
     if gyr_clipped.any():
         sigma = EXCESS_FRACTION * np.where(g_top, g_hi, -g_lo)
         var = clip_variance(gyr_clipped, np.where(gyr_clipped, sigma, 0.0), dts)
-    else:
-        var = np.zeros(n)
-    flags = (np.where(gyr_clipped.any(axis=1) | acc_clipped, CLIPPED, 0)
-             | np.where(held, HELD, 0)).astype(np.int32)
+        flags |= np.where(gyr_clipped.any(axis=1), np.int32(CLIPPED), np.int32(0))
+    if acc_clipped.any():
+        flags |= np.where(acc_clipped, np.int32(CLIPPED), np.int32(0))
     return Limits(gyr_clipped, acc_clipped, held, var, flags)
