@@ -163,10 +163,15 @@ def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
         gyr_range_rad_s = acc_range_m_s2 = None
     lim = tilt_limits.find_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2,
                                   infer=detect_clipping, prev=prev)
+    if not lim.acc_clipped.any():
+        return lim
     # (the filter sees a clipped accelerometer sample as missing: its other components' range is
     # judged here, on the reading)
-    beyond = tilt_core.out_of_range(gyr.T, acc.T, xp=np)
-    return lim._replace(flags=lim.flags | np.where(beyond, OUT_OF_RANGE, 0).astype(np.int32))
+    k = np.flatnonzero(lim.acc_clipped)
+    beyond = tilt_core.out_of_range(gyr[k].T, acc[k].T, xp=np)
+    flags = lim.flags.copy()
+    flags[k[beyond]] |= OUT_OF_RANGE
+    return lim._replace(flags=flags)
 
 
 def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,

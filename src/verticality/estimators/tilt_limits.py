@@ -89,8 +89,9 @@ def held_rows(gyr, acc, prev=None) -> np.ndarray:
         gyr = np.concatenate([prev[None, :3], gyr])
         acc = np.concatenate([prev[None, 3:], acc])
     n = gyr.shape[0]
-    # candidates by one channel (a noisy channel rarely repeats), then all six, bit for bit
-    k = np.flatnonzero(gyr[1:, 0] == gyr[:-1, 0]) + 1
+    # candidates by two channels (a quantized gyro at rest repeats itself, but rarely together
+    # with the accelerometer), then all six, bit for bit
+    k = np.flatnonzero((gyr[1:, 0] == gyr[:-1, 0]) & (acc[1:, 2] == acc[:-1, 2])) + 1
     if k.size:
         rows = np.concatenate([gyr, acc], axis=1)
         now = np.ascontiguousarray(rows[k]).view(np.int64)
@@ -102,11 +103,14 @@ def held_rows(gyr, acc, prev=None) -> np.ndarray:
 
 
 def _longest_run(at) -> int:
-    """The longest run of True in the bool vector ``at``."""
-    if not at.any():
+    """The longest run of True in the bool vector ``at`` (from the indices where it holds: few,
+    at a recording's extreme)."""
+    k = np.flatnonzero(at)
+    if k.size == 0:
         return 0
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], at.astype(np.int8), [0]])))
-    return int(np.max(edges[1::2] - edges[::2]))
+    breaks = np.flatnonzero(np.diff(k) != 1)
+    edges = np.concatenate([[-1], breaks, [k.size - 1]])
+    return int(np.max(np.diff(edges)))
 
 
 def inferred_levels(x, held, floor: float, min_run: int = MIN_RUN):
