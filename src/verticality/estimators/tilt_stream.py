@@ -171,7 +171,7 @@ class Stream:
         dt = float(dt)
         dt_ok = 0.0 < dt < MAX_DT_S
         bits = struct.pack("6d", gx, gy, gz, ax, ay, az)
-        held = bits == self.prev_bits
+        held = bits == self.prev_bits and not any(math.isnan(v) for v in (*gyr3, *acc3))
         self.prev_bits = bits
         # clipping: a component at or beyond the given full scale
         acc_clipped = self.acc_range is not None and any(
