@@ -68,15 +68,15 @@ def _device_time(gyr, acc, dt, reps):
     in the batch run, inputs already packed): the run's time minus this is the host side
     (packing, transfers, writing the result arrays)."""
     from verticality.estimators import tilt_batch, tilt_core, tilt_kernels
-    from verticality.estimators.tilt_layout import HEAD, SAMPLE
+    from verticality.estimators.tilt_layout import CHUNK_SAMPLE, HEAD
 
     chunk = tilt_batch.CHUNK_BLOCKS * tilt.BLOCK
     n = gyr.shape[0]
     nch = -(-n // chunk)
-    data = np.zeros((nch * chunk, SAMPLE.size))
-    data[:n, SAMPLE.gyr], data[:n, SAMPLE.acc] = gyr, acc
-    data[:n, SAMPLE.dt] = dt
-    data[n:, SAMPLE.dt] = np.nan
+    data = np.zeros((nch * chunk, CHUNK_SAMPLE.size))
+    data[:n, CHUNK_SAMPLE.gyr], data[:n, CHUNK_SAMPLE.acc] = gyr, acc
+    data[:n, CHUNK_SAMPLE.dt] = dt
+    data[n:, CHUNK_SAMPLE.dt] = np.nan
     parts = [jax.device_put(data[i * chunk:(i + 1) * chunk]) for i in range(nch)]
     p = tilt.DEFAULT_PARAMS
     x0 = jax.device_put(tilt_core.initialize(tilt.TiltFilter().init().x, acc[0], p, xp=np))

@@ -46,7 +46,10 @@ def test_bad_csv_gives_one_line_errors(tmp_path):
     with pytest.raises(InputError, match="missing column"):
         imu.read_imu_csv(p)
     p.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n0,0,0,0,0,0,9.81\n0,0,0,0,0,0,9.81\n")
-    with pytest.raises(InputError, match="increase"):
+    with pytest.raises(InputError, match="repeats in most rows"):
+        imu.read_imu_csv(p)
+    p.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n1,0,0,0,0,0,9.81\n0,0,0,0,0,0,9.81\n")
+    with pytest.raises(InputError, match="must not decrease"):
         imu.read_imu_csv(p)
     with pytest.raises(InputError, match="no such file"):
         imu.read_imu_csv(tmp_path / "nope.csv")

@@ -309,3 +309,54 @@ def test_predict_is_step_without_accelerometer():
         assert not bool(out.measured) and out.flags & ACC_MISSING
         state = predicted
     assert np.asarray(tilt_core.TiltState(*state).count) == (100 - 1) % tilt.BLOCK
+
+
+def _clipped_and_held():
+    """A fast roll read by a ±7 rad/s gyro, a shake beyond a ±2 g accelerometer, and held rows
+    (a logger repeating its sensor), with the ranges given (a stream cannot infer them)."""
+    from imu_cases import fast_roll
+
+    gyr, acc, _ = fast_roll(n=N, peak=12.0, centers_s=(4.0, 10.0), seed=9)
+    acc[700:740, 0] += 25.0 * np.sin(np.arange(40) * 2 * np.pi * 3 * 0.01)
+    gyr[900:904] = gyr[899]  # held: the sensor's last reading, repeated
+    acc[900:904] = acc[899]
+    ranges = {"gyr_range_rad_s": 7.0, "acc_range_m_s2": 2 * G}
+    return np.clip(gyr, -7.0, 7.0), np.clip(acc, -2 * G, 2 * G), np.full(N, 0.01), ranges
+
+
+def test_reference_stream_clipping_and_held_rows_equal_core():
+    """Clipped gyro and accelerometer samples and held rows: the plain-Python stream (detecting
+    them sample by sample from the given ranges) gives the batch run's outputs and σ to 1e-9, and
+    the batch run (``tilt.estimate``) equals the core's ``step`` given the same limits."""
+    from verticality.estimators.tilt_flags import CLIPPED, HELD
+
+    gyr, acc, dts, ranges = _clipped_and_held()
+    out = tilt.estimate(gyr, acc, dts, **ranges)
+    f = out.flags
+    assert np.count_nonzero(f & CLIPPED) > 40 and np.flatnonzero(f & HELD).tolist() == [900, 901,
+                                                                                         902, 903]
+    clipped, missing = (f & CLIPPED) > 0, (f & ACC_MISSING) > 0
+    assert np.any(clipped & missing) and np.any(clipped & ~missing)  # accelerometer, gyro
+    s = Stream(**ranges)
+    rows, sigma = [], []
+    for k in range(N):
+        rows.append(s.step(gyr[k], acc[k], dts[k]))
+        sigma.append(s.tilt_sigma_rad)
+    np.testing.assert_array_equal(np.array([r[5] for r in rows]), f)
+    np.testing.assert_allclose(np.array([r[2] for r in rows]), out.up_S, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sigma, tilt.tilt_sigma_rad(out.var), rtol=0, atol=1e-9)
+    lim = tilt.recording_limits(gyr, acc, dts, **ranges)
+    assert np.all(lim.tilt_var_rad2 >= 0) and lim.tilt_var_rad2.max() > 0
+
+    @jax.jit
+    def scan(state, gyr, acc, dts, var, flags):
+        def one(state, xs):
+            g, a, d, v, fl = xs
+            return tilt_core.step(state, g, a, d, FILTER.params, FILTER.block, v, fl)
+        return jax.lax.scan(one, state, (gyr, acc, dts, var, flags))
+
+    _, ref = scan(FILTER.init(), gyr, lim.acc_for_filter(acc), dts, lim.tilt_var_rad2, lim.flags)
+    for field in tilt.TiltOutput._fields:
+        np.testing.assert_allclose(np.asarray(getattr(out, field)),
+                                   np.asarray(getattr(ref, field)), rtol=0, atol=1e-12,
+                                   err_msg=field)

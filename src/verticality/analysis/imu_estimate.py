@@ -29,14 +29,26 @@ def check_offline(filter_name: str, offline: bool) -> None:
                          f"runs causally only (use --filter {OURS}, or leave out --offline)")
 
 
+def check_ranges(filter_name: str, ranges: dict | None) -> dict:
+    """The sensor ranges (``tilt.estimate``'s ``gyr_range_rad_s``, ``acc_range_m_s2``) that were
+    given, refused for a filter other than ours (the peers do not take them)."""
+    given = {k: v for k, v in (ranges or {}).items() if v is not None}
+    if given and filter_name != OURS:
+        raise InputError(f"--gyr-range/--acc-range: the clipping treatment is {OURS}'s; filter "
+                         f"{filter_name} does not take a sensor range")
+    return given
+
+
 def estimate_imu(gyr_rad_s, acc_m_s2, dt_s, filter_name: str = OURS,
-                 offline: bool = False) -> ImuEstimate:
+                 offline: bool = False, ranges: dict | None = None) -> ImuEstimate:
     """Roll, pitch, gravity direction, bias and flags of a recording by ``filter_name`` (ours:
-    ``tilt.estimate`` with its σ, or with ``offline`` the smoother ``tilt.smooth``; a peer:
+    ``tilt.estimate`` with its σ, or with ``offline`` the smoother ``tilt.smooth``, given the
+    sensor's ``ranges`` if known (``gyr_range_rad_s``, ``acc_range_m_s2``); a peer:
     :func:`peer_output` of its quaternions and bias)."""
     check_offline(filter_name, offline)
+    ranges = check_ranges(filter_name, ranges)
     if filter_name == OURS:
-        out = (tilt.smooth if offline else tilt.estimate)(gyr_rad_s, acc_m_s2, dt_s)
+        out = (tilt.smooth if offline else tilt.estimate)(gyr_rad_s, acc_m_s2, dt_s, **ranges)
         return ImuEstimate(out, tilt.tilt_sigma_rad(out.var))
     quat, bias = run_filter(filter_name, gyr_rad_s, acc_m_s2, dt_s)
     return ImuEstimate(peer_output(np.asarray(quat), np.asarray(bias), dt_s), None)
@@ -128,7 +140,7 @@ def count_rows(path, piece_bytes: int = 2**22) -> int:
 def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                   filter_name: str = OURS, sigma: bool = False, keep: bool = False,
                   piece_rows: int = tilt_batch.PIECE_SAMPLES,
-                  offline: bool = False) -> EstimateRun:
+                  offline: bool = False, ranges: dict | None = None) -> EstimateRun:
     """``verticality estimate``: filter the recording in ``path`` and write the estimate CSV to
     ``out_path`` (through a temporary file beside it, renamed at the end: a refusal midway leaves
     no partial file). An IMU CSV through our filter is read, filtered and written piece by piece
@@ -137,12 +149,15 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     piece, not to the file; ``keep`` (a figure) also keeps every output. A BROAD HDF5 file and the
     peers are read whole. ``offline``: our smoother (``tilt.smooth``), which needs the whole
     recording: read whole, after its size is checked (a CSV's rows counted first), and refused
-    beyond what memory allows."""
+    beyond what memory allows. ``ranges``: the sensor's full-scale readings
+    (``gyr_range_rad_s``, ``acc_range_m_s2``, our filter only); without them clipping is inferred
+    from flat tops (per piece of ``piece_rows`` rows when read in pieces)."""
     from verticality.estimators import tilt_smoother
     from verticality.io import broad, imu, imu_layout
     from verticality.io.recording import load_imu, parse_units
 
     check_offline(filter_name, offline)
+    ranges = check_ranges(filter_name, ranges)
     if offline and not broad.is_broad_file(path):
         tilt_smoother.check_size(count_rows(path))
     out_path = Path(out_path)
@@ -151,7 +166,8 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     try:
         if filter_name != OURS or offline or broad.is_broad_file(path):
             rec = load_imu(path, units, columns, time_unit)
-            est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, filter_name, offline)
+            est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, filter_name, offline,
+                               ranges)
             imu.write_estimate_csv(part, rec.t_s, est.out,
                                    tilt_sigma_rad=est.tilt_sigma_rad if sigma else None)
             os.replace(part, out_path)
@@ -172,6 +188,7 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
         n_done = [0]
         buf = None  # samples read but not yet filtered: (t, gyr, acc, dt)
         first = None
+        prev = [None]  # the last filtered row (gyro, accelerometer), for the held rows
         with open(part, "w", encoding="utf-8") as fh:
             fh.write(imu.estimate_header(sigma) + "\n")
 
@@ -181,10 +198,15 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                 # run_in_pieces cuts: the last window of a recording is taken whole)
                 while buf is not None and buf[0].size and (final or buf[0].size > piece_rows):
                     w = min(buf[0].size, piece_rows)
-                    t, g, a, d = (v[:w] for v in buf)
+                    t, g, a_read, d = (v[:w] for v in buf)
                     last = final and w == buf[0].size
+                    lim = tilt.recording_limits(g, a_read, d, prev=prev[0], **ranges)
+                    a = lim.acc_for_filter(a_read)
                     m = tilt_batch.piece_cut(state, a, d, filt.block, final=last) or w
-                    state, o = filt.run(state, g[:m], a[:m], d[:m])
+                    state, o = tilt_batch.run(filt.params, filt.block, state, g[:m], a[:m],
+                                              d[:m], tilt_var=lim.tilt_var_rad2[:m],
+                                              flags=lim.flags[:m])
+                    prev[0] = np.concatenate([g[m - 1], a_read[m - 1]])
                     sig = tilt.tilt_sigma_rad(o.var)
                     for lo in range(0, m, WRITE_ROWS):  # the rows' text, a slice at a time
                         hi = min(m, lo + WRITE_ROWS)

@@ -1,5 +1,5 @@
 """``verticality estimate INPUT --out OUT.csv [--filter NAME] [--offline] [--plot OUT.png]
-[--units ...] [--columns t=NAME,...] [--time-unit s|ms|us|ns]``.
+[--gyr-range DEG_S] [--acc-range G] [--units ...] [--columns t=NAME,...] [--time-unit s|ms|us|ns]``.
 
 INPUT is an IMU CSV (``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z``, SI units; an EuRoC / TUM-VI IMU
 file; or any header mapped with ``--columns``) or a BROAD-layout HDF5 file. Writes
@@ -35,6 +35,13 @@ def register(sub):
                    help="smooth: every sample's estimate also uses the samples after it (our "
                         "filter followed by a backward pass over the whole recording, read at "
                         "once; docs/tilt.md, Offline smoothing)")
+    p.add_argument("--gyr-range", type=float, default=None, metavar="DEG_S",
+                   help="the gyro's full-scale range in °/s (e.g. 2000): a reading there is "
+                        "clipped (flag 512; our filter only; default: inferred from flat tops; "
+                        "docs/tilt.md, Sensors at their limits)")
+    p.add_argument("--acc-range", type=float, default=None, metavar="G",
+                   help="the accelerometer's full-scale range in g (e.g. 16): a reading there is "
+                        "clipped and dropped (flag 512; our filter only; default: inferred)")
     p.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                    help="also draw roll, pitch, bias, the tilt's σ and the flags over time")
     add_layout_options(p)
@@ -54,6 +61,16 @@ def add_layout_options(p) -> None:
                         "ms, us and ns times are written relative to the first stamp)")
 
 
+def sensor_ranges(gyr_range_deg_s, acc_range_g) -> dict:
+    """``--gyr-range`` (°/s) and ``--acc-range`` (g) as ``tilt.estimate``'s ranges in SI units."""
+    import math
+
+    from verticality.estimators.tilt_params import G_M_S2
+
+    return {"gyr_range_rad_s": None if gyr_range_deg_s is None else math.radians(gyr_range_deg_s),
+            "acc_range_m_s2": None if acc_range_g is None else acc_range_g * G_M_S2}
+
+
 def run(args) -> int:
     from rich.console import Console
 
@@ -70,7 +87,8 @@ def run(args) -> int:
     with Console(stderr=True).status(f"reading, filtering ({args.filter}) and writing …"):
         run = estimate_file(args.input, args.out, args.units, args.columns, args.time_unit,
                             args.filter, sigma=args.sigma, keep=args.plot is not None,
-                            offline=args.offline)
+                            offline=args.offline,
+                            ranges=sensor_ranges(args.gyr_range, args.acc_range))
     how = ", offline (smoothed)" if args.offline else ""
     print(f"wrote {args.out} ({run.n} samples, filter {args.filter}{how})")
     if run.sigma_line is not None:

@@ -65,15 +65,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators import tilt_batch, tilt_core, tilt_smoother
+from verticality.estimators import tilt_batch, tilt_core, tilt_limits, tilt_smoother
 from verticality.estimators.tilt_core import TiltOutput, TiltState, quat_from_acc
 from verticality.estimators.tilt_flags import (  # noqa: F401  (the flags, for users of tilt)
     ACC_DISTURBED,
     ACC_MISSING,
     BAD_DT,
+    CLIPPED,
     DT_GAP,
     FLAG_NAMES,
     GYR_MISSING,
+    HELD,
     INIT,
     OUT_OF_RANGE,
     REACQUIRED,
@@ -90,7 +92,7 @@ from verticality.estimators.tilt_params import (  # noqa: F401  (re-exported for
 from verticality.models.base import model_dataclass, static_field
 
 __all__ = ["TiltFilter", "TiltState", "TiltOutput", "TiltParams", "Stepper", "estimate", "smooth",
-           "make_step", "tilt_sigma_rad", "quat_from_acc", "DEFAULT_PARAMS", "DEFAULT_P0", "BLOCK"]
+           "recording_limits", "make_step", "tilt_sigma_rad", "quat_from_acc", "DEFAULT_PARAMS", "DEFAULT_P0", "BLOCK"]
 
 _NO_ACC = np.full(3, np.nan)
 
@@ -148,11 +150,43 @@ _step = jax.jit(lambda f, s, g, a, d: tilt_core.step(s, g, a, d, f.params, f.blo
 _EMPTY_SUMS = np.asarray(tilt_core.empty_sums(xp=np))
 
 
+def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
+                     detect_clipping: bool = True, prev=None):
+    """The clipped and held samples of a recording (:func:`tilt_limits.find_limits`; ``prev`` the
+    row before the first when it is read in pieces), or None when its shapes are wrong (the
+    filter's own checks then say so). ``detect_clipping=False``: no clipping at all, given ranges
+    or not (held rows are still flagged)."""
+    n = gyr.shape[0] if gyr.ndim == 2 and gyr.shape[1:] == (3,) else -1
+    if n < 0 or acc.shape != gyr.shape or dt.ndim > 1 or (dt.ndim == 1 and dt.shape[0] != n):
+        return None
+    if not detect_clipping:
+        gyr_range_rad_s = acc_range_m_s2 = None
+    lim = tilt_limits.find_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2,
+                                  infer=detect_clipping, prev=prev)
+    if not lim.acc_clipped.any():
+        return lim
+    # (the filter sees a clipped accelerometer sample as missing: its other components' range is
+    # judged here, on the reading)
+    k = np.flatnonzero(lim.acc_clipped)
+    beyond = tilt_core.out_of_range(gyr[k].T, acc[k].T, xp=np)
+    flags = lim.flags.copy()
+    flags[k[beyond]] |= OUT_OF_RANGE
+    return lim._replace(flags=flags)
+
+
 def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
-             block: int = BLOCK) -> TiltOutput:
+             block: int = BLOCK, gyr_range_rad_s=None, acc_range_m_s2=None,
+             detect_clipping: bool = True) -> TiltOutput:
     """Filter a whole recording from the start (no prior state): gyro (N, 3) rad/s,
     accelerometer (N, 3) m/s², ``dt_s`` a scalar sampling period or (N,) per-sample steps
     (``dt_s[k]`` is the time from sample k−1 to k). Returns a :class:`TiltOutput` of NumPy arrays.
+
+    Sensors at their limits (:mod:`~verticality.estimators.tilt_limits`): ``gyr_range_rad_s``,
+    ``acc_range_m_s2`` the sensor's full-scale readings (scalar or one per axis); a component at
+    or beyond them is clipped (flag ``CLIPPED``): a clipped gyro axis widens the tilt variance for
+    its unknown excess, a clipped accelerometer sample is dropped. Without them the clip levels
+    are inferred from the recording's flat tops; ``detect_clipping=False`` turns clipping off.
+    Rows that repeat the previous row bit for bit are flagged ``HELD``.
 
     Example::
 
@@ -165,17 +199,22 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     n = gyr.shape[0] if gyr.ndim == 2 else 0
     dt = np.asarray(dt_s, dtype=np.float64)
-    if n <= tilt_batch.PIECE_SAMPLES or acc.shape != gyr.shape or dt.ndim > 1 \
-            or (dt.ndim == 1 and dt.shape[0] != n):
+    lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping)
+    if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
+    acc = lim.acc_for_filter(acc)
+    if n <= tilt_batch.PIECE_SAMPLES:
+        return tilt_batch.run(params, block, filt.init(), gyr, acc, dt, tilt_var=lim.tilt_var_rad2,
+                              flags=lim.flags)[1]
     return concatenate_outputs(list(run_in_pieces(filt, filt.init(), gyr, acc,
-                                                  np.broadcast_to(dt, (n,)))))
+                                                  np.broadcast_to(dt, (n,)), limits=lim)))
 
 
 def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
-           block: int = BLOCK) -> TiltOutput:
+           block: int = BLOCK, gyr_range_rad_s=None, acc_range_m_s2=None,
+           detect_clipping: bool = True) -> TiltOutput:
     """The offline estimate of a whole recording: the filter (:func:`estimate`, the same
-    arguments) followed by a Rauch–Tung–Striebel backward pass over its error state
+    arguments, the sensors' limits included) followed by a Rauch–Tung–Striebel backward pass over its error state
     (:mod:`~verticality.estimators.tilt_smoother`), so that every sample's tilt uses the samples
     after it as well as those before. The same fields, row count and flags as :func:`estimate`;
     ``var`` the smoothed variances (:func:`tilt_sigma_rad` gives the smoothed tilt's σ). A gap in
@@ -191,26 +230,37 @@ def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     tilt_smoother.check_size(gyr.shape[0] if gyr.ndim else 0)
     filt = TiltFilter(params, block)
-    final, out, trans = tilt_batch.run(params, block, filt.init(), gyr, acc_m_s2, dt_s,
-                                       transitions=True)
+    acc = np.asarray(acc_m_s2, dtype=np.float64)
+    lim = recording_limits(gyr, acc, np.asarray(dt_s, dtype=np.float64), gyr_range_rad_s,
+                           acc_range_m_s2, detect_clipping)
+    extra = {} if lim is None else {"tilt_var": lim.tilt_var_rad2, "flags": lim.flags}
+    final, out, trans = tilt_batch.run(params, block, filt.init(), gyr,
+                                       acc if lim is None else lim.acc_for_filter(acc), dt_s,
+                                       transitions=True, **extra)
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
     return tilt_smoother.smoothed_output(out, trans, final.P, dts, block)
 
 
-def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int | None = None):
+def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int | None = None,
+                  limits: tilt_limits.Limits | None = None):
     """The outputs of ``filt.run`` over a long recording, piece by piece (each of at most
     ``piece`` samples ending at a block boundary, :func:`~verticality.estimators.tilt_batch.
     piece_cut`): a generator of :class:`TiltOutput` pieces, as ``estimate`` and the streaming
     read of ``verticality estimate`` filter; ``piece`` default ``tilt_batch.PIECE_SAMPLES``).
     Equal to one ``run`` over the whole to rounding (the batch kernel's chunks differ), and bit
-    for bit to any other reading in the same pieces."""
+    for bit to any other reading in the same pieces. ``limits``: the recording's clipped and held
+    samples (:func:`recording_limits`; ``acc`` already without its clipped samples)."""
     piece = tilt_batch.PIECE_SAMPLES if piece is None else piece
     n, k = gyr.shape[0], 0
     while k < n:
         hi = min(n, k + piece)
         m = tilt_batch.piece_cut(state, acc[k:hi], dts[k:hi], filt.block, final=hi == n)
         m = m or hi - k  # no block boundary within a piece (piece < block): take it whole
-        state, out = filt.run(state, gyr[k:k + m], acc[k:k + m], dts[k:k + m])
+        sl = slice(k, k + m)
+        extra = {} if limits is None else {"tilt_var": limits.tilt_var_rad2[sl],
+                                           "flags": limits.flags[sl]}
+        state, out = tilt_batch.run(filt.params, filt.block, state, gyr[sl], acc[sl], dts[sl],
+                                    **extra)
         yield out
         k += m
 

@@ -25,7 +25,7 @@ from verticality.estimators.tilt_flags import (
     REACQUIRING,
     accelerometer_used,
 )
-from verticality.estimators.tilt_layout import HEAD, NE, ROW, SAMPLE, SOA, TRANS, E, S, X
+from verticality.estimators.tilt_layout import CHUNK_SAMPLE, HEAD, NE, ROW, SOA, TRANS, E, S, X
 from verticality.estimators.tilt_params import MAX_RATE_RAD_S
 
 CHUNK_BLOCKS = 256
@@ -59,12 +59,14 @@ class Transitions(NamedTuple):
 
 
 def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
-        transitions: bool = False):
+        transitions: bool = False, tilt_var=None, flags=None):
     """Filter a recording from ``state``: gyro (N, 3) rad/s, accelerometer (N, 3) m/s², ``dt_s`` a
     scalar or (N,) (``dt_s[k]`` the time from sample k−1 to k). Returns ``(final_state,
     TiltOutput)`` of NumPy arrays, as the core's ``step`` applied sample by sample would; with
     ``transitions`` also the block updates (:class:`Transitions`, by the kernel compiled with
-    them: the same numbers)."""
+    them: the same numbers). ``tilt_var``, ``flags`` (N,): each sample's extra tilt variance
+    (rad²) and flags from the recording's limits (``step``'s arguments of the same names;
+    :class:`~verticality.estimators.tilt_limits.Limits`), None for none."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
@@ -74,6 +76,9 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     if dt.ndim > 1 or (dt.ndim == 1 and dt.shape[0] != n):
         raise InputError(f"dt must be a scalar or have shape ({n},); got {dt.shape}")
     dts = np.broadcast_to(dt, (n,)).copy()
+    tv = np.zeros(n) if tilt_var is None else np.asarray(tilt_var, dtype=np.float64)
+    if tv.shape != (n,) or not np.all(np.isfinite(tv) & (tv >= 0)):
+        raise InputError(f"tilt_var must be ({n},), finite and non-negative")
     x = np.array(state.x, dtype=np.float64)
     sums = np.array(state.sums, dtype=np.float64)
     count, initialized = int(state.count), bool(state.initialized)
@@ -85,8 +90,10 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     trans = Transitions(n, np.zeros((0, TRANS.size)))
     if k < n:
         x, sums, count, trans = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k,
-                                        transitions)
+                                        transitions, tv)
     res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
+    if flags is not None:
+        res.flags[:] |= np.asarray(flags, dtype=np.int32)
     res.measured[:] = accelerometer_used(res.flags)
     final = core.TiltState(x, sums, np.int32(count), np.bool_(initialized))
     return (final, res, trans) if transitions else (final, res)
@@ -172,7 +179,7 @@ def _head(sums0, n_update: int, nb: int):
 _EMPTY_SUMS = np.asarray(core.empty_sums(xp=np))
 
 
-def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False):
+def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv=None):
     """Samples ``k`` to the end through the batch kernel, from the filter ``x`` and the current
     block's ``sums0`` of ``count`` samples. Returns the filter, the sums and the count after the
     last sample, and the :class:`Transitions` (None unless ``transitions``)."""
@@ -195,22 +202,23 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False)
         gaps = bool(need[j:j + CHUNK_BLOCKS].any()) or 2 * (nv - v) <= CHUNK_BLOCKS * block
         nb = GAP_CHUNK_BLOCKS if gaps else CHUNK_BLOCKS
         size = nb * block
-        # the chunk's samples as SAMPLE rows (packed chunk by chunk, while the device works on
+        # the chunk's samples as CHUNK_SAMPLE rows (packed chunk by chunk, while the device works on
         # the previous one); positions without a sample (the current block's samples before k,
         # the padding after the last sample) are skipped samples (dt = NaN: BAD_DT), so that
         # every chunk has one of the two compiled shapes
         m = min(size, nv - v)
         lead = pad if v == 0 else 0
-        data = np.empty((size, SAMPLE.size))
+        data = np.empty((size, CHUNK_SAMPLE.size))
         data[:lead, :] = 0.0
-        data[:lead, SAMPLE.dt] = np.nan
+        data[:lead, CHUNK_SAMPLE.dt] = np.nan
         lo, hi = base + v + lead, base + v + m
-        data[lead:m, SAMPLE.gyr] = gyr[lo:hi]
-        data[lead:m, SAMPLE.acc] = acc[lo:hi]
-        data[lead:m, SAMPLE.dt] = dts[lo:hi]
+        data[lead:m, CHUNK_SAMPLE.gyr] = gyr[lo:hi]
+        data[lead:m, CHUNK_SAMPLE.acc] = acc[lo:hi]
+        data[lead:m, CHUNK_SAMPLE.dt] = dts[lo:hi]
+        data[lead:m, CHUNK_SAMPLE.tilt_var] = 0.0 if tv is None else tv[lo:hi]
         if m < size:
             data[m:, :] = 0.0
-            data[m:, SAMPLE.dt] = np.nan
+            data[m:, CHUNK_SAMPLE.dt] = np.nan
         n_update = m // block if v + m == nv else nb
         x, current, outs = tilt_kernels.run_chunk(x, _head(sums0 if v == 0 else None, n_update,
                                                            nb),
@@ -231,7 +239,7 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False)
             put_chunk(tmp, 0, outs, block, gap0=gap0)
             for dst, src in zip(res, tmp, strict=True):
                 dst[lo:lo + m - lead] = src[lead:m]
-    _add_dropout_variance(res.var, gyr, acc, dts, k, pad, float(sums0[S.qmiss]), block, p)
+    _add_dropout_variance(res.var, gyr, acc, dts, k, pad, float(sums0[S.qmiss]), block, p, tv)
     count = nv % block
     sums = np.asarray(current) if count else _EMPTY_SUMS.copy()
     trans = (Transitions(base, np.concatenate([np.asarray(t) for t in trans]))
@@ -239,17 +247,19 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False)
     return np.asarray(x), sums, count, trans
 
 
-def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p):
+def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p, tv=None):
     """Within each block, add to the tilt variances what gyro dropouts and gaps have added since
     the block's start (``tilt_core.output_var``: the kernel gives the block-start variances; the
     block's last sample already has the updated ones). Samples from ``k`` on, the first block
     having begun ``pad`` samples before ``k`` with ``qmiss0`` in its sums. In place; nothing to do
     on a recording without dropouts."""
     g = gyr[k:]
-    if (qmiss0 == 0.0 and np.max(g, initial=0.0) < MAX_RATE_RAD_S
+    extra = tv is not None and bool(np.any(tv[k:] > 0))
+    if (qmiss0 == 0.0 and not extra and np.max(g, initial=0.0) < MAX_RATE_RAD_S
             and np.min(g, initial=0.0) > -MAX_RATE_RAD_S and not np.any(dts[k:] > p.gap_flag_s)):
-        return  # every gyro sample valid (a NaN fails the test) and no gap: the usual case
-    t = core.sample_terms(gyr[k:].T, acc[k:].T, dts[k:], p, xp=np)
+        return  # every gyro sample valid (a NaN fails the test), no gap, no clipping: the usual case
+    t = core.sample_terms(gyr[k:].T, acc[k:].T, dts[k:], p, xp=np,
+                          tilt_var=tv[k:] if extra else 0.0)
     m = t.dts.shape[0]
     q = np.zeros(-(-(pad + m) // block) * block)
     q[pad:pad + m] = t.sums["qmiss"]

@@ -180,7 +180,7 @@ def _each(fn, v):
     return tuple(fn(c) for c in v) if isinstance(v, tuple) else fn(v)
 
 
-def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True) -> SampleTerms:
+def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0) -> SampleTerms:
     """The per-sample part of the pre-integration: ``g`` (rad/s) and ``a`` (m/s²) vectors with the
     component axis first (arrays (3, ...), or tuples of three arrays), ``dt`` (s) of shape (...):
     the samples' validity and their term in each block sum (``S``; the vector ones in the form of
@@ -188,7 +188,9 @@ def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True) -> SampleTerms:
     (:func:`preintegrate`). ``gaps=False``: the caller guarantees that no sample is a gap (the
     batch kernel without gap handling). The batch kernel passes tuples, the per-sample step arrays:
     the same arithmetic, each compiled the faster way (XLA runs few large kernels best, and a
-    single sample's few small ones as vectors)."""
+    single sample's few small ones as vectors). ``tilt_var`` (rad², scalar or (...)): a tilt
+    variance the sample adds besides its own terms (a clipped gyro axis's unknown excess,
+    :mod:`~verticality.estimators.tilt_limits`), summed with the dropouts' in ``qmiss``."""
     dt_ok, gyr_ok, acc_ok, acc_n2 = masks(g, a, dt, xp)
     dts = xp.where(dt_ok, dt, 0.0)
     wa = xp.where(acc_ok, dts, 0.0)  # Δt of a valid accelerometer sample
@@ -201,7 +203,8 @@ def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True) -> SampleTerms:
     dev2 = (xp.sqrt(acc_n2) - p.g_m_s2) ** 2
     sums = dict(tau=wg, t_acc=wa, dev2=dev2 * wa,
                 w2=(g0[0] * g0[0] + g0[1] * g0[1] + g0[2] * g0[2]) * dts, t=dts,
-                qmiss=xp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2),
+                qmiss=(xp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2)
+                       + xp.where(dt_ok, tilt_var, 0.0)),
                 gsum=rot, asum=_each(lambda c: c * wa, a0), a2=acc_n2 * wa,
                 gap=gap.astype(xp.float64))
     return SampleTerms(dt_ok, gyr_ok, acc_ok, gap, dts, rot, a0, wa, sums)
@@ -620,15 +623,18 @@ def output_var(P, initialized, qmiss, p, xp=jnp):
 
 # --- the per-sample step ---
 
-def step(state: TiltState, gyr, acc, dt, p, block: int):
+def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0):
     """One sample: gyro ``gyr`` (3,) rad/s, accelerometer ``acc`` (3,) m/s², ``dt`` s since the
     previous sample. The sample is pre-integrated into the block; at the block's end the block
     update runs. Before the initialization, the first usable accelerometer sample sets the tilt
-    (flag INIT), to be re-acquired after reacquire_s. Returns ``(state, TiltOutput)``."""
+    (flag INIT), to be re-acquired after reacquire_s. ``tilt_var``, ``flags``: the sample's extra
+    tilt variance (rad²) and flags from the recording's limits
+    (:class:`~verticality.estimators.tilt_limits.Limits`; none by default). Returns
+    ``(state, TiltOutput)``."""
     gyr = jnp.asarray(gyr, dtype=jnp.float64)
     acc = jnp.asarray(acc, dtype=jnp.float64)
     dt = jnp.asarray(dt, dtype=jnp.float64)
-    t = sample_terms(gyr, acc, dt, p)
+    t = sample_terms(gyr, acc, dt, p, tilt_var=tilt_var)
     init_now = ~state.initialized & t.acc_ok
     x = jnp.where(init_now, initialize(state.x, t.acc, p), state.x)
     sums = jnp.where(state.initialized, accumulate(state.sums, t), state.sums)
@@ -649,7 +655,7 @@ def step(state: TiltState, gyr, acc, dt, p, block: int):
     up, roll, pitch = up_roll_pitch(tuple(q))
     flags = flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, disturbed, t.gap, reacq,
                       (x[X.reacquire] > 0.5) | (sums[S.gap] > 0), init_now,
-                      out_of_range(gyr, acc))
+                      out_of_range(gyr, acc)) | jnp.asarray(flags, dtype=jnp.int32)
     var = output_var(x[X.P].reshape(NE, NE), initialized, sums[S.qmiss], p)
     out = TiltOutput(roll, pitch, jnp.stack(up), q, x[X.b], var, flags, t.acc_ok)
     return TiltState(x, sums, count, initialized), out

@@ -17,12 +17,18 @@ REACQUIRED = 64  # the tilt was re-acquired from the accelerometer after a gap o
 REACQUIRING = 128  # from a gap (or the start) to its re-acquisition: the estimate may be off
 OUT_OF_RANGE = 256  # a gyro or accelerometer component beyond the sensor's physical range
 # (tilt_params.MAX_RATE_RAD_S, MAX_ACC_M_S2; ±inf included): a corrupt sample, taken as missing
+CLIPPED = 512  # a gyro or accelerometer component at the sensor's clip level (tilt_limits): a
+# clipped gyro axis widens the tilt variance for its unknown excess, a clipped accelerometer sample
+# is taken as missing (with ACC_MISSING)
+HELD = 1024  # the row repeats the previous row's six channels bit for bit (tilt_limits): a logger
+# faster than its sensor; filtered as any row (a zero-order hold over its true Δt)
 
 FLAG_NAMES = {ACC_MISSING: "accelerometer missing", GYR_MISSING: "gyro missing",
               BAD_DT: "bad time step", ACC_DISTURBED: "accelerometer disturbed",
               INIT: "initialization", DT_GAP: "gap in the time stamps",
               REACQUIRED: "tilt re-acquired", REACQUIRING: "re-acquiring",
-              OUT_OF_RANGE: "beyond the sensor's range"}
+              OUT_OF_RANGE: "beyond the sensor's range", CLIPPED: "clipped",
+              HELD: "held (repeated row)"}
 
 
 def accelerometer_used(flags):

@@ -26,7 +26,10 @@ arrays. The layouts:
   (computed for all the blocks of a chunk before the scan over blocks).
 * :data:`Z` the real-time stepper's state: ``x``, ``sums``, ``count`` (samples in the block),
   ``initialized`` (1.0 or 0.0).
-* :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input, a chunk's rows).
+* :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input).
+* :data:`CHUNK_SAMPLE` a batch chunk's row: a :data:`SAMPLE` (same offsets) and ``tilt_var``, the
+  tilt variance (rad²) the sample adds besides its own terms (clipped gyro axes,
+  :mod:`~verticality.estimators.tilt_limits`).
 * :data:`OUT` the stepper's output ``[roll, pitch, up (3), quat (4), bias (3), flags]``.
 * :data:`ROW` the batch kernel's row per block: the state at its start (``q0``, ``b0``, ``var0``
   the diagonal of ``P``) and after its update (``q1``, ``b1``, ``var1``), whether the update found
@@ -103,6 +106,7 @@ C = Packed([("dquat", 4), ("tau", None), ("f", 3), ("T", None), ("has_acc", None
             ("r_b", None), ("gap", None), ("t_acc", None)])
 Z = Packed([("x", X.size), ("sums", S.size), ("count", None), ("initialized", None)])
 SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None)])
+CHUNK_SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None), ("tilt_var", None)])
 OUT = Packed([("roll", None), ("pitch", None), ("up", 3), ("quat", 4), ("bias", 3),
               ("flags", None)])
 ROW = Packed([("q0", 4), ("b0", 3), ("var0", NE), ("q1", 4), ("b1", 3), ("var1", NE),

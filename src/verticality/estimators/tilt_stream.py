@@ -15,6 +15,7 @@ and a start in motion, to ≤ 1e-9. Use it for sample-by-sample loops; use ``Til
 from __future__ import annotations
 
 import math
+import struct
 
 import numpy as np
 
@@ -22,13 +23,16 @@ from verticality.estimators.tilt_flags import (
     ACC_DISTURBED,
     ACC_MISSING,
     BAD_DT,
+    CLIPPED,
     DT_GAP,
     GYR_MISSING,
+    HELD,
     INIT,
     OUT_OF_RANGE,
     REACQUIRED,
     REACQUIRING,
 )
+from verticality.estimators.tilt_limits import EXCESS_FRACTION
 from verticality.estimators.tilt_params import (
     BLOCK,
     DEFAULT_P0,
@@ -103,9 +107,24 @@ class Stream:
     """Sample-by-sample tilt filter: ``s = Stream()``, ``out = s.step(gyr, acc, dt)`` with
     ``out = (roll, pitch, up(3), quat(4), bias(3), flags)`` — the per-sample outputs of
     ``TiltFilter.step`` (variances in :attr:`P`, the tilt's standard deviation in
-    :attr:`tilt_sigma_rad`). ``params`` is a ``TiltParams``."""
+    :attr:`tilt_sigma_rad`). ``params`` is a ``TiltParams``.
 
-    def __init__(self, params=None, block: int = BLOCK, P0=None, x0=None):
+    Sensors at their limits, as ``tilt.estimate`` treats them (``tilt_limits``), sample by sample:
+    ``gyr_range_rad_s``, ``acc_range_m_s2`` the full-scale readings (scalar or one per axis; None:
+    no clipping; a stream cannot infer them from the recording's flat tops). A gyro component at or
+    beyond its range adds the variance of an unknown constant excess rate (σ = ``EXCESS_FRACTION``
+    × range) over its clipped run to the tilt; an accelerometer sample with a component there is
+    dropped; both flag ``CLIPPED``. A sample repeating the previous one bit for bit is flagged
+    ``HELD``."""
+
+    def __init__(self, params=None, block: int = BLOCK, P0=None, x0=None, gyr_range_rad_s=None,
+                 acc_range_m_s2=None):
+        self.gyr_range = None if gyr_range_rad_s is None else [
+            float(v) for v in np.broadcast_to(np.asarray(gyr_range_rad_s, dtype=float), (3,))]
+        self.acc_range = None if acc_range_m_s2 is None else [
+            float(v) for v in np.broadcast_to(np.asarray(acc_range_m_s2, dtype=float), (3,))]
+        self.clip_t = [0.0, 0.0, 0.0]  # how long each gyro axis has been clipped
+        self.prev_bits = None  # the previous sample's six channels, as bytes
         self.p = DEFAULT_PARAMS if params is None else params
         self.block = block
         self.P = np.array(DEFAULT_P0 if P0 is None else P0, dtype=np.float64)
@@ -153,9 +172,26 @@ class Stream:
         gyr3, acc3 = (gx, gy, gz), (ax, ay, az)
         dt = float(dt)
         dt_ok = 0.0 < dt < MAX_DT_S
+        bits = struct.pack("6d", gx, gy, gz, ax, ay, az)
+        held = bits == self.prev_bits and not any(math.isnan(v) for v in (*gyr3, *acc3))
+        self.prev_bits = bits
+        # clipping: a component at or beyond the given full scale
+        acc_clipped = self.acc_range is not None and any(
+            math.isfinite(v) and abs(v) >= r for v, r in zip(acc3, self.acc_range, strict=True))
+        clip_var, gyr_clipped = 0.0, False
+        for i in range(3):
+            if self.gyr_range is not None and math.isfinite(gyr3[i]) \
+                    and abs(gyr3[i]) >= self.gyr_range[i]:
+                gyr_clipped = True
+                t0 = self.clip_t[i]
+                self.clip_t[i] = t1 = t0 + (dt if dt_ok else 0.0)
+                clip_var += (EXCESS_FRACTION * self.gyr_range[i]) ** 2 * (t1 * t1 - t0 * t0)
+            else:
+                self.clip_t[i] = 0.0
         gyr_ok = dt_ok and abs(gx) < MAX_RATE_RAD_S and abs(gy) < MAX_RATE_RAD_S \
             and abs(gz) < MAX_RATE_RAD_S
-        acc_in = abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
+        acc_in = (abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
+                  and not acc_clipped)
         n2 = ax * ax + ay * ay + az * az if acc_in else 0.0
         acc_ok = dt_ok and n2 > 1e-6
         dts = dt if dt_ok else 0.0
@@ -172,6 +208,8 @@ class Stream:
                 self.tau += dts
             if gap or not gyr_ok:  # the rotation inside a gap is unknown
                 self.qmiss += (p.omega_missing_rad_s * dts) ** 2
+            if dt_ok:  # a clipped gyro axis's unknown excess
+                self.qmiss += clip_var
             self.gap += gap
             r = _rotate(dq, (ax, ay, az))
             f, gs, as_ = self.f, self.gsum, self.asum
@@ -211,7 +249,8 @@ class Stream:
               | (INIT if init_now else 0) | (DT_GAP if gap else 0) | (REACQUIRED if reacq else 0)
               | (REACQUIRING if self.reacquire or self.gap > 0 else 0)
               | (OUT_OF_RANGE if any(abs(v) >= MAX_RATE_RAD_S for v in gyr3)
-                 or any(abs(v) >= MAX_ACC_M_S2 for v in acc3) else 0))
+                 or any(abs(v) >= MAX_ACC_M_S2 for v in acc3) else 0)
+              | (CLIPPED if gyr_clipped or acc_clipped else 0) | (HELD if held else 0))
         return (math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2])), up, q,
                 tuple(self.b), fl)
 

@@ -189,8 +189,9 @@ def parse_time_cells(cells: list[str], line_numbers: list[int], source: str = "i
 
 def check_time_steps(t_raw: np.ndarray, line_numbers: list[int], unit: str | None,
                      source: str = "input", label: str = "t") -> None:
-    """Refuse times that do not increase strictly (naming the first bad line), and a median step
-    that is no IMU's rate.
+    """Refuse times that decrease (naming the first bad line), and a median step that is no IMU's
+    rate. A repeated stamp (a step of 0: a coarse or jittery clock) is read: the tilt filter skips
+    that row's readings, having no time to integrate them over, and flags it (``BAD_DT``).
 
     ``unit`` None (not stated): a median step above ``SLOW_STEP_S`` is refused, since as seconds
     that is below 10 Hz (every step a gap for the tilt filter) and the stamps are most likely ms
@@ -200,13 +201,16 @@ def check_time_steps(t_raw: np.ndarray, line_numbers: list[int], unit: str | Non
     which catches a wrong ``--time-unit`` (ns stamps read as ms give 5000 s steps); stating ``s``
     is how a really slow recording is read."""
     steps = np.diff(t_raw)
-    if np.any(steps <= 0):
-        bad = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise InputError(f"{source}: time {label} must increase strictly (line "
+    if np.any(steps < 0):
+        bad = int(np.flatnonzero(steps < 0)[0]) + 1
+        raise InputError(f"{source}: time {label} must not decrease (line "
                          f"{line_numbers[bad]})")
     if not steps.size:
         return
     med = float(np.median(steps))
+    if med <= 0:
+        raise InputError(f"{source}: time {label} repeats in most rows (the median step is 0): "
+                         "no sampling rate can be read from it")
     if unit is None:
         if med > SLOW_STEP_S:
             raise InputError(f"{source}: median time step is {med:.6g}, which as seconds would be "

@@ -1,0 +1,213 @@
+"""Sensors at their limits, found in a recording before the tilt filter runs
+(:func:`verticality.estimators.tilt.estimate`, :func:`~verticality.estimators.tilt.smooth`):
+clipped (saturated) gyro and accelerometer axes, and held rows (a logger faster than its sensor
+repeats the sensor's last reading). NumPy, on the host; the filter receives the result as per-sample
+inputs (:class:`Limits`).
+
+**Clipping.** A sensor at the end of its range reads its full-scale value whatever the true value
+beyond it. A reading is clipped when a component is at or beyond the range the user gives
+(``gyr_range_rad_s``, ``acc_range_m_s2``: the full-scale reading, a scalar or one per axis), or,
+when no range is given, at a level inferred from the recording's flat tops: on each axis and side,
+the recording's extreme value when it is read by a run of at least :data:`MIN_RUN` consecutive
+identical samples (held rows not counted: they repeat every channel) and lies beyond the smallest
+range of common parts (:data:`GYR_FLOOR_RAD_S`, :data:`ACC_FLOOR_M_S2`). ``MIN_RUN`` = 4: a noisy
+sensor rarely reads the same value twice in a row at its extreme (on the twelve BROAD trials, 286 Hz,
+every axis's extreme on either side is read by runs of at most 2), while a motion beyond a range
+reads its full scale for as long as it lasts (tens of samples at 100 Hz for a rotation that peaks
+50 % above the range); 4 is twice the longest run seen on clean data. The floors keep a dead or
+constant axis (all zeros, a level sensor's steady 1 g) from counting as clipped.
+
+What the filter does with a clipped reading, by physics:
+
+* a clipped gyro axis reads a rate whose true value is at least the clip level, with an unknown
+  excess. The reading is still used (it is the best value there is), and the excess is modelled as
+  an unknown constant rate of standard deviation ``EXCESS_FRACTION`` times the clip level for the
+  duration of the clipped run (it is one motion, not white noise): after ``t`` s of clipping on an
+  axis the tilt has turned by an unknown angle of variance ``(σ t)²``. Each sample adds its
+  increment ``σ² (t_k² − t_{k−1}²)`` to the tilt variance (:attr:`Limits.tilt_var_rad2`, added where
+  the filter adds a gyro dropout's; the projection of the axis on the horizontal is at most 1, so
+  adding it to both tilt variances is conservative). The widened σ lets the accelerometer pull the
+  tilt back. ``EXCESS_FRACTION`` = 0.5: a motion that clips a sensor typically exceeds its range by
+  a fraction of it (a ±7 rad/s gyro on a 10–12 rad/s rotation: 40–70 %), and σ must cover the
+  excess rather than claim it known;
+* a clipped accelerometer axis does not measure gravity: the sample is dropped (the filter takes
+  it as missing, flag ``ACC_MISSING``), and the unknown specific force over its Δt enters the
+  velocity's process noise as for any missing accelerometer sample.
+
+Either way the sample is flagged ``CLIPPED``.
+
+**Held rows.** A row whose six channels equal the previous row's bit for bit is a repeat of the
+sensor's last reading (a real noisy sensor essentially never reads the same six values twice). It
+is flagged ``HELD`` and otherwise filtered as any row: the filter integrates the gyro and the
+specific force over each row's Δt (a zero-order hold of the true signal, integrated over the true
+time), and the accelerometer enters only through its Δt-weighted integral over a block, not as one
+update per row, so a held accelerometer value counts for the time it was held, exactly as the one
+sensor sample it repeats would (its noise variance, too, is the density times that time): nothing
+is counted twice.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from verticality.errors import InputError
+from verticality.estimators.tilt_flags import CLIPPED, HELD
+from verticality.estimators.tilt_params import G_M_S2
+
+MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make it a clip level
+GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s
+ACC_FLOOR_M_S2 = 1.5 * G_M_S2  # the smallest common accelerometer range is ±2 g
+EXCESS_FRACTION = 0.5  # σ of a clipped gyro axis's unknown excess, as a fraction of the clip level
+
+
+class Limits(NamedTuple):
+    """What the sensors' limits mean for each sample of a recording (:func:`find_limits`)."""
+
+    gyr_clipped: np.ndarray  # (N, 3) bool: the gyro component is at its clip level
+    acc_clipped: np.ndarray  # (N,) bool: an accelerometer component is at its clip level
+    held: np.ndarray  # (N,) bool: the row repeats the previous one bit for bit
+    tilt_var_rad2: np.ndarray  # (N,) the tilt variance the clipped gyro axes add at the sample
+    flags: np.ndarray  # (N,) int32: CLIPPED and HELD
+
+    def acc_for_filter(self, acc_m_s2):
+        """The accelerometer with its clipped samples taken out (NaN: missing for the filter)."""
+        if not self.acc_clipped.any():
+            return acc_m_s2
+        return np.where(self.acc_clipped[:, None], np.nan, acc_m_s2)
+
+
+def held_rows(gyr, acc, prev=None) -> np.ndarray:
+    """(N,) bool: row k's six channels equal row k−1's bit for bit (a row with a NaN is never
+    held: a missing reading is no repeated one). ``prev`` (6,): the row before the first (gyro,
+    accelerometer), when the recording is read in pieces; else the first row is never held."""
+    gyr = np.asarray(gyr, dtype=np.float64)
+    acc = np.asarray(acc, dtype=np.float64)
+    if prev is not None:
+        prev = np.asarray(prev, dtype=np.float64)
+        gyr = np.concatenate([prev[None, :3], gyr])
+        acc = np.concatenate([prev[None, 3:], acc])
+    n = gyr.shape[0]
+    # candidates by two channels (a quantized gyro at rest repeats itself, but rarely together
+    # with the accelerometer), then all six, bit for bit
+    k = np.flatnonzero((gyr[1:, 0] == gyr[:-1, 0]) & (acc[1:, 2] == acc[:-1, 2])) + 1
+    if k.size:
+        rows = np.concatenate([gyr, acc], axis=1)
+        now = np.ascontiguousarray(rows[k]).view(np.int64)
+        before = np.ascontiguousarray(rows[k - 1]).view(np.int64)
+        k = k[np.all(now == before, axis=1)]
+    held = np.zeros(n, dtype=bool)
+    held[k] = True
+    return held[1:] if prev is not None else held
+
+
+def _longest_run(at) -> int:
+    """The longest run of True in the bool vector ``at`` (from the indices where it holds: few,
+    at a recording's extreme)."""
+    k = np.flatnonzero(at)
+    if k.size == 0:
+        return 0
+    breaks = np.flatnonzero(np.diff(k) != 1)
+    edges = np.concatenate([[-1], breaks, [k.size - 1]])
+    return int(np.max(np.diff(edges)))
+
+
+def inferred_levels(x, held, floor: float, min_run: int = MIN_RUN):
+    """Clip levels of each axis of ``x`` (N, 3) inferred from flat tops: ``(lo (3,), hi (3,))``,
+    the axis's extreme value on each side when it is beyond ``floor`` in size and read by a run of
+    at least ``min_run`` consecutive identical samples (rows where ``held`` are left out), else
+    ∓inf (no clipping seen on that side)."""
+    lo, hi = np.full(3, -np.inf), np.full(3, np.inf)
+    if x.shape[0] == 0:
+        return lo, hi
+    new = x[~held] if held.any() else x
+    for i in range(x.shape[1]):
+        col = new[:, i]
+        top, bottom = col.max(), col.min()  # (per column: NumPy reduces (N, 3) along N slowly)
+        if not (np.isfinite(top) and np.isfinite(bottom)):  # a NaN or ±inf sample: finite only
+            ok = np.isfinite(col)
+            top = np.max(col, where=ok, initial=-np.inf)
+            bottom = np.min(col, where=ok, initial=np.inf)
+        for level, out, sign in ((top, hi, 1.0), (bottom, lo, -1.0)):
+            # (the run test only for an extreme beyond the floor: rare on clean data)
+            if sign * level > floor and _longest_run(col == level) >= min_run:
+                out[i] = level
+    return lo, hi
+
+
+def _range(value, name: str) -> np.ndarray:
+    try:
+        r = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        r = None
+    if r is not None and r.ndim <= 1 and r.size in (1, 3):
+        r = np.broadcast_to(r, (3,))
+    else:
+        r = None
+    if r is None or not np.all(r > 0):  # (NaN fails too)
+        raise InputError(f"{name} must be a positive full-scale reading, one or one per axis; "
+                         f"got {value!r}")
+    return r.copy()
+
+
+def _levels(x, held, given, name, floor, infer):
+    if given is not None:
+        r = _range(given, name)
+        return -r, r
+    if infer:
+        return inferred_levels(x, held, floor)
+    return np.full(3, -np.inf), np.full(3, np.inf)
+
+
+def clip_variance(clipped, sigma_rad_s, dts) -> np.ndarray:
+    """(N,) the tilt variance (rad²) each sample adds for the unknown excess of its clipped gyro
+    axes: per axis, an unknown constant rate of standard deviation ``sigma_rad_s`` (N, 3) over each
+    clipped run, ``σ² (t_k² − t_{k−1}²)`` with ``t_k`` the run's duration to sample k (Σ Δt;
+    ``dts`` (N,), non-positive or non-finite steps count as 0), summed over the axes."""
+    d = np.where(np.isfinite(dts) & (dts > 0), dts, 0.0)
+    out = np.zeros(clipped.shape[0])
+    for i in range(clipped.shape[1]):
+        c = clipped[:, i]
+        if not c.any():
+            continue
+        t = np.cumsum(np.where(c, d, 0.0))
+        start = np.maximum.accumulate(np.where(c, 0.0, t))  # t at the end of the last unclipped
+        run = np.where(c, t - start, 0.0)  # the run's duration to each sample
+        prev = np.concatenate([[0.0], run[:-1]])
+        out += np.where(c, sigma_rad_s[:, i] ** 2 * (run * run - prev * prev), 0.0)
+    return out
+
+
+def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=None,
+                infer: bool = True, prev=None) -> Limits:
+    """The clipped and held samples of a recording (module doc): gyro (N, 3) rad/s, accelerometer
+    (N, 3) m/s², ``dt_s`` scalar or (N,). ``gyr_range_rad_s``, ``acc_range_m_s2``: the sensor's
+    full-scale readings (scalar or (3,)); a component at or beyond them is clipped. Without them
+    the levels are inferred from flat tops when ``infer`` (else nothing is clipped on that
+    sensor). ``prev``: the row before the first, for a recording read in pieces
+    (:func:`held_rows`; the levels are then inferred per piece, and a clipped run that spans two
+    pieces restarts its unknown excess at the second)."""
+    gyr = np.asarray(gyr_rad_s, dtype=np.float64)
+    acc = np.asarray(acc_m_s2, dtype=np.float64)
+    n = gyr.shape[0]
+    dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,))
+    held = held_rows(gyr, acc, prev)
+    g_lo, g_hi = _levels(gyr, held, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S, infer)
+    a_lo, a_hi = _levels(acc, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2, infer)
+    # (±inf levels: no clipping on that side, and nothing to compare; the usual case)
+    g_any, a_any = np.isfinite(np.concatenate([g_lo, g_hi])).any(), \
+        np.isfinite(np.concatenate([a_lo, a_hi])).any()
+    g_top = (gyr >= g_hi) & np.isfinite(gyr) if g_any else np.zeros(gyr.shape, dtype=bool)
+    gyr_clipped = g_top | ((gyr <= g_lo) & np.isfinite(gyr)) if g_any else g_top
+    acc_clipped = (np.any(((acc >= a_hi) | (acc <= a_lo)) & np.isfinite(acc), axis=1) if a_any
+                   else np.zeros(n, dtype=bool))
+    flags = np.where(held, np.int32(HELD), np.int32(0))
+    var = np.zeros(n)
+    if gyr_clipped.any():
+        sigma = EXCESS_FRACTION * np.where(g_top, g_hi, -g_lo)
+        var = clip_variance(gyr_clipped, np.where(gyr_clipped, sigma, 0.0), dts)
+        flags |= np.where(gyr_clipped.any(axis=1), np.int32(CLIPPED), np.int32(0))
+    if acc_clipped.any():
+        flags |= np.where(acc_clipped, np.int32(CLIPPED), np.int32(0))
+    return Limits(gyr_clipped, acc_clipped, held, var, flags)
