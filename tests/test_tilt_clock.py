@@ -5,7 +5,8 @@ library and through ``verticality estimate``."""
 import numpy as np
 import pytest
 
-from verticality import cli, so3
+from verticality import cli
+from verticality.analysis.fault_recordings import turning
 from verticality.estimators import tilt
 from verticality.estimators.tilt_flags import BAD_DT, INIT
 from verticality.io import imu
@@ -18,19 +19,7 @@ FINE_S = 0.001  # the truth's grid
 def truth():
     """A sensor turning about all three axes (up to ~1.5 rad/s) for 40 s on a 1 kHz grid: the
     rate, the rotation and the specific force (gravity only) at every grid time."""
-    rng = np.random.default_rng(11)
-    n = 40_000
-    t = np.arange(n) * FINE_S
-    w = np.zeros((n, 3))
-    for ax in range(3):
-        for f, a in zip(rng.uniform(0.1, 0.8, 3), rng.uniform(0.2, 0.5, 3), strict=True):
-            w[:, ax] += a * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
-    steps = np.asarray(so3.exp(w * FINE_S))
-    R = np.empty((n, 3, 3))
-    R[0] = np.eye(3)
-    for k in range(1, n):
-        R[k] = R[k - 1] @ steps[k]
-    return w, R
+    return turning(40_000, FINE_S, np.random.default_rng(11), max_rate_rad_s=0.5)
 
 
 def _sample(truth, idx, seed=0):

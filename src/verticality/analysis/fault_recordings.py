@@ -27,17 +27,27 @@ from verticality.estimators import tilt
 FAULTS = ("clean", "bias_0.1", "bias_0.2", "shake", "clipped_2g", "taps", "kicks")
 
 
-def _motion(n: int, dt: float, rng, shake: bool):
+def turning(n: int, dt: float, rng, max_rate_rad_s: float = 0.8):
+    """A sensor turning about all three axes: per axis three sinusoids of 0.1–0.8 Hz and
+    amplitudes 0.2–``max_rate_rad_s`` rad/s (random phases), the rotation integrated exactly over
+    each step. Returns ``(w (n, 3) rad/s, R_E_S (n, 3, 3))``."""
     t = np.arange(n) * dt
     w = np.zeros((n, 3))
     for ax in range(3):
-        for f, a in zip(rng.uniform(0.1, 0.8, 3), rng.uniform(0.2, 0.8, 3), strict=True):
+        for f, a in zip(rng.uniform(0.1, 0.8, 3), rng.uniform(0.2, max_rate_rad_s, 3),
+                        strict=True):
             w[:, ax] += a * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
     steps = np.asarray(so3.exp(w * dt))
     R = np.empty((n, 3, 3))
     R[0] = np.eye(3)
     for k in range(1, n):
         R[k] = R[k - 1] @ steps[k]
+    return w, R
+
+
+def _motion(n: int, dt: float, rng, shake: bool):
+    t = np.arange(n) * dt
+    w, R = turning(n, dt, rng)
     a_lin = np.zeros((n, 3))
     if shake:
         seg = (t % 20.0) > 12.0
