@@ -485,17 +485,16 @@ def block_update(x, c, p, gaps: bool = True):
     # slower than it has a lag-T correlation near or below zero, which no exponential fits)
     lam = jnp.exp(-T / p.vel_corr_s)
     dv = f_E[:2]
-    ok = has_acc & ~gap & ~collecting
-    speed_var = jnp.where(ok, lam * x[X.speed_var] + (1 - lam) * 0.5 * jnp.sum(vel * vel),
+    eligible = has_acc & ~gap & ~collecting  # a velocity update may run
+    speed_var = jnp.where(eligible, lam * x[X.speed_var] + (1 - lam) * 0.5 * jnp.sum(vel * vel),
                           x[X.speed_var])
-    dv_var = jnp.where(ok, lam * x[X.dv_var] + (1 - lam) * 0.5 * jnp.sum(dv * dv), x[X.dv_var])
+    dv_var = jnp.where(eligible, lam * x[X.dv_var] + (1 - lam) * 0.5 * jnp.sum(dv * dv), x[X.dv_var])
     rho = jnp.clip(dv_var / jnp.maximum(2.0 * speed_var, 1e-12), 1.0 - lam, 1.0 - math.exp(-1.0))
     tau_motion = -T / jnp.log1p(-rho)
     r_v = r_v0 * disturbed_velocity_scale(acc_dev_var, p) * jnp.where(
         at_rest, 1.0, tau_motion / p.vel_corr_s)
     # a velocity far beyond what its covariance allows under the undisturbed prior (a kick that
     # leaves the sensor moving) is not the tilt's doing: it is forgotten, not turned into tilt
-    eligible = has_acc & ~gap & ~collecting
     jump = eligible & (innovation_nis(P, E.vel, vel, r_v0) > p.vel_jump_nis)
     # a velocity that stays beyond the prior for longer than its correlation time (a kick too
     # small for the one-block test): the running mean of the whitened innovations over
