@@ -92,7 +92,8 @@ from verticality.estimators.tilt_params import (  # noqa: F401  (re-exported for
 from verticality.models.base import model_dataclass, static_field
 
 __all__ = ["TiltFilter", "TiltState", "TiltOutput", "TiltParams", "Stepper", "estimate", "smooth",
-           "recording_limits", "make_step", "tilt_sigma_rad", "quat_from_acc", "DEFAULT_PARAMS", "DEFAULT_P0", "BLOCK"]
+           "recording_limits", "make_step", "tilt_sigma_rad", "quat_from_acc", "DEFAULT_PARAMS",
+           "DEFAULT_P0", "BLOCK"]
 
 _NO_ACC = np.full(3, np.nan)
 
@@ -214,8 +215,8 @@ def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
            block: int = BLOCK, gyr_range_rad_s=None, acc_range_m_s2=None,
            detect_clipping: bool = True) -> TiltOutput:
     """The offline estimate of a whole recording: the filter (:func:`estimate`, the same
-    arguments, the sensors' limits included) followed by a Rauch–Tung–Striebel backward pass over its error state
-    (:mod:`~verticality.estimators.tilt_smoother`), so that every sample's tilt uses the samples
+    arguments, the sensors' limits included) followed by a Rauch–Tung–Striebel backward pass over
+    its error state (:mod:`~verticality.estimators.tilt_smoother`), so that every sample's tilt uses the samples
     after it as well as those before. The same fields, row count and flags as :func:`estimate`;
     ``var`` the smoothed variances (:func:`tilt_sigma_rad` gives the smoothed tilt's σ). A gap in
     the time stamps, and the re-acquisition after it (or after the start), splits the smoothing:

@@ -195,13 +195,16 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     held = held_rows(gyr, acc, prev)
     g_lo, g_hi = _levels(gyr, held, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S, infer)
     a_lo, a_hi = _levels(acc, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2, infer)
-    # (±inf levels: no clipping on that side, and nothing to compare; the usual case)
-    g_any, a_any = np.isfinite(np.concatenate([g_lo, g_hi])).any(), \
-        np.isfinite(np.concatenate([a_lo, a_hi])).any()
-    g_top = (gyr >= g_hi) & np.isfinite(gyr) if g_any else np.zeros(gyr.shape, dtype=bool)
-    gyr_clipped = g_top | ((gyr <= g_lo) & np.isfinite(gyr)) if g_any else g_top
-    acc_clipped = (np.any(((acc >= a_hi) | (acc <= a_lo)) & np.isfinite(acc), axis=1) if a_any
-                   else np.zeros(n, dtype=bool))
+    # (±inf levels, the usual case, clip nothing: the comparisons are skipped)
+    g_top = np.zeros(gyr.shape, dtype=bool)
+    gyr_clipped = g_top
+    if np.isfinite(g_lo).any() or np.isfinite(g_hi).any():
+        finite = np.isfinite(gyr)
+        g_top = (gyr >= g_hi) & finite
+        gyr_clipped = g_top | ((gyr <= g_lo) & finite)
+    acc_clipped = np.zeros(n, dtype=bool)
+    if np.isfinite(a_lo).any() or np.isfinite(a_hi).any():
+        acc_clipped = np.any(((acc >= a_hi) | (acc <= a_lo)) & np.isfinite(acc), axis=1)
     flags = np.where(held, np.int32(HELD), np.int32(0))
     var = np.zeros(n)
     if gyr_clipped.any():
