@@ -103,8 +103,8 @@ def test_local_cluster_two_workers_writes_the_table(two_workers):
     spec, out, summary = two_workers
     assert summary.n_runs == 8 and summary.computed_tasks == (0, 1, 2, 3)
     t = pq.read_table(out / "results.parquet")
-    assert t.column_names == (["run", *NEWTON_LISSAJOUS.knobs, "seed", *NEWTON_LISSAJOUS.metrics,
-                               "diverged"])
+    assert t.column_names == (["run", *NEWTON_LISSAJOUS.knobs, "seed", *NEWTON_LISSAJOUS.drawn,
+                               *NEWTON_LISSAJOUS.metrics, "diverged"])
     assert t.column("run").to_pylist() == list(range(8))
     err = np.asarray(t.column("max_error_deg"))
     head = np.asarray(t.column("head"))

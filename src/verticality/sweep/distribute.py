@@ -5,8 +5,8 @@ running scheduler, submits one task per slice of the design (:func:`run_task`), 
 progress bar with tasks done and the time left. A task writes its Parquet part to
 ``OUT/parts/part-NNNNNN.parquet`` under a temporary name and renames it when complete, so a part
 that exists is finished; ``resume`` keeps the finished parts and computes only the others. The
-parts, in task order, make ``OUT/results.parquet`` (column ``run``, the knobs, ``seed``, the
-metrics, ``diverged``); ``OUT/spec.toml`` is the spec as given and ``OUT/provenance.json`` says
+parts, in task order, make ``OUT/results.parquet`` (column ``run``, the knobs, ``seed``, what
+the runs drew from their seeds (the kernel's ``drawn``), the metrics, ``diverged``); ``OUT/spec.toml`` is the spec as given and ``OUT/provenance.json`` says
 how the table was made.
 
 A task computes its runs in vmap batches of the spec's ``batch`` runs, the last one padded (its
@@ -84,6 +84,7 @@ def task_table(kernel_name: str, options: dict, design: sweep_spec.Design, first
     cols = {"run": pa.array(np.arange(first_run, first_run + n, dtype=np.int64))}
     cols |= {k: pa.array(v) for k, v in design.columns.items()}
     cols["seed"] = pa.array(design.seeds)
+    cols |= {d: pa.array(np.asarray(metrics[d], dtype=np.float64)[:n]) for d in kernel.drawn}
     cols |= {m: pa.array(np.asarray(metrics[m], dtype=np.float64)[:n]) for m in kernel.metrics}
     cols["diverged"] = pa.array(np.asarray(metrics["diverged"], dtype=bool)[:n])
     return pa.table(cols)

@@ -15,6 +15,14 @@ in the experiment (``jax.random.PRNGKey(seed)``). Metrics after t ≥ 1 s: the m
 error in degrees and the share of observer samples that converged; a run **diverged** if its
 estimate became non-finite or its max error exceeds 30° (the experiment's rule); the errors of a
 non-finite run are NaN.
+
+The knob ``error_level`` (default 0) adds, on top of each parameter's ``<name>_rel_error``, a
+random error ``error_level × u`` with ``u`` uniform on [−1, 1], drawn per parameter from the run's
+seed on a stream of its own (``jax.random.fold_in(jax.random.PRNGKey(seed), ERROR_STREAM)``, so
+the reading noise is the same with or without it): a level is a bound on every parameter's error,
+"uncertainties of up to ±level". The drawn parts are columns of the table (``m_drawn_error``, …;
+the observer's error of ``m`` is ``m_rel_error + m_drawn_error``); at level 0 they are zero and
+every run gives the numbers it gave before the knob existed (to the bit).
 """
 
 from __future__ import annotations
@@ -74,6 +82,8 @@ class Kernel:
     # (batch, **options) -> None: compile the batch function without running it (ahead of time,
     # so that JAX's persistent compilation cache holds it before worker processes need it)
     compile_batch: Callable[..., None] = field(default=lambda batch, **options: None)
+    # float64 columns a run draws from its seed (written between the seed and the metrics)
+    drawn: tuple[str, ...] = ()
     # a published single point in the knobs (knob → value) and what was published there
     published: dict[str, float] = field(default_factory=dict)
     published_label: str = ""
@@ -83,8 +93,28 @@ class Kernel:
 PARAMETERS = ("m_kg", "l_m", "J_kg_m2", "beta_Nms", "K_kg_m2")  # PlanarHead leaves with errors
 
 
+ERROR_STREAM = 0x45525252  # fold_in data of the drawn parameter errors' stream (not the noise's)
+
+
 def _rel_name(leaf: str) -> str:
     return leaf.split("_")[0] + "_rel_error"
+
+
+def _drawn_name(leaf: str) -> str:
+    return leaf.split("_")[0] + "_drawn_error"
+
+
+@jax.jit
+def drawn_errors(error_level, seeds):
+    """The random relative errors ``error_level × u`` of the five :data:`PARAMETERS` per run,
+    ``u`` uniform on [−1, 1] from the run's seed on the stream :data:`ERROR_STREAM`; (B, 5)."""
+
+    def one(level, seed):
+        key = jax.random.fold_in(jax.random.PRNGKey(seed), ERROR_STREAM)
+        u = jax.random.uniform(key, (len(PARAMETERS),), minval=-1.0, maxval=1.0)
+        return jnp.where(level == 0.0, 0.0, level * u)  # level 0: +0, not −0, in the table
+
+    return jax.vmap(one)(error_level, seeds)
 
 
 @partial(jax.jit, static_argnames=("n_blocks",))
@@ -116,25 +146,29 @@ def newton_lissajous_batch(rel_errors, fixed, noise_rad, seeds, n_blocks: int):
 
 
 def _newton_lissajous_args(columns: dict[str, np.ndarray], seeds: np.ndarray, duration_s: float):
+    """The batch function's arguments and the drawn errors (B, 5) of the runs."""
     n = seeds.shape[0]
-    rel = PlanarHead(**{leaf: jnp.asarray(columns[_rel_name(leaf)], dtype=jnp.float64)
-                        for leaf in PARAMETERS}, g_m_s2=jnp.zeros(n))
+    seeds = jnp.asarray(seeds, dtype=jnp.int64)
+    drawn = drawn_errors(jnp.asarray(columns["error_level"], dtype=jnp.float64), seeds)
+    # at level 0 the drawn part is ±0 and the sum is the knob's value exactly
+    rel = PlanarHead(**{leaf: jnp.asarray(columns[_rel_name(leaf)], dtype=jnp.float64) + drawn[:, i]
+                        for i, leaf in enumerate(PARAMETERS)}, g_m_s2=jnp.zeros(n))
     n_blocks = int(round(duration_s / (E.SUBSTEPS * E.DT_S)))
     return (rel, jnp.asarray(columns["head"] == "fixed"),
-            jnp.asarray(columns["noise_rad"], dtype=jnp.float64),
-            jnp.asarray(seeds, dtype=jnp.int64), n_blocks)
+            jnp.asarray(columns["noise_rad"], dtype=jnp.float64), seeds, n_blocks), drawn
 
 
 def _newton_lissajous(columns: dict[str, np.ndarray], seeds: np.ndarray, *,
                       duration_s: float) -> dict[str, np.ndarray]:
-    out = newton_lissajous_batch(*_newton_lissajous_args(columns, seeds, duration_s))
-    return {k: np.asarray(v) for k, v in out.items()}
+    args, drawn = _newton_lissajous_args(columns, seeds, duration_s)
+    out = {k: np.asarray(v) for k, v in newton_lissajous_batch(*args).items()}
+    return out | {_drawn_name(leaf): np.asarray(drawn[:, i]) for i, leaf in enumerate(PARAMETERS)}
 
 
 def _compile_newton_lissajous(batch: int, *, duration_s: float) -> None:
     columns = {k: np.full(batch, v.default, dtype=object if v.choices else np.float64)
                for k, v in NEWTON_LISSAJOUS.knobs.items()}
-    args = _newton_lissajous_args(columns, np.zeros(batch, dtype=np.int64), duration_s)
+    args, _ = _newton_lissajous_args(columns, np.zeros(batch, dtype=np.int64), duration_s)
     newton_lissajous_batch.lower(*args[:-1], n_blocks=args[-1]).compile()
 
 
@@ -154,9 +188,12 @@ NEWTON_LISSAJOUS = Kernel(
                         choices=("fixed", "stabilized"))}
     | {_rel_name(leaf): Knob(0.0, f"observer's relative error of {leaf} (signed)", lo=-1.0,
                              lo_open=True, hi=10.0) for leaf in PARAMETERS}
-    | {"noise_rad": Knob(1e-4, "σ of the white noise on each 25 ms reading (rad)", lo=0.0, hi=1.0)},
+    | {"noise_rad": Knob(1e-4, "σ of the white noise on each 25 ms reading (rad)", lo=0.0, hi=1.0)}
+    | {"error_level": Knob(0.0, "bound of a random error, uniform in ±level, drawn from the seed "
+                                "for every parameter on top of its own", lo=0.0, hi=0.99)},
     options={"duration_s": 10.0},
     metrics=("max_error_deg", "rms_error_deg", "converged_fraction"),
+    drawn=tuple(_drawn_name(leaf) for leaf in PARAMETERS),
     run_batch=_newton_lissajous,
     check_options=_check_newton_options,
     compile_batch=_compile_newton_lissajous,
