@@ -1,5 +1,6 @@
-"""``verticality sweep-plot DIR [--x KNOB] [--y KNOB] [--out FILE.png]``: the maps of a finished
-sweep (divergence probability, median max error per head, their ratio) as one PNG
+"""``verticality sweep-plot DIR [--x KNOB] [--y KNOB] [--curve KNOB] [--out FILE.png]``: the maps
+of a finished sweep (divergence probability, median max error per head, their ratio) as one PNG,
+or with ``--curve`` the divergence rate along one knob per head, its table printed
 (docs/sweep.md)."""
 
 from __future__ import annotations
@@ -13,14 +14,24 @@ def register(sub):
     p.add_argument("--x", default=None, metavar="KNOB",
                    help="knob along x (default: the numeric knob with the most values)")
     p.add_argument("--y", default=None, metavar="KNOB", help="knob along y (default: the next)")
+    p.add_argument("--curve", default=None, metavar="KNOB",
+                   help="instead of the maps: the divergence rate (95 %% intervals) and median max "
+                        "error along KNOB per head, drawn and printed as a table")
     p.add_argument("--out", type=Path, default=None, metavar="FILE.png",
-                   help="the figure (default: DIR/maps-X-Y.png)")
+                   help="the figure (default: DIR/maps-X-Y.png or DIR/curve-KNOB.png)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from verticality.sweep import maps
+    from verticality.errors import InputError
+    from verticality.sweep import curves, maps
 
-    path, _ = maps.write(args.dir, args.x, args.y, args.out)
+    if args.curve is not None:
+        if args.x is not None or args.y is not None:
+            raise InputError("--curve draws one knob; --x and --y are for the maps")
+        path, curve = curves.write(args.dir, args.curve, args.out)
+        print("\n".join(curves.table(curve)))
+    else:
+        path, _ = maps.write(args.dir, args.x, args.y, args.out)
     print(path)
     return 0
