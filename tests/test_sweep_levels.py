@@ -97,6 +97,14 @@ values = [3, 5]
     for bad in ("[1.0]", "[-0.1]"):
         with pytest.raises(InputError, match="error_level"):
             S.parse(text.replace("[0.0, 0.3]", bad))
+    # a knob's error and a drawn one that together could reach −100 %: one clear line
+    S.parse(text.replace("[knobs]", "[knobs]\nl_rel_error = [-0.6]"))  # −0.6 − 0.3 > −1
+    with pytest.raises(InputError, match=r"l_rel_error down to -0.8 with error_level up to 0.3"):
+        S.parse(text.replace("[knobs]", "[knobs]\nl_rel_error = [0.1, -0.8]"))
+    with pytest.raises(InputError, match="K_rel_error down to -0.5 with error_level up to 0.6"):
+        S.parse(text.replace("[knobs]", '[design]\nkind = "random"\nn = 3\n[knobs]').replace(
+            "error_level = [0.0, 0.3]",
+            "error_level = {min = 0.0, max = 0.6}\nK_rel_error = {min = -0.5, max = 0.0}"))
     t = distribute.task_table("newton-lissajous", spec.options, d.rows(0, 4), 0, 2)
     cols = {c: t.column(c).to_numpy(zero_copy_only=False) for c in t.column_names}
     assert all(np.all(cols[c][:2] == 0.0) for c in NEWTON_LISSAJOUS.drawn)

@@ -79,6 +79,10 @@ class Kernel:
     metrics: tuple[str, ...]  # float64 columns, besides the bool column ``diverged``
     run_batch: Callable[..., dict[str, np.ndarray]]  # (columns, seeds, **options) -> metrics
     check_options: Callable[[dict[str, Any]], str | None] = field(default=lambda o: None)
+    # (numeric knob → (least, greatest) value of the design) -> why the knobs together are not
+    # allowed (None if they are): a limit on a combination of knobs that no one knob has
+    check_knobs: Callable[[dict[str, tuple[float, float]]], str | None] = field(
+        default=lambda extents: None)
     # (batch, **options) -> None: compile the batch function without running it (ahead of time,
     # so that JAX's persistent compilation cache holds it before worker processes need it)
     compile_batch: Callable[..., None] = field(default=lambda batch, **options: None)
@@ -172,6 +176,18 @@ def _compile_newton_lissajous(batch: int, *, duration_s: float) -> None:
     newton_lissajous_batch.lower(*args[:-1], n_blocks=args[-1]).compile()
 
 
+def _check_newton_knobs(extents: dict[str, tuple[float, float]]) -> str | None:
+    """Every parameter's total error, its knob plus a draw down to −error_level, must stay > −1
+    (a positive parameter)."""
+    level = extents["error_level"][1]
+    for leaf in PARAMETERS:
+        least = extents[_rel_name(leaf)][0]
+        if least - level <= -1.0:
+            return (f"{_rel_name(leaf)} down to {least:g} with error_level up to {level:g} can make "
+                    f"the observer's {leaf} zero or negative (the sum must stay above −1)")
+    return None
+
+
 def _check_newton_options(o: dict[str, Any]) -> str | None:
     d = o["duration_s"]
     if isinstance(d, bool) or not isinstance(d, int | float) or not 1.5 <= d <= 600.0:
@@ -196,6 +212,7 @@ NEWTON_LISSAJOUS = Kernel(
     drawn=tuple(_drawn_name(leaf) for leaf in PARAMETERS),
     run_batch=_newton_lissajous,
     check_options=_check_newton_options,
+    check_knobs=_check_newton_knobs,
     compile_batch=_compile_newton_lissajous,
     # P11's perturbed Lissajous run: m, b, J, K 10 % high (l exact), σ = 1e-4 rad
     published={_rel_name(leaf): (0.0 if leaf == "l_m" else 0.1) for leaf in PARAMETERS}

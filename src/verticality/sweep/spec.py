@@ -139,6 +139,9 @@ def parse(text: str, source: str = "spec") -> Spec:
         raise InputError(f"{source}: [knobs] must be a table")
     for knob, values in knobs.items():
         _check_knob(kernel, knob, values, kind, source)
+    problem = kernel.check_knobs(_extents(kernel, knobs))
+    if problem:
+        raise InputError(f"{source}: [knobs] {problem}")
     return Spec(kernel=name, options=options, design=kind, knobs=dict(knobs),
                 seeds=_seeds(raw.get("seeds"), source), runs_per_task=int(runs_per_task),
                 batch=int(batch), n_draws=int(n_draws), design_seed=int(design_seed), text=text)
@@ -212,6 +215,18 @@ def _check_knob(kernel: Kernel, knob: str, values, kind: str, source: str) -> No
         problem = spec.problem(v)
         if problem:
             raise InputError(f"{source}: knob {knob}: {problem}")
+
+
+def _extents(kernel: Kernel, knobs: dict[str, Any]) -> dict[str, tuple[float, float]]:
+    """(least, greatest) value of every numeric knob over the design (its default if left out)."""
+    out = {}
+    for name, k in kernel.knobs.items():
+        if k.choices:
+            continue
+        v = knobs.get(name, [k.default])
+        lo, hi = (v["min"], v["max"]) if isinstance(v, dict) else (min(v), max(v))
+        out[name] = (float(lo), float(hi))
+    return out
 
 
 def _seeds(raw, source: str) -> tuple[int, ...]:
