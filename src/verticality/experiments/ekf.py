@@ -60,6 +60,7 @@ Readings where the papers are silent (choices):
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -224,16 +225,19 @@ def _sensor_noise(std: float) -> sim.NoiseParams:
                            gyro=sim.DEFAULT_NOISE.gyro._replace(noise_std_rad_s=std))
 
 
-def run_settings(traj, condition: str, settings, variant: str = "multiplicative",
-                 torque_input: str = "gimbal", seeds=(SEED,), accel_frame: str = "inertial",
-                 p0: str = "common", consider_noise: bool = True, *, model_params=EKF_MODEL,
-                 t_settle_s: float = T_SETTLE_S) -> list[tuple[dict, dict]]:
-    """:func:`run_condition` for several :class:`Setting` s at once: one compiled simulator, all
-    settings × seeds in one ``vmap`` batch (each seed's noise is the same in every setting).
-    Returns ``(metrics, series)`` per setting, in order."""
+def simulate_runs(traj, condition: str, settings, seeds, variant: str = "multiplicative",
+                  torque_input: str = "gimbal", accel_frame: str = "inertial", p0: str = "common",
+                  consider_noise: bool = True, *, model_params=EKF_MODEL,
+                  t_settle_s: float = T_SETTLE_S):
+    """The closed loop of the ekf-* runs for a batch of runs, one :class:`Setting` and one noise
+    seed each (``settings`` and ``seeds`` of equal length): one compiled simulator, all runs in one
+    ``vmap`` batch. Returns the batch's :class:`simulation.SimResult` and its per-run
+    :func:`simulation.tilt_metrics` (arrays with a leading run axis)."""
     settings = [Setting(*s) for s in settings]
-    if not settings:
-        raise ValueError("run_settings needs at least one setting")
+    seeds = list(seeds)
+    if not settings or len(settings) != len(seeds):
+        raise ValueError("simulate_runs needs one setting per seed, at least one "
+                         f"(got {len(settings)} settings, {len(seeds)} seeds)")
     for s in settings:
         if not s.sensor_noise_std > 0.0:
             raise ValueError("sensor_noise_std must be > 0 (it is also the filter's R), not "
@@ -249,21 +253,40 @@ def run_settings(traj, condition: str, settings, variant: str = "multiplicative"
         s0 = filt.init(x0, initial_covariance(x0, p0))
     else:
         s0 = filt.init(ekf_stacked.to_flat(x0), ekf_stacked.init_covariance(INITIAL_ERROR_RAD))
-    n_set, n_seed = len(settings), len(seeds)
-    filters = [_filter_for(variant, s, accel_frame, model_params) for s in settings]
+    n = len(seeds)
+    distinct = list(dict.fromkeys(settings))  # each distinct setting's filter built once
+    filters = {s: _filter_for(variant, s, accel_frame, model_params) for s in distinct}
 
-    def per_run(values):  # one value per setting -> a leading axis of n_set × n_seed
-        return jnp.repeat(jnp.stack([jnp.asarray(v, dtype=jnp.float64) for v in values]), n_seed,
-                          axis=0)
+    def per_run(values):  # one value per run -> a leading axis of n
+        return jnp.stack([jnp.asarray(v, dtype=jnp.float64) for v in values])
 
-    states0 = Tuned(jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (n_set * n_seed,) + a.shape), s0),
-                     per_run([f.Q for f in filters]), per_run([f.R for f in filters]))
+    states0 = Tuned(jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (n,) + a.shape), s0),
+                    per_run([filters[s].Q for s in settings]),
+                    per_run([filters[s].R for s in settings]))
     noise = jax.tree_util.tree_map(lambda *v: per_run(v),
                                    *[_sensor_noise(s.sensor_noise_std) for s in settings])
-    keys = jnp.stack([jax.random.PRNGKey(seed) for _ in settings for seed in seeds])
+    keys = jnp.stack([jax.random.PRNGKey(seed) for seed in seeds])
     res = sim.simulate_batch(run, keys, PLANT, noise, states0, batched_estimator=True,
                              batched_noise=True)
     per = jax.vmap(lambda r: sim.tilt_metrics(r, t_settle_s))(res.record)
+    return res, per
+
+
+def run_settings(traj, condition: str, settings, variant: str = "multiplicative",
+                 torque_input: str = "gimbal", seeds=(SEED,), accel_frame: str = "inertial",
+                 p0: str = "common", consider_noise: bool = True, *, model_params=EKF_MODEL,
+                 t_settle_s: float = T_SETTLE_S) -> list[tuple[dict, dict]]:
+    """:func:`run_condition` for several :class:`Setting` s at once: all settings × seeds in one
+    :func:`simulate_runs` batch (each seed's noise is the same in every setting).
+    Returns ``(metrics, series)`` per setting, in order."""
+    settings = [Setting(*s) for s in settings]
+    if not settings:
+        raise ValueError("run_settings needs at least one setting")
+    n_set, n_seed = len(settings), len(seeds)
+    res, per = simulate_runs(traj, condition, [s for s in settings for _ in seeds],
+                             [seed for _ in settings for seed in seeds], variant, torque_input,
+                             accel_frame, p0, consider_noise, model_params=model_params,
+                             t_settle_s=t_settle_s)
     mx_all = np.asarray(per["max_tilt_error_deg"]).reshape(n_set, n_seed)
     rms_all = np.asarray(per["rms_tilt_error_deg"]).reshape(n_set, n_seed)
     out = []
@@ -409,18 +432,48 @@ def _figures_jump(result, out_dir):
     return _figures(result, out_dir, "ekf-jump")
 
 
-def scenario_trajectory(scenario: str, quick: bool = False, **overrides):
+# The trunk motion's amplitude and time-scale parameters of each scenario's trajectory function
+# (:func:`scenario_trajectory`'s ``amplitude_scale`` multiplies the first, ``frequency_scale``
+# multiplies the frequencies and divides the durations).
+SCALED_PARAMETERS = {
+    "impact": {"amplitude": ("translation_amplitude_m", "rotation_amplitude_rad"),
+               "frequency": ("translation_frequency_hz", "rotation_frequency_hz"), "duration": ()},
+    "jump": {"amplitude": ("jump_length_m", "pitch_rad", "roll_rad"), "frequency": (),
+             "duration": ("push_sigma_s", "flight_s", "edge_sigma_s")},
+}
+
+
+def scenario_trajectory(scenario: str, quick: bool = False, *, amplitude_scale: float = 1.0,
+                        frequency_scale: float = 1.0, **overrides):
     """The trunk trajectory of ``ekf-impact`` (``scenario="impact"``) or ``ekf-jump`` (``"jump"``),
     with the settings above; ``quick``: their quick durations (impact 6.5 s, the impact at 5 s
-    included; jump 6 s). ``overrides`` go to the trajectory function (e.g. ``pitch_rad``)."""
+    included; jump 6 s). ``overrides`` go to the trajectory function (e.g. ``pitch_rad``).
+
+    ``amplitude_scale`` and ``frequency_scale`` scale the trunk's motion through the trajectory's
+    parameters (:data:`SCALED_PARAMETERS`). Impact: the oscillation's translation and rotation
+    amplitudes, and its frequencies; the ramp-in, the impact's time, its 30 m/s² spike and the stop
+    are kept. Jump: its length, pitch and roll, and its time scale (push width, flight time, the
+    free fall's edges divided by ``frequency_scale``: a faster jump is a shorter, lower one, g
+    being g); the push time and the landing's 30 m/s² peak are kept."""
     if scenario == "impact":
         kw = {"ramp_in_s": IMPACT_RAMP_IN_S, **({"duration_s": 6.5} if quick else {})}
-        return trajectories.impact(**{**kw, **overrides})
-    if scenario == "jump":
+        fn = trajectories.impact
+    elif scenario == "jump":
         kw = {"duration_s": JUMP_DURATION_S - 2.0 if quick else JUMP_DURATION_S,
               "t_push_s": JUMP_T_PUSH_S}
-        return trajectories.jump(**{**kw, **overrides})
-    raise ValueError(f"scenario must be 'impact' or 'jump', not {scenario!r}")
+        fn = trajectories.jump
+    else:
+        raise ValueError(f"scenario must be 'impact' or 'jump', not {scenario!r}")
+    kw = {**kw, **overrides}
+    if amplitude_scale != 1.0 or frequency_scale != 1.0:
+        defaults = {k: v.default for k, v in inspect.signature(fn).parameters.items()}
+        names = SCALED_PARAMETERS[scenario]
+        for key, factor in (("amplitude", amplitude_scale), ("frequency", frequency_scale),
+                            ("duration", 1.0 / frequency_scale)):
+            for name in names[key]:
+                v = kw.get(name, defaults[name])
+                kw[name] = tuple(factor * x for x in v) if isinstance(v, tuple) else factor * v
+    return fn(**kw)
 
 
 @register("ekf-impact", "EKF on SO(3), scenario A: 3-D oscillation and 30 m/s² impact, fixed vs stabilized",

@@ -27,7 +27,7 @@ import numpy as np
 
 from verticality.errors import InputError
 from verticality.sweep import spec as sweep_spec
-from verticality.sweep.kernels import KERNELS
+from verticality.sweep.registry import KERNELS
 
 PART_DIGITS = 6
 INSTALL_HINT = "pip install 'verticality[sweep]'"

@@ -3,7 +3,7 @@
 A :class:`Kernel` declares its knobs (:class:`Knob`: default, allowed values), its options (fixed
 settings of a sweep, e.g. the simulated duration) and its metrics, and runs a batch of runs at
 once with ``jax.vmap`` inside one compiled function. Every run carries its own seed. Kernels are
-registered by name in :data:`KERNELS`.
+registered by name in :data:`verticality.sweep.registry.KERNELS`.
 
 ``newton-lissajous`` — the closed loop of the `newton-lissajous` experiment
 (:func:`verticality.experiments.newton.simulate`: P11's plant, PD and Newton observer, Lissajous
@@ -222,5 +222,3 @@ NEWTON_LISSAJOUS = Kernel(
                      "stabilized "
                      f"{E.PAPER_LISSAJOUS['max_tilt_error_deg']['stabilized']['perturbed']:g}°"),
 )
-
-KERNELS: dict[str, Kernel] = {k.name: k for k in (NEWTON_LISSAJOUS,)}

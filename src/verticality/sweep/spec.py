@@ -46,7 +46,8 @@ from typing import Any
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.sweep.kernels import KERNELS, Kernel
+from verticality.sweep.kernels import Kernel
+from verticality.sweep.registry import KERNELS
 
 TOP_KEYS = ("kernel", "batch", "runs_per_task", "options", "design", "knobs", "seeds")
 MAX_SEED = 2**31 - 1

@@ -1,0 +1,116 @@
+"""Sweep kernels ``ekf-impact`` and ``ekf-jump``: the closed loop of the ekf-* experiments.
+
+The runs are those of :mod:`verticality.experiments.ekf` (P13's gimbal plant ``PLANT``, the PD of
+P13 §3 on the estimate when stabilized, the multiplicative EKF with P13's wrong model
+``EKF_MODEL``, its process noise ``SIGMA_PROCESS`` and parameter noise, the common initial
+covariance, the 0.1 rad initial error), computed by the experiment's own
+:func:`~verticality.experiments.ekf.simulate_runs`; the trunk's trajectory is the experiment's
+:func:`~verticality.experiments.ekf.scenario_trajectory`. Knobs:
+
+- ``amplitude_scale``, ``frequency_scale``: the trunk motion's amplitudes and frequencies (time
+  scale), through the trajectory's parameters (``scenario_trajectory`` says which);
+- ``head``: ``fixed`` (gimbal locked) or ``stabilized``;
+- ``head_rate_sigma``: σ_ωH, the head-rate process noise per 20 ms step of the run's filter (the
+  value ``ekf-sensitivity`` varies for the fixed head; default P13's σ_w = 0.001);
+- ``noise_std``: σ of the sensor noise (inclinometer angles, rad; gyro rates, rad/s), in the
+  simulation and in the filter's R alike (default P13's 0.02).
+
+The seed is the noise seed (``jax.random.PRNGKey(seed)``, as the experiment's seeds 0, 1, 2).
+Option ``quick``: the experiment's quick durations (impact 6.5 s, jump 6 s; default the full 10 s
+and 8 s). Metrics per run, over the EKF samples at t ≥ 2 s (the experiment's ``T_SETTLE_S``, as
+the experiment scores them): ``max_error_deg`` and ``rms_error_deg``, the tilt error of the
+estimated head orientation. A run **diverged** if a scored error is non-finite or its max error
+exceeds :data:`DIVERGED_DEG` = 30° (the `newton-lissajous` rule: five times the 5.7° initial error
+and six times the worst fixed-head max of the ekf-* runs, so an estimate that far off has lost the
+head); the errors of a non-finite run are NaN.
+
+Batching: the trajectory is closed over by the compiled simulator
+(:func:`verticality.simulation.make_simulator`: its duration and its functions are static), and so
+is the head's condition, so the runs of one batch are grouped by (``head``, ``amplitude_scale``,
+``frequency_scale``) and each group is one compiled ``vmap`` batch over its seeds,
+``head_rate_sigma`` and ``noise_std`` (the filter's Q and R and the noise levels are traced). A spec
+whose batch holds one group (the grid's knob order puts those three outermost: ``batch`` = the
+number of ``head_rate_sigma`` × ``noise_std`` values × seeds) compiles once per batch.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from verticality.experiments import ekf as E
+from verticality.sweep.kernels import Kernel, Knob
+
+DIVERGED_DEG = 30.0
+SCALE_LO, SCALE_HI = 0.25, 3.0  # the trunk-motion scales allowed (a jump 4× faster: 4 ms edges)
+HEAD_RATE_SIGMA = E.SIGMA_PROCESS[3]  # P13 §5's σ_w
+
+
+def settings(head_rate_sigma, noise_std) -> list[E.Setting]:
+    """The experiment's :class:`~verticality.experiments.ekf.Setting` of each run: its process
+    noise with the head's rate σ replaced, and its sensor noise."""
+    return [E.Setting(E.SIGMA_PROCESS[:3] + (float(s),), float(n))
+            for s, n in zip(head_rate_sigma, noise_std, strict=True)]
+
+
+def run_scenario(scenario: str, columns: dict[str, np.ndarray], seeds: np.ndarray, *,
+                 quick: bool) -> dict[str, np.ndarray]:
+    """The metrics of the runs ``columns`` × ``seeds`` of ``scenario`` (``impact`` or ``jump``),
+    one compiled batch per (head, amplitude_scale, frequency_scale) group, in row order."""
+    n = seeds.shape[0]
+    out = {"max_error_deg": np.full(n, np.nan), "rms_error_deg": np.full(n, np.nan),
+           "diverged": np.zeros(n, dtype=bool)}
+    keys = list(zip(columns["head"].astype(str), columns["amplitude_scale"].astype(float),
+                    columns["frequency_scale"].astype(float), strict=True))
+    for key in dict.fromkeys(keys):
+        rows = np.array([i for i, k in enumerate(keys) if k == key])
+        head, amplitude, frequency = key
+        traj = E.scenario_trajectory(scenario, quick, amplitude_scale=amplitude,
+                                     frequency_scale=frequency)
+        _, per = E.simulate_runs(traj, head, settings(columns["head_rate_sigma"][rows],
+                                                      columns["noise_std"][rows]),
+                                 [int(s) for s in seeds[rows]])
+        mx = np.asarray(per["max_tilt_error_deg"], dtype=np.float64)
+        rms = np.asarray(per["rms_tilt_error_deg"], dtype=np.float64)
+        finite = np.isfinite(mx) & np.isfinite(rms)
+        out["max_error_deg"][rows] = np.where(finite, mx, np.nan)
+        out["rms_error_deg"][rows] = np.where(finite, rms, np.nan)
+        out["diverged"][rows] = ~finite | (np.where(finite, mx, 0.0) > DIVERGED_DEG)
+    return out
+
+
+def _check_options(o: dict[str, Any]) -> str | None:
+    if not isinstance(o["quick"], bool):
+        return f"quick must be true or false (got {o['quick']!r})"
+    return None
+
+
+def _kernel(scenario: str, figure: str) -> Kernel:
+    scale = dict(lo=SCALE_LO, hi=SCALE_HI)
+    return Kernel(
+        name=f"ekf-{scenario}",
+        doc=f"P13's EKF, fixed or stabilized head, the {scenario} trunk motion scaled",
+        knobs={
+            "amplitude_scale": Knob(1.0, "the trunk motion's amplitudes × this", **scale),
+            "frequency_scale": Knob(1.0, "the trunk motion's frequencies × this (durations ÷)",
+                                    **scale),
+            "head": Knob("fixed", "fixed (gimbal locked) or stabilized (PD on the estimate)",
+                         choices=("fixed", "stabilized")),
+            "head_rate_sigma": Knob(HEAD_RATE_SIGMA, "the filter's head-rate process σ per 20 ms "
+                                    "step (rad/s)", lo=0.0, lo_open=True, hi=1.0),
+            "noise_std": Knob(E.SIGMA_MEASUREMENT, "sensor noise σ (rad, rad/s), simulation and R",
+                              lo=0.0, lo_open=True, hi=1.0),
+        },
+        options={"quick": False},
+        metrics=("max_error_deg", "rms_error_deg"),
+        run_batch=lambda columns, seeds, *, quick: run_scenario(scenario, columns, seeds,
+                                                                quick=quick),
+        check_options=_check_options,
+        published={"amplitude_scale": 1.0, "frequency_scale": 1.0},
+        published_label=f"P13 {figure} (no numbers; the ekf-{scenario} run)",
+    )
+
+
+EKF_IMPACT = _kernel("impact", "Fig. 2a–c")
+EKF_JUMP = _kernel("jump", "Fig. 2d–f")
