@@ -699,7 +699,12 @@ DIFFERENCES: tuple[Difference, ...] = (
              "given the head's total torque, the fixed head comes within a small factor of the "
              "stabilized one. P13's own stacked 24-element EKF shows no benefit at all (its "
              "rotation matrices leave SO(3)). The jump's ratio depends on the trunk's pitch, "
-             "which P13 does not give; 1/3 is reached near 0.3 rad.",
+             "which P13 does not give; 1/3 is reached near 0.3 rad. Over the trunk motion's "
+             "amplitude × frequency (×0.5–2 each, a sweep, docs/sweep.md) the benefit (fixed / "
+             "stabilized median max error) is 2.5–25× (impact) and 1–9× (jump) with P13's "
+             "fixed-head filter, 8.8× at P13's impact; with the fixed head's best filter of "
+             "ekf-sensitivity, 1.0–3.5× and 0.5–2.8×, 1.8× at P13's impact: it grows with the "
+             "amplitude either way.",
         why="The fixed head's filter gets no torque (the gimbal is locked, the trunk's torque is "
             "unknown), and P13's σ_w = 0.001 lets its head rate change by only ~0.05 rad/s² "
             "unmodelled, so it lags every turn of the trunk. With a well-posed filter for each "
@@ -725,7 +730,7 @@ DIFFERENCES: tuple[Difference, ...] = (
                              ("jump_pitch", "jump", f"pitch_{p}_rad", "rms_ratio"),
                              f"jump: RMS ratio with a trunk pitch of {p} rad")
                     for p in ("0.1", "0.2", "0.3", "0.4"))),
-        pages=("ekf.md",),
+        pages=("ekf.md", "sweep.md"),
     ),
     Difference(
         anchor="differ-sign-f221",
