@@ -214,22 +214,25 @@ def finished_row(row_path: Path, out_path: Path) -> dict | None:
     return row if row.get("status") == "ok" and out_path.is_file() else None
 
 
-def estimate_folder(inputs, out_dir, *, options: dict | None = None, scheduler: str | None = None,
+def estimate_folder(inputs, out_dir, *, units=(), columns=None, time_unit=None,
+                    filter_name: str | None = None, sigma: bool = False, offline: bool = False,
+                    ranges: dict | None = None, scheduler: str | None = None,
                     workers: int | None = None, resume: bool = False, progress: bool = True,
                     compile_cache: str | Path | None = None) -> FolderSummary:
     """``estimate`` every recording of ``inputs`` (:func:`find_recordings`) into ``out_dir``, one
     task each (:func:`estimate_one`), on the scheduler at ``scheduler``, a ``LocalCluster`` of
     ``workers`` processes, or (neither given) in this process; write the summary table
-    (``summary.csv``, ``summary.json``). ``options``: :func:`estimate_options` (default: the
-    command's defaults). ``compile_cache``: JAX's persistent compilation cache for the workers
-    (default: this process's)."""
+    (``summary.csv``, ``summary.json``). ``units`` … ``ranges``: as for
+    :func:`~verticality.analysis.imu_estimate.estimate_file` (:func:`estimate_options`).
+    ``compile_cache``: JAX's persistent compilation cache for the workers (default: this
+    process's)."""
     from verticality.io.paths import resolved
     from verticality.sweep import engine
 
     engine.check_workers(workers)
     if scheduler or workers is not None:
         engine.require_engine()
-    options = estimate_options() if options is None else options
+    options = estimate_options(units, columns, time_unit, filter_name, sigma, offline, ranges)
     recordings = find_recordings(inputs)
     names = output_names(recordings)
     out_dir = Path(out_dir)

@@ -79,7 +79,7 @@ def connect(scheduler: str | None, n_workers: int):
         cluster = None
     else:
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=":0")  # any free port: no clash warning
         client = Client(cluster)
     try:
         yield client
