@@ -163,6 +163,16 @@ def test_without_the_extra_the_distributed_path_says_what_to_install(tmp_path, m
     assert (tmp_path / "o" / "r.csv").is_file()
 
 
+def test_engine_turns_a_failed_task_into_on_error():
+    from verticality.sweep.engine import map_tasks
+
+    calls = {"a": ("3",), "b": ("x",), "c": ("5",)}
+    with pytest.raises(ValueError):
+        map_tasks(int, calls, progress=False)
+    got = map_tasks(int, calls, progress=False, on_error=lambda key, exc: type(exc).__name__)
+    assert list(got.items()) == [("a", 3), ("b", "ValueError"), ("c", 5)]
+
+
 def _broad_trial(path, n, seed):
     """A BROAD-layout trial: a sensor turning about x from 25° off the vertical, its optical
     orientation the truth, the second half scored."""
@@ -202,6 +212,11 @@ def test_local_cluster_of_two_workers(in_process, tmp_path, capsys):
         assert cli.main(["estimate", str(root / "in"), "--out", str(tmp_path / "out"), "--sigma",
                          "--scheduler", address]) == 1  # one recording failed
         dist = evaluate_trials(sorted(broad_dir.glob("*.hdf5")), filters, scheduler=address)
+        from verticality.sweep.engine import map_tasks
+
+        got = map_tasks(int, {"a": ("3",), "b": ("x",)}, scheduler=address, progress=False,
+                        on_error=lambda key, exc: f"{key}: {type(exc).__name__}")
+        assert got == {"a": 3, "b": "b: ValueError"}  # a failed task, the run goes on
         assert cli.main(["evaluate", "broad", str(broad_dir), "--json", "--filters", *filters,
                          "--scheduler", address]) == 0
     out = capsys.readouterr()

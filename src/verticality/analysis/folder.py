@@ -256,9 +256,16 @@ def estimate_folder(inputs, out_dir, *, units=(), columns=None, time_unit=None,
                                                                    strict=True)) if n not in done}
     calls = {key: (str(p), str(out_dir / n), str(rows_dir / (n + ".json")), options, cache)
              for key, (p, n) in todo.items()}
+
+    def lost(key, exc):  # a task that did not return (e.g. its worker died): a row, not written
+        row = dict.fromkeys(SUMMARY_COLUMNS)
+        return row | {"file": str(todo[key][0]), "output": "", "status": "error",
+                      "error": error_message(exc)}
+
     start = time.perf_counter()
     results = engine.map_tasks(estimate_one, calls, scheduler=scheduler, workers=workers,
-                               progress=progress, description="estimate") if calls else {}
+                               progress=progress, description="estimate",
+                               on_error=lost) if calls else {}
     wall = time.perf_counter() - start
     by_name = {todo[key][1]: row for key, row in results.items()}
     rows = tuple(done.get(n) or by_name[n] for n in names)

@@ -113,18 +113,25 @@ def progress_bar(description: str, total: int, enabled: bool = True):
 
 
 def map_tasks(fn: Callable, calls: Mapping[str, tuple], *, scheduler: str | None = None,
-              workers: int | None = None, progress: bool = True,
-              description: str = "tasks") -> dict[str, object]:
+              workers: int | None = None, progress: bool = True, description: str = "tasks",
+              on_error: Callable[[str, BaseException], object] | None = None) -> dict[str, object]:
     """``{key: fn(*args)}`` for every ``key: args`` of ``calls``, one task each: on the Dask
     scheduler at ``scheduler``, or on a ``LocalCluster`` of ``workers`` processes, or (neither
-    given) one after the other in this process. A task's exception is raised here. ``fn`` must be
-    importable by the workers (a module-level function)."""
+    given) one after the other in this process. A task's exception is raised here, or with
+    ``on_error`` its result is ``on_error(key, exception)`` (e.g. a worker lost while it ran the
+    task) and the other tasks go on. ``fn`` must be importable by the workers (a module-level
+    function)."""
     check_workers(workers)
     results: dict[str, object] = {}
     if not scheduler and workers is None:
         with progress_bar(description, len(calls), progress) as advance:
             for key, args in calls.items():
-                results[key] = fn(*args)
+                try:
+                    results[key] = fn(*args)
+                except Exception as exc:
+                    if on_error is None:
+                        raise
+                    results[key] = on_error(key, exc)
                 advance()
         return results
     require_engine()
@@ -135,6 +142,11 @@ def map_tasks(fn: Callable, calls: Mapping[str, tuple], *, scheduler: str | None
                    for key, args in calls.items()}
         with progress_bar(description, len(futures), progress) as advance:
             for fut in as_completed(list(futures)):
-                results[futures[fut]] = fut.result()  # a task's error is raised here
+                try:
+                    results[futures[fut]] = fut.result()  # a task's error is raised here
+                except Exception as exc:
+                    if on_error is None:
+                        raise
+                    results[futures[fut]] = on_error(futures[fut], exc)
                 advance()
     return {key: results[key] for key in calls}
