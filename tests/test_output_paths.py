@@ -138,9 +138,13 @@ def test_a_motion_recording_and_a_report_keep_their_inputs(tmp_path, capsys):
 
 
 def test_a_directory_is_named_as_one(tmp_path, capsys):
-    for argv in (["estimate", str(tmp_path), "--out", str(tmp_path / "e.csv")],
-                 ["otolith", str(tmp_path), "--out", str(tmp_path / "o.csv")],
+    for argv in (["otolith", str(tmp_path), "--out", str(tmp_path / "o.csv")],
                  ["stabilize", str(tmp_path)], ["stream", str(tmp_path)]):
         assert cli.main(argv) == 2
         err = capsys.readouterr().err.strip()
         assert "is a directory" in err and len(err.splitlines()) == 1, err
+    # estimate takes a folder of recordings (tests/test_folder_eval.py): an empty one is refused
+    assert cli.main(["estimate", str(tmp_path), "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "no recordings found" in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "e").exists()

@@ -151,32 +151,72 @@ def sigma_calibration(quat_est_wxyz, sigma_rad, trial: broad.BroadTrial) -> dict
             "rms_sigma_deg": float(np.sqrt(np.mean(s**2)))}
 
 
+def evaluate_trial(path, filters, progress: Callable[[str], None] | None = None,
+                   compile_cache: str | None = None) -> dict:
+    """One trial of :func:`evaluate_trials` (one task when distributed): ``{"name": NAME,
+    "rmse": {FILTER: rmse_deg}, "runtime_s": {FILTER: s}, "samples": int, "sigma":
+    sigma_calibration or None, "sigma_offline": ... or None}``. ``compile_cache``: JAX's
+    persistent compilation cache for a worker process."""
+    from verticality.sweep.engine import use_compile_cache
+
+    use_compile_cache(compile_cache)
+    trial = broad.load_trial(path)
+    res = {"name": trial.name, "rmse": {}, "runtime_s": {}, "samples": trial.gyr_rad_s.shape[0],
+           "sigma": None, "sigma_offline": None}
+    for name in filters:
+        if progress is not None:
+            progress(f"{trial.name}: {name}")
+        t0 = time.perf_counter()
+        quat, _, sig = _run_filter(name, trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+        res["runtime_s"][name] = time.perf_counter() - t0
+        res["rmse"][name] = broad.inclination_rmse_deg(np.asarray(quat), trial)
+        if sig is not None:
+            res["sigma" if name == OURS else "sigma_offline"] = sigma_calibration(
+                np.asarray(quat), sig, trial)
+    return res
+
+
 def evaluate_trials(paths: Iterable[Path], filters: Iterable[str],
-                    progress: Callable[[str], None] | None = None) -> dict:
+                    progress: Callable[[str], None] | None = None, *,
+                    scheduler: str | None = None, workers: int | None = None,
+                    compile_cache: str | Path | None = None) -> dict:
     """``{"trials": {NAME: {FILTER: rmse_deg}}, "mean": {FILTER: rmse_deg},
     "runtime_s": {FILTER: s}, "samples": int, "sigma": {NAME: sigma_calibration},
     "sigma_offline": {NAME: sigma_calibration}}`` for the given filters over the given trials
-    (``sigma`` for our filter, ``sigma_offline`` for our smoother, when they run)."""
+    (``sigma`` for our filter, ``sigma_offline`` for our smoother, when they run).
+
+    With ``scheduler`` (a running Dask scheduler) or ``workers`` (a ``LocalCluster`` of that many
+    worker processes), one task per trial (:func:`evaluate_trial`, on
+    :mod:`verticality.sweep.engine`, with a progress bar instead of ``progress``'s messages); the
+    table is the same to the bit, the runtimes are the workers' (summed over trials).
+    ``compile_cache``: the workers' JAX compilation cache (default: this process's)."""
     filters = list(filters)
-    trials: dict[str, dict[str, float]] = {}
-    sigma: dict[str, dict[str, float]] = {}
-    sigma_offline: dict[str, dict[str, float]] = {}
+    paths = list(paths)
+    if scheduler or workers is not None:
+        from verticality.sweep import engine
+
+        if compile_cache is None:
+            import jax
+
+            compile_cache = jax.config.jax_compilation_cache_dir
+        cache = str(compile_cache) if compile_cache else None
+        done = engine.map_tasks(evaluate_trial,
+                                {f"broad-trial-{i}": (str(p), filters, None, cache)
+                                 for i, p in enumerate(paths)},
+                                scheduler=scheduler, workers=workers,
+                                progress=progress is not None, description="evaluate broad")
+        per_trial = list(done.values())
+    else:
+        per_trial = [evaluate_trial(p, filters, progress) for p in paths]
+    trials = {r["name"]: r["rmse"] for r in per_trial}
     runtime = {f: 0.0 for f in filters}
-    samples = 0
-    for path in paths:
-        trial = broad.load_trial(path)
-        samples += trial.gyr_rad_s.shape[0]
-        trials[trial.name] = {}
-        for name in filters:
-            if progress is not None:
-                progress(f"{trial.name}: {name}")
-            t0 = time.perf_counter()
-            quat, _, sig = _run_filter(name, trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
-            runtime[name] += time.perf_counter() - t0
-            trials[trial.name][name] = broad.inclination_rmse_deg(np.asarray(quat), trial)
-            if sig is not None:
-                (sigma if name == OURS else sigma_offline)[trial.name] = sigma_calibration(
-                    np.asarray(quat), sig, trial)
+    for r in per_trial:
+        for f in filters:
+            runtime[f] += r["runtime_s"][f]
+    sigma = {r["name"]: r["sigma"] for r in per_trial if r["sigma"] is not None}
+    sigma_offline = {r["name"]: r["sigma_offline"] for r in per_trial
+                     if r["sigma_offline"] is not None}
     mean = {f: float(np.mean([t[f] for t in trials.values()])) for f in filters}
-    return {"trials": trials, "mean": mean, "runtime_s": runtime, "samples": samples,
-            "sigma": sigma, "sigma_offline": sigma_offline}
+    return {"trials": trials, "mean": mean, "runtime_s": runtime,
+            "samples": sum(r["samples"] for r in per_trial), "sigma": sigma,
+            "sigma_offline": sigma_offline}

@@ -70,17 +70,23 @@ def peer_output(quat_wxyz, bias_rad_s, dt_s) -> tilt.TiltOutput:
                            np.where(gap, DT_GAP, 0).astype(np.int32), np.ones(n, dtype=bool))
 
 
-def sigma_summary(sigma_rad, flags) -> str:
-    """One line on the tilt's standard deviation over the samples from the initialization on that
-    are not flagged re-acquiring (after the start and each gap the filter has not yet settled on
-    the vertical)."""
+def settled_samples(flags) -> np.ndarray:
+    """The samples from the initialization on that are not flagged re-acquiring (after the start
+    and each gap the filter has not yet settled on the vertical); none without an
+    initialization."""
+    flags = np.asarray(flags)
     init = np.flatnonzero(flags & INIT)
-    if init.size == 0:
+    settled = (flags & REACQUIRING) == 0
+    settled[:init[0] if init.size else flags.size] = False
+    return settled
+
+
+def sigma_summary(sigma_rad, flags) -> str:
+    """One line on the tilt's standard deviation over the :func:`settled_samples`."""
+    if not np.any(np.asarray(flags) & INIT):
         return ("tilt σ: no sample initialized the filter (no usable accelerometer sample with a "
                 "valid time step), so there is no estimate")
-    settled = (flags & REACQUIRING) == 0
-    settled[:init[0]] = False
-    s = np.degrees(np.asarray(sigma_rad)[settled])
+    s = np.degrees(np.asarray(sigma_rad)[settled_samples(flags)])
     if s.size == 0:
         return ("tilt σ: every sample is still re-acquiring (the recording is shorter than the "
                 "re-acquisition time), the estimate is unconfirmed")
@@ -114,7 +120,8 @@ WRITE_ROWS = 65536  # estimate rows formatted and written at a time
 
 class EstimateRun(NamedTuple):
     """What :func:`estimate_file` did: the samples, the filter, the summary lines to print, and
-    the output (``out`` all the outputs only when kept for a figure)."""
+    the output (``out`` all the outputs only when kept for a figure); ``duration_s``, every
+    sample's ``flags`` and σ (``sigma_rad``, None for a peer) for a summary of the run."""
 
     n: int
     filter_name: str
@@ -124,6 +131,9 @@ class EstimateRun(NamedTuple):
     t_s: np.ndarray | None = None
     out: tilt.TiltOutput | None = None
     tilt_sigma_rad: np.ndarray | None = None
+    duration_s: float | None = None
+    flags: np.ndarray | None = None
+    sigma_rad: np.ndarray | None = None
 
 
 def count_rows(path, piece_bytes: int = 2**22) -> int:
@@ -175,7 +185,9 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                       else sigma_summary(est.tilt_sigma_rad, est.out.flags))
             return EstimateRun(rec.t_s.size, filter_name, s_line,
                                gap_warning(rec.t_s, rec.dt_s, ours=filter_name == OURS),
-                               rec.t_origin, rec.t_s, est.out, est.tilt_sigma_rad)
+                               rec.t_origin, rec.t_s, est.out, est.tilt_sigma_rad,
+                               float(rec.t_s[-1] - rec.t_s[0]), np.asarray(est.out.flags),
+                               est.tilt_sigma_rad)
         gyr_u, acc_u = parse_units(units)
         mapping = imu_layout.parse_columns_spec(columns) if isinstance(columns, str) else columns
         pieces = imu.iter_imu_csv(path, gyr_units=gyr_u, acc_units=acc_u, columns=mapping,
@@ -186,6 +198,7 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
         kept: dict[str, list] = {"t": [], "dt": [], "flags": [], "sigma": [], "out": [],
                                  "t_all": []}
         n_done = [0]
+        t_last = [None]  # the last filtered row's time
         buf = None  # samples read but not yet filtered: (t, gyr, acc, dt)
         first = None
         prev = [None]  # the last filtered row (gyro, accelerometer), for the held rows
@@ -219,6 +232,7 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                                    ("sigma", sig.astype(np.float32))):
                         kept[key].append(v)
                     n_done[0] += m
+                    t_last[0] = t[m - 1]
                     if keep:
                         kept["out"].append(o)
                         kept["t_all"].append(t[:m])
@@ -246,4 +260,5 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     return EstimateRun(n_done[0], filter_name, sigma_summary(sig_all.astype(np.float64), flags),
                        gap_warning(np.concatenate(kept["t"]), np.concatenate(kept["dt"])), origin,
                        np.concatenate(kept["t_all"]) if keep else None, out_all,
-                       tilt.tilt_sigma_rad(out_all.var) if keep else None)
+                       tilt.tilt_sigma_rad(out_all.var) if keep else None,
+                       float(t_last[0] - first.t_s[0]), flags, sig_all)

@@ -1,6 +1,10 @@
 """``verticality estimate INPUT --out OUT.csv [--filter NAME] [--offline] [--plot OUT.png]
 [--gyr-range DEG_S] [--acc-range G] [--units ...] [--columns t=NAME,...] [--time-unit s|ms|us|ns]``.
 
+``verticality estimate FOLDER --out DIR [--workers N] [--scheduler ADDRESS] [--resume]``: every
+recording of FOLDER (or of a quoted glob pattern) into ``DIR/NAME.csv``, one Dask task each, and
+the summary table ``DIR/summary.csv`` / ``.json`` (docs/sweep.md, Folders of recordings).
+
 INPUT is an IMU CSV (``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z``, SI units; an EuRoC / TUM-VI IMU
 file; or any header mapped with ``--columns``) or a BROAD-layout HDF5 file. Writes
 ``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags``; with ``--sigma`` (our filter) a last
@@ -23,9 +27,18 @@ def register(sub):
                                         "IMU recording (CSV or BROAD HDF5)")
     p.add_argument("input", type=Path, metavar="INPUT",
                    help="CSV t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z (s, rad/s, m/s²), EuRoC/TUM-VI "
-                        "IMU CSV, CSV with --columns, or BROAD .hdf5")
+                        "IMU CSV, CSV with --columns, or BROAD .hdf5; or a folder (or a quoted "
+                        "glob) of them: one output each in --out DIR and a summary table")
     p.add_argument("--out", type=Path, required=True, metavar="OUT.csv",
-                   help="output CSV t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags")
+                   help="output CSV t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags "
+                        "(a folder when INPUT is one)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="folder only: a local Dask cluster of N worker processes (default: the "
+                        "recordings one after the other in this process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="folder only: run the recordings on a running Dask scheduler")
+    p.add_argument("--resume", action="store_true",
+                   help="folder only: keep the outputs of DIR that are complete, compute the rest")
     p.add_argument("--sigma", action="store_true",
                    help="also write a last column tilt_sigma_rad, the standard deviation of the "
                         "tilt (our filter only; docs/tilt.md)")
@@ -75,9 +88,16 @@ def run(args) -> int:
     from rich.console import Console
 
     from verticality.analysis.broad_eval import OURS
+    from verticality.analysis.folder import is_folder_input
     from verticality.analysis.imu_estimate import estimate_file
     from verticality.io.paths import check_input_file, check_paths
 
+    if is_folder_input(args.input):
+        return run_folder(args)
+    given = [o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler),
+                            ("--resume", args.resume)) if v not in (None, False)]
+    if given:
+        raise InputError(f"{', '.join(given)}: for a folder of recordings; {args.input} is a file")
     check_input_file(args.input)
     if args.sigma and args.filter != OURS:
         raise InputError(f"--sigma: filter {args.filter} reports no uncertainty; use --filter {OURS}")
@@ -102,3 +122,23 @@ def run(args) -> int:
 
         print(f"wrote {plot_estimate(args.plot, run.t_s, run.out, args.filter, run.tilt_sigma_rad)}")
     return 0
+
+
+def run_folder(args) -> int:
+    """``estimate FOLDER --out DIR``: exit status 0 when every recording was estimated, 1 when
+    some failed (each a row of the summary with its error, named on stderr)."""
+    from verticality.analysis.folder import estimate_folder
+
+    if args.plot is not None:
+        raise InputError("--plot: one recording at a time; a folder's run writes no figures")
+    s = estimate_folder(args.input, args.out, units=args.units, columns=args.columns,
+                        time_unit=args.time_unit, filter_name=args.filter, sigma=args.sigma,
+                        offline=args.offline, ranges=sensor_ranges(args.gyr_range, args.acc_range),
+                        scheduler=args.scheduler, workers=args.workers, resume=args.resume)
+    failed = [r for r in s.rows if r["status"] != "ok"]
+    for r in failed:
+        print(r["error"] if r["error"].startswith(r["file"]) else f"{r['file']}: {r['error']}",
+              file=sys.stderr)
+    print(f"{len(s.rows)} recordings ({len(s.computed)} computed now, {s.wall_s:.1f} s), "
+          f"{len(failed)} failed → {s.out_dir}, table {s.table_csv}")
+    return 1 if failed else 0

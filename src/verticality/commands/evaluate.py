@@ -1,6 +1,7 @@
-"""``verticality evaluate broad DIR [--json]``: official BROAD inclination RMSE per trial and the
-mean, for our filter and the installed peers (vqf, madgwick, mahony), and for the offline
-estimators (our smoother, vqf's offlineVQF), in the same run."""
+"""``verticality evaluate broad DIR [--json] [--workers N] [--scheduler ADDRESS]``: official BROAD
+inclination RMSE per trial and the mean, for our filter and the installed peers (vqf, madgwick,
+mahony), and for the offline estimators (our smoother, vqf's offlineVQF), in the same run; with
+``--workers`` or ``--scheduler`` one Dask task per trial (the same table)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,11 @@ def register(sub):
     b.add_argument("--filters", nargs="+", default=None, metavar="NAME",
                    help="filters to run (default: verticality, every installed peer, "
                         "verticality-offline (our smoother) and vqf-offline (offlineVQF))")
+    b.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="one task per trial on a local Dask cluster of N worker processes "
+                        "(default: the trials one after the other in this process)")
+    b.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="one task per trial on a running Dask scheduler")
     b.set_defaults(func=run_broad)
 
 
@@ -40,7 +46,8 @@ def run_broad(args) -> int:
     filters, notes = choose_filters(args.filters)
     for note in notes:
         err.print(note)
-    res = evaluate_trials(paths, filters, progress=lambda msg: err.print(f"running {msg} …"))
+    res = evaluate_trials(paths, filters, progress=lambda msg: err.print(f"running {msg} …"),
+                          scheduler=args.scheduler, workers=args.workers)
     # our filter's and our smoother's reported σ against their errors (docs/tilt.md)
     sigmas = {name: res[key] for name, key in ((OURS, "sigma"), (OURS_OFFLINE, "sigma_offline"))
               if res[key]}

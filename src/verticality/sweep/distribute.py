@@ -2,7 +2,8 @@
 
 :func:`run` starts a ``LocalCluster`` of worker processes (one thread each) or connects to a
 running scheduler, submits one task per slice of the design (:func:`run_task`), and shows a
-progress bar with tasks done and the time left. A task writes its Parquet part to
+progress bar with tasks done and the time left (:mod:`verticality.sweep.engine`, shared with the
+folders of recordings). A task writes its Parquet part to
 ``OUT/parts/part-NNNNNN.parquet`` under a temporary name and renames it when complete, so a part
 that exists is finished; ``resume`` keeps the finished parts and computes only the others. The
 parts, in task order, make ``OUT/results.parquet`` (column ``run``, the knobs, ``seed``, what
@@ -27,26 +28,17 @@ import numpy as np
 
 from verticality.errors import InputError
 from verticality.sweep import spec as sweep_spec
+from verticality.sweep.engine import (  # noqa: F401  (INSTALL_HINT: imported from here too)
+    INSTALL_HINT,
+    check_workers,
+    map_tasks,
+    require_engine,
+    use_compile_cache,
+    write_atomic,
+)
 from verticality.sweep.registry import KERNELS
 
 PART_DIGITS = 6
-INSTALL_HINT = "pip install 'verticality[sweep]'"
-
-
-def require_engine() -> None:
-    """Raise one :class:`InputError` line if Dask's ``distributed`` or ``pyarrow`` (the optional
-    extra ``sweep``) is not installed."""
-    import importlib
-
-    missing = []
-    for module in ("distributed", "pyarrow.parquet"):
-        try:
-            importlib.import_module(module)
-        except ImportError:
-            missing.append(module.split(".")[0])
-    if missing:
-        raise InputError(f"a sweep needs {' and '.join(missing)} (the optional extra 'sweep'): "
-                         f"{INSTALL_HINT}")
 
 
 @dataclass(frozen=True)
@@ -95,17 +87,11 @@ def run_task(kernel_name: str, options: dict, design: sweep_spec.Design, task: i
     """Compute one task and write its part (temporary name, then an atomic rename).
     ``compile_cache``: JAX's persistent compilation cache for the worker, so that a worker
     process loads the kernel compiled once instead of compiling it again."""
-    import jax
     import pyarrow.parquet as pq
 
-    if compile_cache and jax.config.jax_compilation_cache_dir != compile_cache:
-        jax.config.update("jax_compilation_cache_dir", compile_cache)
-
+    use_compile_cache(compile_cache)
     table = task_table(kernel_name, options, design, first_run, batch)
-    final = part_path(Path(parts_dir), task)
-    tmp = final.with_name(final.name + f".tmp-{os.getpid()}")
-    pq.write_table(table, tmp)
-    os.replace(tmp, final)
+    write_atomic(part_path(Path(parts_dir), task), lambda tmp: pq.write_table(table, tmp))
     return task
 
 
@@ -148,8 +134,7 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers must be at least 1 (got {workers})")
+    check_workers(workers)
     out_dir = Path(out_dir)
     design = sweep_spec.design(spec)
     n_runs, size = design.n_runs, spec.runs_per_task
@@ -180,43 +165,10 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
 
 
 def _compute(spec, design, bounds, todo, parts, scheduler, n_workers, progress, cache) -> None:
-    from distributed import Client, LocalCluster, as_completed
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    if scheduler:
-        try:
-            client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as exc:
-            raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
-        cluster = None
-    else:
-        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
-        client = Client(cluster)
-    try:
-        futures = [client.submit(run_task, spec.kernel, spec.options, design.rows(*bounds[t]), t,
-                                 bounds[t][0], spec.batch, str(parts), cache, pure=False,
-                                 key=f"sweep-task-{t}")
-                   for t in todo]
-        columns = (TextColumn("sweep {task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TextColumn("tasks"), TimeElapsedColumn(), TextColumn("left"),
-                   TimeRemainingColumn())
-        with Progress(*columns, disable=not progress, transient=False) as bar:
-            task_bar = bar.add_task(spec.kernel, total=len(todo))
-            for fut in as_completed(futures):
-                fut.result()  # a task's error is raised here
-                bar.advance(task_bar)
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    calls = {f"sweep-task-{t}": (spec.kernel, spec.options, design.rows(*bounds[t]), t,
+                                 bounds[t][0], spec.batch, str(parts), cache) for t in todo}
+    map_tasks(run_task, calls, scheduler=scheduler, workers=n_workers, progress=progress,
+              description=f"sweep {spec.kernel}")
 
 
 def _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers,

@@ -1,0 +1,294 @@
+"""``verticality estimate`` over a folder of recordings (IMU CSVs, BROAD-layout HDF5 files, or a
+list or glob of them), one task per recording on the sweeps' engine
+(:mod:`verticality.sweep.engine`): in this process one after the other, on a ``LocalCluster`` of
+worker processes, or on a running Dask scheduler.
+
+Each recording ``NAME.csv`` / ``NAME.hdf5`` gives ``OUT/NAME.csv``, written by
+:func:`verticality.analysis.imu_estimate.estimate_file` exactly as the single-file command writes
+it (bit for bit), and one row of the summary table ``OUT/summary.csv`` / ``OUT/summary.json``
+(:data:`SUMMARY_COLUMNS`). A recording that cannot be read or filtered is a row with its error
+(``status`` ``error``), not the end of the run. A task writes its row to ``OUT/rows/NAME.json``
+(temporary name, then renamed) after its output: with ``resume`` an input whose row says ``ok``
+and whose output exists is not computed again. ``OUT/folder.json`` holds the options, so that a
+resumed run uses the ones the finished outputs were made with.
+"""
+
+from __future__ import annotations
+
+import glob
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from verticality.errors import InputError
+from verticality.estimators import tilt_flags as F
+
+RECORDING_SUFFIXES = (".csv", ".hdf5", ".h5")
+SUMMARY_NAMES = ("summary.csv", "summary.json", "folder.json")  # in OUT beside the outputs
+ROWS_DIR = "rows"
+# the summary's count of samples carrying each flag bit (tilt_flags), by column
+FLAG_COLUMNS = {F.ACC_MISSING: "n_acc_missing", F.GYR_MISSING: "n_gyr_missing",
+                F.BAD_DT: "n_bad_dt", F.ACC_DISTURBED: "n_acc_disturbed", F.INIT: "n_init",
+                F.DT_GAP: "n_dt_gap", F.REACQUIRED: "n_reacquired",
+                F.REACQUIRING: "n_reacquiring", F.OUT_OF_RANGE: "n_out_of_range",
+                F.CLIPPED: "n_clipped", F.HELD: "n_held"}
+SUMMARY_COLUMNS = (("file", "output", "status", "error", "rows", "duration_s", "share_flagged",
+                    "mean_sigma_deg") + tuple(FLAG_COLUMNS.values()) + ("wall_s",))
+
+
+@dataclass(frozen=True)
+class FolderSummary:
+    out_dir: Path
+    rows: tuple[dict, ...]  # one per input, in input order (SUMMARY_COLUMNS)
+    computed: tuple[str, ...]  # the inputs computed this time (the others were complete)
+    wall_s: float
+
+    @property
+    def n_errors(self) -> int:
+        return sum(r["status"] != "ok" for r in self.rows)
+
+    @property
+    def table_csv(self) -> Path:
+        return self.out_dir / "summary.csv"
+
+
+def is_folder_input(arg) -> bool:
+    """Whether a command's INPUT means many recordings: a folder, or a glob pattern that is not
+    an existing file."""
+    path = Path(arg)
+    return path.is_dir() or (not path.exists() and glob.has_magic(str(arg)))
+
+
+def find_recordings(inputs) -> list[Path]:
+    """The recordings named by ``inputs`` (a path or a list of paths): a folder gives its
+    ``*.csv``, ``*.hdf5`` and ``*.h5`` files (not its subfolders, not hidden files), sorted by
+    name; a glob pattern its matches, sorted; a file itself. Refuses an empty result."""
+    items = [inputs] if isinstance(inputs, (str, Path)) else list(inputs)
+    found: list[Path] = []
+    for item in items:
+        path = Path(item)
+        if path.is_dir():
+            found += sorted(p for p in path.iterdir() if p.is_file()
+                            and p.suffix.lower() in RECORDING_SUFFIXES
+                            and not p.name.startswith("."))
+        elif path.exists():
+            found.append(path)
+        elif glob.has_magic(str(item)):
+            found += sorted(Path(p) for p in glob.glob(str(item)) if Path(p).is_file())
+        else:
+            raise InputError(f"{path}: no such file or folder")
+    if not found:
+        raise InputError(f"{', '.join(map(str, items))}: no recordings found (.csv, .hdf5, .h5)")
+    return found
+
+
+def output_names(recordings: list[Path]) -> list[str]:
+    """Each recording's output file name in OUT (its stem + ``.csv``), checked unique and not a
+    summary file's name."""
+    from verticality.io.paths import resolved
+
+    names = [p.stem + ".csv" for p in recordings]
+    seen: dict[str, Path] = {}
+    for name, path in zip(names, recordings, strict=True):
+        if name in seen:
+            if resolved(seen[name]) == resolved(path):
+                raise InputError(f"{path}: given twice")
+            raise InputError(f"{seen[name]} and {path} would both be written to {name}; "
+                             "rename one or run them into two folders")
+        if name in SUMMARY_NAMES:
+            raise InputError(f"{path}: its output would be {name}, the name of the summary "
+                             "table; rename the recording")
+        seen[name] = path
+    return names
+
+
+def run_summary(run) -> dict:
+    """The summary row's numbers of one :class:`~verticality.analysis.imu_estimate.EstimateRun`
+    (``mean_sigma_deg``: the mean σ of the tilt over the settled samples, None for a peer or
+    when no sample settled)."""
+    from verticality.analysis.imu_estimate import settled_samples
+
+    flags = np.asarray(run.flags).astype(np.int64)
+    row = {"rows": int(run.n), "duration_s": float(run.duration_s),
+           "share_flagged": float(np.mean(flags != 0)) if flags.size else None,
+           "mean_sigma_deg": None}
+    if run.sigma_rad is not None:
+        settled = settled_samples(flags)
+        if np.any(settled):
+            sig = np.asarray(run.sigma_rad, dtype=np.float64)[settled]
+            row["mean_sigma_deg"] = float(np.degrees(np.mean(sig)))
+    row |= {col: int(np.count_nonzero(flags & bit)) for bit, col in FLAG_COLUMNS.items()}
+    return row
+
+
+def error_message(exc: BaseException) -> str:
+    """One line for a recording that failed: a user error's own words, else the exception's type
+    and message."""
+    if isinstance(exc, InputError):
+        return str(exc)
+    if isinstance(exc, UnicodeDecodeError):
+        return f"the input is not UTF-8 text ({exc.reason} at byte {exc.start})"
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.strerror} ({exc.filename})" if exc.filename else exc.strerror
+    return f"{type(exc).__name__}: {exc}".splitlines()[0]
+
+
+def estimate_one(path: str, out_path: str, row_path: str, options: dict,
+                 compile_cache: str | None = None) -> dict:
+    """One task: ``estimate`` of the recording ``path`` into ``out_path`` with ``options``
+    (:func:`~verticality.analysis.imu_estimate.estimate_file`'s keywords), then its summary row
+    into ``row_path`` (atomically). A failure is the row's ``error``; the task never raises for a
+    bad recording."""
+    from verticality.analysis.imu_estimate import estimate_file
+    from verticality.sweep.engine import use_compile_cache, write_atomic
+
+    use_compile_cache(compile_cache)
+    row = dict.fromkeys(SUMMARY_COLUMNS)
+    row |= {"file": str(path), "output": Path(out_path).name, "status": "ok", "error": ""}
+    start = time.perf_counter()
+    try:
+        run = estimate_file(path, out_path, options["units"], options["columns"],
+                            options["time_unit"], options["filter_name"], sigma=options["sigma"],
+                            offline=options["offline"], ranges=options["ranges"])
+        row |= run_summary(run)
+    except Exception as exc:  # a bad recording is a row with its error, never the run's end
+        row |= {"output": "", "status": "error", "error": error_message(exc)}
+    row["wall_s"] = time.perf_counter() - start
+    write_atomic(Path(row_path), lambda tmp: tmp.write_text(json.dumps(row) + "\n",
+                                                             encoding="utf-8"))
+    return row
+
+
+def estimate_options(units=(), columns=None, time_unit=None, filter_name: str | None = None,
+                     sigma: bool = False, offline: bool = False, ranges: dict | None = None) -> dict:
+    """The options of every recording's ``estimate`` (checked once, before any task), as a
+    JSON-able dict."""
+    from verticality.analysis.broad_eval import OURS
+    from verticality.analysis.imu_estimate import check_offline, check_ranges
+    from verticality.io.recording import parse_units
+
+    filter_name = filter_name or OURS
+    check_offline(filter_name, offline)
+    if sigma and filter_name != OURS:
+        raise InputError(f"--sigma: filter {filter_name} reports no uncertainty; use --filter "
+                         f"{OURS}")
+    parse_units(units)
+    if isinstance(columns, str):
+        from verticality.io.imu_layout import parse_columns_spec
+
+        parse_columns_spec(columns)
+    return {"units": list(units), "columns": columns, "time_unit": time_unit,
+            "filter_name": filter_name, "sigma": bool(sigma), "offline": bool(offline),
+            "ranges": check_ranges(filter_name, ranges)}
+
+
+def prepare(out_dir: Path, options: dict, resume: bool, recordings: list[Path]) -> Path:
+    """Make ``out_dir`` (not an input) and check it holds no folder run yet, or (``resume``) one
+    made with the same options."""
+    from verticality.io.paths import check_output_folder
+
+    out_dir = check_output_folder(out_dir, "--out", recordings)
+    record = out_dir / "folder.json"
+    if record.exists():
+        if not resume:
+            raise InputError(f"{out_dir} already holds estimates of a folder; use --resume to "
+                             "finish it or another --out")
+        old = json.loads(record.read_text(encoding="utf-8"))
+        if old.get("options") != options:
+            raise InputError(f"{out_dir} holds estimates made with other options "
+                             f"({old.get('options')}); cannot resume them with these")
+    (out_dir / ROWS_DIR).mkdir(exist_ok=True)
+    record.write_text(json.dumps({"options": options}, indent=2) + "\n", encoding="utf-8")
+    return out_dir
+
+
+def finished_row(row_path: Path, out_path: Path) -> dict | None:
+    """The row of a finished input (its row file says ``ok`` and its output exists), else None."""
+    try:
+        row = json.loads(row_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return row if row.get("status") == "ok" and out_path.is_file() else None
+
+
+def estimate_folder(inputs, out_dir, *, units=(), columns=None, time_unit=None,
+                    filter_name: str | None = None, sigma: bool = False, offline: bool = False,
+                    ranges: dict | None = None, scheduler: str | None = None,
+                    workers: int | None = None, resume: bool = False, progress: bool = True,
+                    compile_cache: str | Path | None = None) -> FolderSummary:
+    """``estimate`` every recording of ``inputs`` (:func:`find_recordings`) into ``out_dir``, one
+    task each (:func:`estimate_one`), on the scheduler at ``scheduler``, a ``LocalCluster`` of
+    ``workers`` processes, or (neither given) in this process; write the summary table
+    (``summary.csv``, ``summary.json``). ``units`` … ``ranges``: as for
+    :func:`~verticality.analysis.imu_estimate.estimate_file` (:func:`estimate_options`).
+    ``compile_cache``: JAX's persistent compilation cache for the workers (default: this
+    process's)."""
+    from verticality.io.paths import resolved
+    from verticality.sweep import engine
+
+    engine.check_workers(workers)
+    if scheduler or workers is not None:
+        engine.require_engine()
+    options = estimate_options(units, columns, time_unit, filter_name, sigma, offline, ranges)
+    recordings = find_recordings(inputs)
+    names = output_names(recordings)
+    out_dir = Path(out_dir)
+    sources = {resolved(p): p for p in recordings}
+    for name in names:
+        if resolved(out_dir / name) in sources:
+            raise InputError(f"--out {out_dir}: {name} there is the input "
+                             f"{sources[resolved(out_dir / name)]}; give another folder")
+    out_dir = prepare(out_dir, options, resume, recordings)
+    rows_dir = out_dir / ROWS_DIR
+    done = {}
+    if resume:
+        done = {n: r for n in names
+                if (r := finished_row(rows_dir / (n + ".json"), out_dir / n)) is not None}
+    if compile_cache is None:
+        import jax
+
+        compile_cache = jax.config.jax_compilation_cache_dir
+    cache = str(compile_cache) if compile_cache else None
+    todo = {f"estimate-{i}": (p, n) for i, (p, n) in enumerate(zip(recordings, names,
+                                                                   strict=True)) if n not in done}
+    calls = {key: (str(p), str(out_dir / n), str(rows_dir / (n + ".json")), options, cache)
+             for key, (p, n) in todo.items()}
+
+    def lost(key, exc):  # a task that did not return (e.g. its worker died): a row, not written
+        row = dict.fromkeys(SUMMARY_COLUMNS)
+        return row | {"file": str(todo[key][0]), "output": "", "status": "error",
+                      "error": error_message(exc)}
+
+    start = time.perf_counter()
+    results = engine.map_tasks(estimate_one, calls, scheduler=scheduler, workers=workers,
+                               progress=progress, description="estimate",
+                               on_error=lost) if calls else {}
+    wall = time.perf_counter() - start
+    by_name = {todo[key][1]: row for key, row in results.items()}
+    rows = tuple(done.get(n) or by_name[n] for n in names)
+    write_summary(out_dir, rows)
+    computed = tuple(str(p) for p, _ in todo.values())
+    return FolderSummary(out_dir, rows, computed, wall)
+
+
+def write_summary(out_dir: Path, rows) -> None:
+    """``summary.csv`` (empty cells for missing numbers) and ``summary.json`` (a list of rows,
+    null for missing numbers), each written under a temporary name and renamed."""
+    import csv
+    import io
+
+    from verticality.sweep.engine import write_atomic
+
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=SUMMARY_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: ("" if row[k] is None else row[k]) for k in SUMMARY_COLUMNS})
+    write_atomic(out_dir / "summary.csv",
+                 lambda tmp: tmp.write_text(text.getvalue(), encoding="utf-8"))
+    write_atomic(out_dir / "summary.json",
+                 lambda tmp: tmp.write_text(json.dumps(list(rows), indent=1) + "\n",
+                                            encoding="utf-8"))
