@@ -28,7 +28,7 @@ part of the specific force (T eq. 4) "is handled as a high-frequency noise". Thi
 The estimator (the project's interface, :mod:`verticality.estimators.base`)::
 
     filt = TiltFilter(params, block)              # both optional
-    state = filt.init(x0, P0)                     # x0 = (q_E_S wxyz, b_S) or None ; P0 (7, 7)
+    state = filt.init(x0, P0)                     # x0 = (q_E_S wxyz, b_S) or None ; P0 (10, 10)
     state = filt.predict(state, gyr, dt)          # = step with the accelerometer missing
     state, out = filt.step(state, gyr, acc, dt)   # gyr (3,) rad/s, acc (3,) m/s², dt s
     state, outs = filt.run(state, gyrs, accs, dts)  # (N, 3), (N, 3), scalar or (N,): the fast
@@ -109,11 +109,12 @@ class TiltFilter:
     def init(self, x0=None, P0=None) -> TiltState:
         """The initial state (NumPy arrays). ``x0 = (quat_E_S wxyz, bias_S rad/s)``, or None: then
         the first usable accelerometer sample initializes the tilt (heading 0, zero bias, flag
-        ``INIT``) and it is re-acquired after ``reacquire_s``. ``P0`` (7, 7) the covariance of
-        (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z); default :data:`DEFAULT_P0`."""
+        ``INIT``) and it is re-acquired after ``reacquire_s``. ``P0`` (10, 10) the covariance of
+        (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z, s̃x, s̃y, s̃z); default :data:`DEFAULT_P0`."""
         P0 = np.asarray(DEFAULT_P0 if P0 is None else P0, dtype=np.float64)
         if P0.shape != (NE, NE):
-            raise InputError(f"P0 must be (7, 7) for (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z); got {P0.shape}")
+            raise InputError("P0 must be (10, 10) for (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z, s̃x, s̃y, s̃z); "
+                             f"got {P0.shape}")
         if x0 is None:
             q0, b0, initialized = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), False
         else:
@@ -124,7 +125,7 @@ class TiltFilter:
                 raise InputError("x0 must be (quat_E_S (4,) wxyz, non-zero, bias_S_rad_s (3,)), "
                                  "finite")
             q0, initialized = q0 / np.sqrt(np.sum(q0 * q0)), True
-        x = X.pack(xp=np, q=q0, b=b0, v=np.zeros(2), P=P0.reshape(-1), acc_dev_var=0.0,
+        x = X.pack(xp=np, q=q0, b=b0, s=np.zeros(3), v=np.zeros(2), P=P0.reshape(-1), acc_dev_var=0.0,
                    rest_s=0.0, reacquire=0.0, reacq_f_E=np.zeros(3), reacq_t=0.0,
                    vel_inn=np.zeros(2), vel_fix=np.zeros(5), speed_var=0.0, dv_var=0.0)
         return TiltState(x, _EMPTY_SUMS, np.int32(0), np.bool_(initialized))
@@ -272,7 +273,7 @@ def concatenate_outputs(outs) -> TiltOutput:
 
 
 def tilt_sigma_rad(var, params: TiltParams = DEFAULT_PARAMS) -> np.ndarray:
-    """Standard deviation of the tilt (rad) from a :class:`TiltOutput`'s ``var`` ((..., 7)): the
+    """Standard deviation of the tilt (rad) from a :class:`TiltOutput`'s ``var`` ((..., 10)): the
     RMS angle between the true and the estimated vertical, ``sqrt(var_δx + var_δy + (c/g)²)``.
     The first two terms are the filter's covariance of its tilt error (frame-free: the trace does
     not depend on the heading); ``c = params.acc_calib_m_s2`` adds the accelerometer's calibration

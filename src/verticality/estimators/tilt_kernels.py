@@ -132,6 +132,8 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
                   for sl, vals in ((S.dquat, (1.0, 0.0, 0.0, 0.0)), (S.f, (0.0, 0.0, 0.0))))
     (dq_end, f_end), dq_all = jax.lax.scan(pre, start, jnp.arange(block))  # dq_all (block, 4, nb)
     tau_b = jnp.cumsum(t.sums["tau"], axis=0) + jnp.where(first, sums0[S.tau], 0.0)
+    gsum_b = tuple(jnp.cumsum(gi, axis=0) + jnp.where(first, sums0[S.gsum][i], 0.0)
+                   for i, gi in enumerate(t.sums["gsum"]))
     reduced = {k: (tuple(jnp.sum(c, 0) for c in v) if isinstance(v, tuple) else jnp.sum(v, 0))
                for k, v in t.sums.items() if k != "tau"}
     sums = S.pack(dquat=dq_end, tau=tau_b[-1], f=f_end, **reduced)  # (nb, S)
@@ -143,7 +145,7 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
         xn = jnp.where(j < head[HEAD.n_update], xn, xc)
         # (reading the re-acquisition state costs ~30 % when no gap is in the chunk)
         pend = (xc[X.reacquire], xn[X.reacquire]) if gaps else (0.0, 0.0)
-        row = ROW.pack(q0=xc[X.q], b0=xc[X.b], var0=xc[P_DIAG], q1=xn[X.q], b1=xn[X.b],
+        row = ROW.pack(q0=xc[X.q], b0=xc[X.b], s0=xc[X.s], var0=xc[P_DIAG], q1=xn[X.q], b1=xn[X.b],
                        var1=xn[P_DIAG], disturbed=disturbed, reacquired=reacq,
                        reacquire0=pend[0], reacquire1=pend[1])
         if transitions:
@@ -157,8 +159,10 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     # carries the updated estimate
     q0 = tuple(rows[:, ROW.q0][:, i] for i in range(4))
     b0 = tuple(rows[:, ROW.b0][:, i] for i in range(3))
+    s0 = tuple(rows[:, ROW.s0][:, i] for i in range(3))
     q = so3.quat_normalize_components(core.sample_quat(
-        q0, tuple(dq_all[:, i] for i in range(4)), b0, tau_b, qexp=quat_exp_batched))  # (block, nb)
+        q0, tuple(dq_all[:, i] for i in range(4)), b0, tau_b, s0, gsum_b,
+        qexp=quat_exp_batched))  # (block, nb)
     last = jnp.arange(block)[:, None] == block - 1
     q = tuple(jnp.where(last, rows[:, ROW.q1][:, i], q[i]) for i in range(4))
     up, roll, pitch = core.up_roll_pitch(q, atan2=atan2)
