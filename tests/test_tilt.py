@@ -438,9 +438,9 @@ def test_the_filter_is_an_estimator_value_with_named_state():
     np.testing.assert_array_equal(state.P, P0)
     assert state.x.shape == (X.size,) and state.sums.shape == (S.size,)
     assert bool(state.initialized) and int(state.count) == 0 and not bool(state.reacquire)
-    assert X.size == 128 and S.size == 21 and X.P == slice(9, 109) and X.reacq_t == 115
-    assert X.vel_inn == slice(65, 67) and X.vel_fix == slice(67, 72)
-    assert X.speed_var == 72 and X.dv_var == 73
+    assert X.size == 128 and S.size == 22 and X.P == slice(9, 109) and X.reacq_t == 115
+    assert X.vel_inn == slice(116, 118) and X.vel_fix == slice(118, 123)
+    assert X.speed_var == 123 and X.dv_var == 124 and X.s == slice(125, 128)
     L = Packed([("a", 2), ("b", None)])
     np.testing.assert_array_equal(L.pack(xp=np, b=3.0, a=(1.0, 2.0)), [1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="missing"):

@@ -165,15 +165,7 @@ def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
         gyr_range_rad_s = acc_range_m_s2 = None
     lim = tilt_limits.find_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2,
                                   infer=detect_clipping, prev=prev)
-    if not lim.acc_clipped.any():
-        return lim
-    # (the filter sees a clipped accelerometer sample as missing: its other components' range is
-    # judged here, on the reading)
-    k = np.flatnonzero(lim.acc_clipped)
-    beyond = tilt_core.out_of_range(gyr[k].T, acc[k].T, xp=np)
-    flags = lim.flags.copy()
-    flags[k[beyond]] |= OUT_OF_RANGE
-    return lim._replace(flags=flags)
+    return lim
 
 
 def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
@@ -186,7 +178,7 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     Sensors at their limits (:mod:`~verticality.estimators.tilt_limits`): ``gyr_range_rad_s``,
     ``acc_range_m_s2`` the sensor's full-scale readings (scalar or one per axis); a component at
     or beyond them is clipped (flag ``CLIPPED``): a clipped gyro axis widens the tilt variance for
-    its unknown excess, a clipped accelerometer sample is dropped. Without them the clip levels
+    its unknown excess, a clipped accelerometer axis the velocity variance. Without them the clip levels
     are inferred from the recording's flat tops; ``detect_clipping=False`` turns clipping off.
     Rows that repeat the previous row bit for bit are flagged ``HELD``.
 
@@ -204,10 +196,8 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping)
     if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
-    acc = lim.acc_for_filter(acc)
     if n <= tilt_batch.PIECE_SAMPLES:
-        return tilt_batch.run(params, block, filt.init(), gyr, acc, dt, tilt_var=lim.tilt_var_rad2,
-                              flags=lim.flags)[1]
+        return tilt_batch.run(params, block, filt.init(), gyr, acc, dt, **lim.run_args())[1]
     return concatenate_outputs(list(run_in_pieces(filt, filt.init(), gyr, acc,
                                                   np.broadcast_to(dt, (n,)), limits=lim)))
 
@@ -235,9 +225,8 @@ def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     lim = recording_limits(gyr, acc, np.asarray(dt_s, dtype=np.float64), gyr_range_rad_s,
                            acc_range_m_s2, detect_clipping)
-    extra = {} if lim is None else {"tilt_var": lim.tilt_var_rad2, "flags": lim.flags}
-    final, out, trans = tilt_batch.run(params, block, filt.init(), gyr,
-                                       acc if lim is None else lim.acc_for_filter(acc), dt_s,
+    extra = {} if lim is None else lim.run_args()
+    final, out, trans = tilt_batch.run(params, block, filt.init(), gyr, acc, dt_s,
                                        transitions=True, **extra)
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
     return tilt_smoother.smoothed_output(out, trans, final.P, dts, block)
@@ -251,7 +240,7 @@ def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int 
     read of ``verticality estimate`` filter; ``piece`` default ``tilt_batch.PIECE_SAMPLES``).
     Equal to one ``run`` over the whole to rounding (the batch kernel's chunks differ), and bit
     for bit to any other reading in the same pieces. ``limits``: the recording's clipped and held
-    samples (:func:`recording_limits`; ``acc`` already without its clipped samples)."""
+    samples (:func:`recording_limits`)."""
     piece = tilt_batch.PIECE_SAMPLES if piece is None else piece
     n, k = gyr.shape[0], 0
     while k < n:
@@ -259,8 +248,7 @@ def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int 
         m = tilt_batch.piece_cut(state, acc[k:hi], dts[k:hi], filt.block, final=hi == n)
         m = m or hi - k  # no block boundary within a piece (piece < block): take it whole
         sl = slice(k, k + m)
-        extra = {} if limits is None else {"tilt_var": limits.tilt_var_rad2[sl],
-                                           "flags": limits.flags[sl]}
+        extra = {} if limits is None else limits.run_args(sl)
         state, out = tilt_batch.run(filt.params, filt.block, state, gyr[sl], acc[sl], dts[sl],
                                     **extra)
         yield out

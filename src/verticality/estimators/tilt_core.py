@@ -189,7 +189,8 @@ def _each(fn, v):
     return tuple(fn(c) for c in v) if isinstance(v, tuple) else fn(v)
 
 
-def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0) -> SampleTerms:
+def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0,
+                 vel_var=0.0) -> SampleTerms:
     """The per-sample part of the pre-integration: ``g`` (rad/s) and ``a`` (m/s²) vectors with the
     component axis first (arrays (3, ...), or tuples of three arrays), ``dt`` (s) of shape (...):
     the samples' validity and their term in each block sum (``S``; the vector ones in the form of
@@ -199,7 +200,9 @@ def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0) -> Sample
     the same arithmetic, each compiled the faster way (XLA runs few large kernels best, and a
     single sample's few small ones as vectors). ``tilt_var`` (rad², scalar or (...)): a tilt
     variance the sample adds besides its own terms (a clipped gyro axis's unknown excess,
-    :mod:`~verticality.estimators.tilt_limits`), summed with the dropouts' in ``qmiss``."""
+    :mod:`~verticality.estimators.tilt_limits`), summed with the dropouts' in ``qmiss``;
+    ``vel_var`` (m²/s²) likewise the velocity variance of a clipped accelerometer axis's unknown
+    excess (``vmiss``)."""
     dt_ok, gyr_ok, acc_ok, acc_n2 = masks(g, a, dt, xp)
     dts = xp.where(dt_ok, dt, 0.0)
     wa = xp.where(acc_ok, dts, 0.0)  # Δt of a valid accelerometer sample
@@ -215,7 +218,7 @@ def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0) -> Sample
                 qmiss=(xp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2)
                        + xp.where(dt_ok, tilt_var, 0.0)),
                 gsum=rot, asum=_each(lambda c: c * wa, a0), a2=acc_n2 * wa,
-                gap=gap.astype(xp.float64))
+                gap=gap.astype(xp.float64), vmiss=xp.where(dt_ok, vel_var, 0.0))
     return SampleTerms(dt_ok, gyr_ok, acc_ok, gap, dts, rot, a0, wa, sums)
 
 
@@ -232,7 +235,7 @@ def empty_sums(xp=jnp):
     """The sums of a block without samples (``S``)."""
     z = 0.0
     return S.pack(xp=xp, dquat=(1.0, z, z, z), tau=z, f=(z, z, z), t_acc=z, dev2=z, w2=z, t=z,
-                  qmiss=z, gsum=(z, z, z), asum=(z, z, z), a2=z, gap=z)
+                  qmiss=z, gsum=(z, z, z), asum=(z, z, z), a2=z, gap=z, vmiss=z)
 
 
 def accumulate(sums, terms: SampleTerms):
@@ -310,7 +313,7 @@ def block_inputs(s, p):
     has_acc = t_acc > 0
     t_acc_s = jnp.where(has_acc, t_acc, 1.0)
     q_gyr = p.gyr_noise**2 * tau + p.gyr_scale_noise**2 * w2 + s[..., S.qmiss]
-    q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2
+    q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2 + s[..., S.vmiss]
     has_gyr = tau > 0
     tau_s = jnp.where(has_gyr, tau, 1.0)
     g_mean = s[..., S.gsum] / tau_s[..., None]
@@ -640,18 +643,18 @@ def output_var(P, initialized, qmiss, p, xp=jnp):
 
 # --- the per-sample step ---
 
-def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0):
+def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0, vel_var=0.0):
     """One sample: gyro ``gyr`` (3,) rad/s, accelerometer ``acc`` (3,) m/s², ``dt`` s since the
     previous sample. The sample is pre-integrated into the block; at the block's end the block
     update runs. Before the initialization, the first usable accelerometer sample sets the tilt
-    (flag INIT), to be re-acquired after reacquire_s. ``tilt_var``, ``flags``: the sample's extra
-    tilt variance (rad²) and flags from the recording's limits
+    (flag INIT), to be re-acquired after reacquire_s. ``tilt_var``, ``vel_var``, ``flags``: the
+    sample's extra tilt (rad²) and velocity (m²/s²) variances and flags from the recording's limits
     (:class:`~verticality.estimators.tilt_limits.Limits`; none by default). Returns
     ``(state, TiltOutput)``."""
     gyr = jnp.asarray(gyr, dtype=jnp.float64)
     acc = jnp.asarray(acc, dtype=jnp.float64)
     dt = jnp.asarray(dt, dtype=jnp.float64)
-    t = sample_terms(gyr, acc, dt, p, tilt_var=tilt_var)
+    t = sample_terms(gyr, acc, dt, p, tilt_var=tilt_var, vel_var=vel_var)
     init_now = ~state.initialized & t.acc_ok
     x = jnp.where(init_now, initialize(state.x, t.acc, p), state.x)
     sums = jnp.where(state.initialized, accumulate(state.sums, t), state.sums)

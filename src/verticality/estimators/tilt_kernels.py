@@ -90,7 +90,7 @@ for _sl in (S.dquat, S.f, S.tau):
 def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool = True,
                transitions: bool = False):
     """Filter a chunk of ``n = nb * block`` samples that starts at a block boundary of the
-    initialized filter ``x`` (``X``). ``data`` (n, ``CHUNK_SAMPLE``) = [gyr (3), acc (3), dt, tilt_var] per sample
+    initialized filter ``x`` (``X``). ``data`` (n, ``CHUNK_SAMPLE``) = [gyr (3), acc (3), dt, tilt_var, vel_var] per sample
     (one array: one host-to-device transfer per chunk). ``head`` (``HEAD``): ``sums0``, the sums
     the first block starts from (the samples of a block begun before the chunk; they stand in for
     as many leading samples of ``data``, which the caller fills with skipped samples, dt = NaN),
@@ -116,7 +116,8 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     # structure of arrays (one transpose): sample k of every block in one contiguous row
     ds = data.reshape(nb, block, CHUNK_SAMPLE.size).transpose(2, 1, 0)  # (CHUNK_SAMPLE, block, nb)
     t = core.sample_terms(tuple(ds[CHUNK_SAMPLE.gyr]), tuple(ds[CHUNK_SAMPLE.acc]),
-                          ds[CHUNK_SAMPLE.dt], p, gaps=gaps, tilt_var=ds[CHUNK_SAMPLE.tilt_var])
+                          ds[CHUNK_SAMPLE.dt], p, gaps=gaps, tilt_var=ds[CHUNK_SAMPLE.tilt_var],
+                          vel_var=ds[CHUNK_SAMPLE.vel_var])
     # (component arrays (block, nb): XLA's faster form here)
     e = quat_exp_batched(*t.rot)
 

@@ -114,8 +114,9 @@ class Stream:
     ``gyr_range_rad_s``, ``acc_range_m_s2`` the full-scale readings (scalar or one per axis; None:
     no clipping; a stream cannot infer them from the recording's flat tops). A gyro component at or
     beyond its range adds the variance of an unknown constant excess rate (σ = ``EXCESS_FRACTION``
-    × range) over its clipped run to the tilt; an accelerometer sample with a component there is
-    dropped; both flag ``CLIPPED``. A sample repeating the previous one bit for bit is flagged
+    × range) over its clipped run to the tilt; an accelerometer component there is kept (the
+    other components are right, the clipped one a lower bound) and the same unknown excess over its
+    run widens the velocity; both flag ``CLIPPED``. A sample repeating the previous one bit for bit is flagged
     ``HELD``."""
 
     def __init__(self, params=None, block: int = BLOCK, P0=None, x0=None, gyr_range_rad_s=None,
@@ -125,6 +126,7 @@ class Stream:
         self.acc_range = None if acc_range_m_s2 is None else [
             float(v) for v in np.broadcast_to(np.asarray(acc_range_m_s2, dtype=float), (3,))]
         self.clip_t = [0.0, 0.0, 0.0]  # how long each gyro axis has been clipped
+        self.acc_clip_t = [0.0, 0.0, 0.0]  # and each accelerometer axis
         self.prev_bits = None  # the previous sample's six channels, as bytes
         self.p = DEFAULT_PARAMS if params is None else params
         self.block = block
@@ -161,6 +163,7 @@ class Stream:
     def _zero(self):
         self.dq = (1.0, 0.0, 0.0, 0.0)
         self.tau = self.t_acc = self.dev2 = self.w2 = self.t = self.qmiss = self.a2 = 0.0
+        self.vmiss = 0.0
         self.gap = 0
         self.f = [0.0, 0.0, 0.0]
         self.gsum = [0.0, 0.0, 0.0]
@@ -178,8 +181,18 @@ class Stream:
         held = bits == self.prev_bits and not any(math.isnan(v) for v in (*gyr3, *acc3))
         self.prev_bits = bits
         # clipping: a component at or beyond the given full scale
-        acc_clipped = self.acc_range is not None and any(
-            math.isfinite(v) and abs(v) >= r for v, r in zip(acc3, self.acc_range, strict=True))
+        # an accelerometer axis there: the reading is kept, its unknown excess (an unknown
+        # constant of σ = EXCESS_FRACTION × range over the run) widens the velocity
+        acc_clipped, clip_vvar = False, 0.0
+        for i in range(3):
+            if self.acc_range is not None and math.isfinite(acc3[i]) \
+                    and abs(acc3[i]) >= self.acc_range[i]:
+                acc_clipped = True
+                t0 = self.acc_clip_t[i]
+                self.acc_clip_t[i] = t1 = t0 + (dt if dt_ok else 0.0)
+                clip_vvar += (EXCESS_FRACTION * self.acc_range[i]) ** 2 * (t1 * t1 - t0 * t0)
+            else:
+                self.acc_clip_t[i] = 0.0
         clip_var, gyr_clipped = 0.0, False
         for i in range(3):
             if self.gyr_range is not None and math.isfinite(gyr3[i]) \
@@ -192,8 +205,7 @@ class Stream:
                 self.clip_t[i] = 0.0
         gyr_ok = dt_ok and abs(gx) < MAX_RATE_RAD_S and abs(gy) < MAX_RATE_RAD_S \
             and abs(gz) < MAX_RATE_RAD_S
-        acc_in = (abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
-                  and not acc_clipped)
+        acc_in = abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
         n2 = ax * ax + ay * ay + az * az if acc_in else 0.0
         acc_ok = dt_ok and n2 > 1e-6
         dts = dt if dt_ok else 0.0
@@ -210,8 +222,9 @@ class Stream:
                 self.tau += dts
             if gap or not gyr_ok:  # the rotation inside a gap is unknown
                 self.qmiss += (p.omega_missing_rad_s * dts) ** 2
-            if dt_ok:  # a clipped gyro axis's unknown excess
+            if dt_ok:  # a clipped gyro or accelerometer axis's unknown excess
                 self.qmiss += clip_var
+                self.vmiss += clip_vvar
             self.gap += gap
             r = _rotate(dq, (ax, ay, az))
             f, gs, as_ = self.f, self.gsum, self.asum
@@ -279,7 +292,7 @@ class Stream:
         F[2:4, :2] = T * gJ
         F[2:4, 4:7], F[2:4, 7:] = 0.5 * T * gJ @ A, 0.5 * T * gJ @ A_s
         q_gyr = p.gyr_noise**2 * tau + p.gyr_scale_noise**2 * self.w2 + self.qmiss
-        q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2
+        q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2 + self.vmiss
         qb = p.bias_walk**2 * T
         P = F @ self.P @ F.T + np.diag([q_gyr, q_gyr, q_vel, q_vel, qb, qb, qb, 0.0, 0.0, 0.0])
         dev2 = self.dev2 / t_acc_s
