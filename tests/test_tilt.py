@@ -575,19 +575,29 @@ def test_sigma_stays_honest_over_the_kick_recordings():
     assert h["within_2sigma"] >= 0.95 and h["worst_within_2sigma"] > 0.7, h
 
 
-def test_saturated_readings_are_marked_beyond_the_range():
+def test_a_csv_with_saturated_readings_is_read_as_it_is_and_the_filter_flags_them(tmp_path):
+    """A file's saturated accelerometer readings are read as written (no reader marks them: the
+    filter's limits detection is the one place that does, from the flat tops) and flagged
+    CLIPPED by ``estimate``, the samples kept."""
     from verticality.io import imu
 
     rng = np.random.default_rng(3)
-    acc = rng.normal(0, 3.0, (500, 3)) + [0.0, 0.0, 9.81]
-    assert np.array_equal(imu.mark_saturated(acc), acc)  # a noisy sensor repeats no extreme
-    clipped = np.clip(acc * 4, -19.62, 19.62)
-    marked = imu.mark_saturated(clipped)
-    at = np.abs(clipped) == 19.62
-    assert at.sum() > 10 and np.all(np.isinf(marked[at])) and np.all(marked[~at] == clipped[~at])
-    out = tilt.estimate(np.zeros((500, 3)), marked, 0.01)
-    rows = np.any(at, axis=1)
-    assert np.all(out.flags[rows] & tilt.OUT_OF_RANGE) and np.all(out.flags[rows] & tilt.ACC_MISSING)
+    n = 500
+    acc = rng.normal(0, 0.03, (n, 3)) + [0.0, 0.0, 9.81]
+    acc[100:300, 0] += 30.0 * np.sin(np.arange(200) * 2 * np.pi * 3 * 0.01)  # a shake beyond 2 g
+    acc = np.clip(acc, -19.62, 19.62)
+    gyr = rng.normal(0, 1e-3, (n, 3))
+    path = tmp_path / "clipped.csv"
+    rows = np.column_stack([np.arange(n) * 0.01, gyr, acc])
+    path.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n"
+                    + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in rows))
+    rec = imu.read_imu_csv(path)
+    np.testing.assert_array_equal(rec.acc_m_s2, acc)
+    at = np.any(np.abs(acc) == 19.62, axis=1)
+    assert at.sum() > 10
+    out = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s)
+    assert np.array_equal((out.flags & tilt.CLIPPED) > 0, at)
+    assert not np.any(out.flags & (tilt.OUT_OF_RANGE | tilt.ACC_MISSING))
 
 
 def test_sigma_stays_honest_under_shaking_and_clipping_and_kicks_are_not_read_as_tilt():
