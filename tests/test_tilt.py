@@ -48,7 +48,7 @@ def test_constant_rotation_recovers_known_gyro_bias():
     out = tilt.estimate(gyr, acc, dt)
     assert np.max(np.abs(out.bias_S_rad_s[-1] - bias)) < 1.5e-3
     # and the bias variance shrank far below its prior (0.1 rad/s)²
-    assert np.all(out.var[-1, 4:] < 0.2 * 0.01**2)
+    assert np.all(out.var[-1, 4:7] < 0.2 * 0.01**2)
     err = _tilt_err_deg(up, out.up_S)
     assert np.sqrt(np.mean(err[-2000:] ** 2)) < 0.5
     # gyro integration alone with that bias drifts far more
@@ -349,8 +349,9 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
 def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
     """The block's error flow: the true state is the estimate perturbed by the error ``e``
     (``tilt_layout.E``: ``R_true = exp([δ, 0]) R_est``, ``v_true = v_est + ṽ``, ``b_true = b_est
-    + b̃``); the truth turns at ``omega_rad_s`` (sensor frame) without translating, so its gyro
-    reads ``ω + b_true`` and its accelerometer gravity; the estimate pre-integrates those samples
+    + b̃``, ``s_true = s_est + s̃`` with ``s_est = 0``); the truth turns at ``omega_rad_s`` (sensor
+    frame) without translating, so its gyro reads ``(1 + s_true) ω + b_true`` and its
+    accelerometer gravity; the estimate pre-integrates those samples
     with the core and predicts the block (``tilt_core.block_prediction``); the result is the
     error at the block's end. Also returns the nominal block end and the block's inputs."""
     import jax
@@ -360,7 +361,7 @@ def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
 
     p = tilt.DEFAULT_PARAMS
     q_true = so3.quat_multiply(so3.quat_exp(jnp.concatenate([e[E.tilt], jnp.zeros(1)])), q_hat0)
-    gyr = omega_rad_s + b_hat + e[E.bias]
+    gyr = omega_rad_s * (1.0 + e[E.scale]) + b_hat + e[E.bias]
 
     def body(c, _):
         q, sums = c
@@ -370,13 +371,13 @@ def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
         return (q, core.accumulate(sums, t)), None
 
     (q_true, sums), _ = jax.lax.scan(body, (q_true, core.empty_sums()), None, length=n)
-    x_hat = X.pack(q=q_hat0, b=b_hat, v=jnp.zeros(2), P=jnp.eye(NE).reshape(-1), acc_dev_var=0.0,
+    x_hat = X.pack(q=q_hat0, b=b_hat, s=jnp.zeros(3), v=jnp.zeros(2), P=jnp.eye(NE).reshape(-1), acc_dev_var=0.0,
                    rest_s=0.0, reacquire=0.0, reacq_f_E=jnp.zeros(3), reacq_t=0.0,
                    vel_inn=jnp.zeros(2), vel_fix=jnp.zeros(5), speed_var=0.0, dv_var=0.0)
     c = core.block_inputs(sums, p)
     q_end, _, v_end = core.block_prediction(x_hat, c)
     err = so3.quat_log(so3.quat_multiply(q_true, so3.quat_conjugate(q_end)))
-    return jnp.concatenate([err[:2], e[E.vel] - v_end, e[E.bias]]), (q_end, c)
+    return jnp.concatenate([err[:2], e[E.vel] - v_end, e[E.bias], e[E.scale]]), (q_end, c)
 
 
 @pytest.mark.parametrize("omega,b_hat", [(np.zeros(3), np.zeros(3)),
@@ -387,14 +388,14 @@ def test_error_transition_is_the_jacobian_of_the_block_prediction(omega, b_hat):
     block's samples and predict with the core → difference), at a block of 32 samples of 3.5 ms.
 
     Sensor still, bias known: equal to rounding, except that the velocity's response to a bias
-    error is larger by 1 + 1/N: the pre-integration rotates each sample's force by the rotation
+    (or scale) error is larger by 1 + 1/N: the pre-integration rotates each sample's force by the rotation
     at the sample's end, a right Riemann sum of ∫ t dt = T²/2. Sensor turning at |ω| = 1 rad/s:
     ``F`` holds the block-end rotation over the block (F = exp(F_c T) with R frozen), so they
     differ at first order in |ω|T: by less than |ω|T / 2 of F's largest entry."""
     import jax
 
     from verticality.estimators import tilt_core as core
-    from verticality.estimators.tilt_layout import C, E
+    from verticality.estimators.tilt_layout import NE, C, E
 
     n, dt = 32, 0.0035
     omega, b_hat = jnp.asarray(omega, dtype=float), jnp.asarray(b_hat, dtype=float)
@@ -403,13 +404,16 @@ def test_error_transition_is_the_jacobian_of_the_block_prediction(omega, b_hat):
     def flow(e):
         return _error_flow(e, q0, b_hat, omega, n, dt)
 
-    F_auto = np.asarray(jax.jacfwd(lambda e: flow(e)[0])(jnp.zeros(7)))
-    q_end, c = flow(jnp.zeros(7))[1]
+    F_auto = np.asarray(jax.jacfwd(lambda e: flow(e)[0])(jnp.zeros(NE)))
+    q_end, c = flow(jnp.zeros(NE))[1]
     F = np.array(core.error_transition(so3.matrix_from_quat(q_end), c[C.T],
-                                       tilt.DEFAULT_PARAMS.g_m_s2))
+                                       tilt.DEFAULT_PARAMS.g_m_s2, c[C.gsum]))
     assert np.max(np.abs(F[E.vel, E.bias])) > 0.01 and np.max(np.abs(F[E.tilt, E.bias])) > 0.05
+    # a scale error acts only while turning, as a bias error s̃ ⊙ ω
+    assert (np.max(np.abs(F[E.tilt, E.scale])) > 0.01) == bool(np.any(omega))
     F[E.vel, E.bias] *= 1.0 + 1.0 / n
-    off = np.max(np.abs(F - np.eye(7)))
+    F[E.vel, E.scale] *= 1.0 + 1.0 / n
+    off = np.max(np.abs(F - np.eye(NE)))
     if not np.any(omega):
         np.testing.assert_allclose(F_auto, F, rtol=0, atol=1e-12)
     else:
@@ -434,9 +438,9 @@ def test_the_filter_is_an_estimator_value_with_named_state():
     np.testing.assert_array_equal(state.P, P0)
     assert state.x.shape == (X.size,) and state.sums.shape == (S.size,)
     assert bool(state.initialized) and int(state.count) == 0 and not bool(state.reacquire)
-    assert X.size == 74 and S.size == 21 and X.P == slice(9, 58) and X.reacq_t == 64
-    assert X.vel_inn == slice(65, 67) and X.vel_fix == slice(67, 72)
-    assert X.speed_var == 72 and X.dv_var == 73
+    assert X.size == 128 and S.size == 22 and X.P == slice(9, 109) and X.reacq_t == 115
+    assert X.vel_inn == slice(116, 118) and X.vel_fix == slice(118, 123)
+    assert X.speed_var == 123 and X.dv_var == 124 and X.s == slice(125, 128)
     L = Packed([("a", 2), ("b", None)])
     np.testing.assert_array_equal(L.pack(xp=np, b=3.0, a=(1.0, 2.0)), [1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="missing"):
@@ -571,19 +575,29 @@ def test_sigma_stays_honest_over_the_kick_recordings():
     assert h["within_2sigma"] >= 0.95 and h["worst_within_2sigma"] > 0.7, h
 
 
-def test_saturated_readings_are_marked_beyond_the_range():
+def test_a_csv_with_saturated_readings_is_read_as_it_is_and_the_filter_flags_them(tmp_path):
+    """A file's saturated accelerometer readings are read as written (no reader marks them: the
+    filter's limits detection is the one place that does, from the flat tops) and flagged
+    CLIPPED by ``estimate``, the samples kept."""
     from verticality.io import imu
 
     rng = np.random.default_rng(3)
-    acc = rng.normal(0, 3.0, (500, 3)) + [0.0, 0.0, 9.81]
-    assert np.array_equal(imu.mark_saturated(acc), acc)  # a noisy sensor repeats no extreme
-    clipped = np.clip(acc * 4, -19.62, 19.62)
-    marked = imu.mark_saturated(clipped)
-    at = np.abs(clipped) == 19.62
-    assert at.sum() > 10 and np.all(np.isinf(marked[at])) and np.all(marked[~at] == clipped[~at])
-    out = tilt.estimate(np.zeros((500, 3)), marked, 0.01)
-    rows = np.any(at, axis=1)
-    assert np.all(out.flags[rows] & tilt.OUT_OF_RANGE) and np.all(out.flags[rows] & tilt.ACC_MISSING)
+    n = 500
+    acc = rng.normal(0, 0.03, (n, 3)) + [0.0, 0.0, 9.81]
+    acc[100:300, 0] += 30.0 * np.sin(np.arange(200) * 2 * np.pi * 3 * 0.01)  # a shake beyond 2 g
+    acc = np.clip(acc, -19.62, 19.62)
+    gyr = rng.normal(0, 1e-3, (n, 3))
+    path = tmp_path / "clipped.csv"
+    rows = np.column_stack([np.arange(n) * 0.01, gyr, acc])
+    path.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n"
+                    + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in rows))
+    rec = imu.read_imu_csv(path)
+    np.testing.assert_array_equal(rec.acc_m_s2, acc)
+    at = np.any(np.abs(acc) == 19.62, axis=1)
+    assert at.sum() > 10
+    out = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s)
+    assert np.array_equal((out.flags & tilt.CLIPPED) > 0, at)
+    assert not np.any(out.flags & (tilt.OUT_OF_RANGE | tilt.ACC_MISSING))
 
 
 def test_sigma_stays_honest_under_shaking_and_clipping_and_kicks_are_not_read_as_tilt():

@@ -214,11 +214,9 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                     t, g, a_read, d = (v[:w] for v in buf)
                     last = final and w == buf[0].size
                     lim = tilt.recording_limits(g, a_read, d, prev=prev[0], **ranges)
-                    a = lim.acc_for_filter(a_read)
-                    m = tilt_batch.piece_cut(state, a, d, filt.block, final=last) or w
-                    state, o = tilt_batch.run(filt.params, filt.block, state, g[:m], a[:m],
-                                              d[:m], tilt_var=lim.tilt_var_rad2[:m],
-                                              flags=lim.flags[:m])
+                    m = tilt_batch.piece_cut(state, a_read, d, filt.block, final=last) or w
+                    state, o = tilt_batch.run(filt.params, filt.block, state, g[:m], a_read[:m],
+                                              d[:m], **lim.run_args(slice(m)))
                     prev[0] = np.concatenate([g[m - 1], a_read[m - 1]])
                     sig = tilt.tilt_sigma_rad(o.var)
                     for lo in range(0, m, WRITE_ROWS):  # the rows' text, a slice at a time

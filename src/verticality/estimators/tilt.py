@@ -28,7 +28,7 @@ part of the specific force (T eq. 4) "is handled as a high-frequency noise". Thi
 The estimator (the project's interface, :mod:`verticality.estimators.base`)::
 
     filt = TiltFilter(params, block)              # both optional
-    state = filt.init(x0, P0)                     # x0 = (q_E_S wxyz, b_S) or None ; P0 (7, 7)
+    state = filt.init(x0, P0)                     # x0 = (q_E_S wxyz, b_S) or None ; P0 (10, 10)
     state = filt.predict(state, gyr, dt)          # = step with the accelerometer missing
     state, out = filt.step(state, gyr, acc, dt)   # gyr (3,) rad/s, acc (3,) m/s², dt s
     state, outs = filt.run(state, gyrs, accs, dts)  # (N, 3), (N, 3), scalar or (N,): the fast
@@ -109,11 +109,12 @@ class TiltFilter:
     def init(self, x0=None, P0=None) -> TiltState:
         """The initial state (NumPy arrays). ``x0 = (quat_E_S wxyz, bias_S rad/s)``, or None: then
         the first usable accelerometer sample initializes the tilt (heading 0, zero bias, flag
-        ``INIT``) and it is re-acquired after ``reacquire_s``. ``P0`` (7, 7) the covariance of
-        (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z); default :data:`DEFAULT_P0`."""
+        ``INIT``) and it is re-acquired after ``reacquire_s``. ``P0`` (10, 10) the covariance of
+        (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z, s̃x, s̃y, s̃z); default :data:`DEFAULT_P0`."""
         P0 = np.asarray(DEFAULT_P0 if P0 is None else P0, dtype=np.float64)
         if P0.shape != (NE, NE):
-            raise InputError(f"P0 must be (7, 7) for (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z); got {P0.shape}")
+            raise InputError("P0 must be (10, 10) for (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z, s̃x, s̃y, s̃z); "
+                             f"got {P0.shape}")
         if x0 is None:
             q0, b0, initialized = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), False
         else:
@@ -124,7 +125,7 @@ class TiltFilter:
                 raise InputError("x0 must be (quat_E_S (4,) wxyz, non-zero, bias_S_rad_s (3,)), "
                                  "finite")
             q0, initialized = q0 / np.sqrt(np.sum(q0 * q0)), True
-        x = X.pack(xp=np, q=q0, b=b0, v=np.zeros(2), P=P0.reshape(-1), acc_dev_var=0.0,
+        x = X.pack(xp=np, q=q0, b=b0, s=np.zeros(3), v=np.zeros(2), P=P0.reshape(-1), acc_dev_var=0.0,
                    rest_s=0.0, reacquire=0.0, reacq_f_E=np.zeros(3), reacq_t=0.0,
                    vel_inn=np.zeros(2), vel_fix=np.zeros(5), speed_var=0.0, dv_var=0.0)
         return TiltState(x, _EMPTY_SUMS, np.int32(0), np.bool_(initialized))
@@ -164,15 +165,7 @@ def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
         gyr_range_rad_s = acc_range_m_s2 = None
     lim = tilt_limits.find_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2,
                                   infer=detect_clipping, prev=prev)
-    if not lim.acc_clipped.any():
-        return lim
-    # (the filter sees a clipped accelerometer sample as missing: its other components' range is
-    # judged here, on the reading)
-    k = np.flatnonzero(lim.acc_clipped)
-    beyond = tilt_core.out_of_range(gyr[k].T, acc[k].T, xp=np)
-    flags = lim.flags.copy()
-    flags[k[beyond]] |= OUT_OF_RANGE
-    return lim._replace(flags=flags)
+    return lim
 
 
 def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
@@ -185,7 +178,7 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     Sensors at their limits (:mod:`~verticality.estimators.tilt_limits`): ``gyr_range_rad_s``,
     ``acc_range_m_s2`` the sensor's full-scale readings (scalar or one per axis); a component at
     or beyond them is clipped (flag ``CLIPPED``): a clipped gyro axis widens the tilt variance for
-    its unknown excess, a clipped accelerometer sample is dropped. Without them the clip levels
+    its unknown excess, a clipped accelerometer axis the velocity variance. Without them the clip levels
     are inferred from the recording's flat tops; ``detect_clipping=False`` turns clipping off.
     Rows that repeat the previous row bit for bit are flagged ``HELD``.
 
@@ -203,10 +196,8 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping)
     if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
-    acc = lim.acc_for_filter(acc)
     if n <= tilt_batch.PIECE_SAMPLES:
-        return tilt_batch.run(params, block, filt.init(), gyr, acc, dt, tilt_var=lim.tilt_var_rad2,
-                              flags=lim.flags)[1]
+        return tilt_batch.run(params, block, filt.init(), gyr, acc, dt, **lim.run_args())[1]
     return concatenate_outputs(list(run_in_pieces(filt, filt.init(), gyr, acc,
                                                   np.broadcast_to(dt, (n,)), limits=lim)))
 
@@ -234,9 +225,8 @@ def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     lim = recording_limits(gyr, acc, np.asarray(dt_s, dtype=np.float64), gyr_range_rad_s,
                            acc_range_m_s2, detect_clipping)
-    extra = {} if lim is None else {"tilt_var": lim.tilt_var_rad2, "flags": lim.flags}
-    final, out, trans = tilt_batch.run(params, block, filt.init(), gyr,
-                                       acc if lim is None else lim.acc_for_filter(acc), dt_s,
+    extra = {} if lim is None else lim.run_args()
+    final, out, trans = tilt_batch.run(params, block, filt.init(), gyr, acc, dt_s,
                                        transitions=True, **extra)
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
     return tilt_smoother.smoothed_output(out, trans, final.P, dts, block)
@@ -250,7 +240,7 @@ def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int 
     read of ``verticality estimate`` filter; ``piece`` default ``tilt_batch.PIECE_SAMPLES``).
     Equal to one ``run`` over the whole to rounding (the batch kernel's chunks differ), and bit
     for bit to any other reading in the same pieces. ``limits``: the recording's clipped and held
-    samples (:func:`recording_limits`; ``acc`` already without its clipped samples)."""
+    samples (:func:`recording_limits`)."""
     piece = tilt_batch.PIECE_SAMPLES if piece is None else piece
     n, k = gyr.shape[0], 0
     while k < n:
@@ -258,8 +248,7 @@ def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int 
         m = tilt_batch.piece_cut(state, acc[k:hi], dts[k:hi], filt.block, final=hi == n)
         m = m or hi - k  # no block boundary within a piece (piece < block): take it whole
         sl = slice(k, k + m)
-        extra = {} if limits is None else {"tilt_var": limits.tilt_var_rad2[sl],
-                                           "flags": limits.flags[sl]}
+        extra = {} if limits is None else limits.run_args(sl)
         state, out = tilt_batch.run(filt.params, filt.block, state, gyr[sl], acc[sl], dts[sl],
                                     **extra)
         yield out
@@ -272,7 +261,7 @@ def concatenate_outputs(outs) -> TiltOutput:
 
 
 def tilt_sigma_rad(var, params: TiltParams = DEFAULT_PARAMS) -> np.ndarray:
-    """Standard deviation of the tilt (rad) from a :class:`TiltOutput`'s ``var`` ((..., 7)): the
+    """Standard deviation of the tilt (rad) from a :class:`TiltOutput`'s ``var`` ((..., 10)): the
     RMS angle between the true and the estimated vertical, ``sqrt(var_δx + var_δy + (c/g)²)``.
     The first two terms are the filter's covariance of its tilt error (frame-free: the trace does
     not depend on the heading); ``c = params.acc_calib_m_s2`` adds the accelerometer's calibration

@@ -59,13 +59,13 @@ class Transitions(NamedTuple):
 
 
 def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
-        transitions: bool = False, tilt_var=None, flags=None):
+        transitions: bool = False, tilt_var=None, flags=None, vel_var=None):
     """Filter a recording from ``state``: gyro (N, 3) rad/s, accelerometer (N, 3) m/s², ``dt_s`` a
     scalar or (N,) (``dt_s[k]`` the time from sample k−1 to k). Returns ``(final_state,
     TiltOutput)`` of NumPy arrays, as the core's ``step`` applied sample by sample would; with
     ``transitions`` also the block updates (:class:`Transitions`, by the kernel compiled with
-    them: the same numbers). ``tilt_var``, ``flags`` (N,): each sample's extra tilt variance
-    (rad²) and flags from the recording's limits (``step``'s arguments of the same names;
+    them: the same numbers). ``tilt_var``, ``vel_var``, ``flags`` (N,): each sample's extra tilt
+    (rad²) and velocity (m²/s²) variances and flags from the recording's limits (``step``'s arguments of the same names;
     :class:`~verticality.estimators.tilt_limits.Limits`), None for none."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
@@ -77,8 +77,10 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
         raise InputError(f"dt must be a scalar or have shape ({n},); got {dt.shape}")
     dts = np.broadcast_to(dt, (n,)).copy()
     tv = np.zeros(n) if tilt_var is None else np.asarray(tilt_var, dtype=np.float64)
-    if tv.shape != (n,) or not np.all(np.isfinite(tv) & (tv >= 0)):
-        raise InputError(f"tilt_var must be ({n},), finite and non-negative")
+    vv = None if vel_var is None else np.asarray(vel_var, dtype=np.float64)
+    for name, v in (("tilt_var", tv), ("vel_var", vv)):
+        if v is not None and (v.shape != (n,) or not np.all(np.isfinite(v) & (v >= 0))):
+            raise InputError(f"{name} must be ({n},), finite and non-negative")
     x = np.array(state.x, dtype=np.float64)
     sums = np.array(state.sums, dtype=np.float64)
     count, initialized = int(state.count), bool(state.initialized)
@@ -90,7 +92,7 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     trans = Transitions(n, np.zeros((0, TRANS.size)))
     if k < n:
         x, sums, count, trans = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k,
-                                        transitions, tv)
+                                        transitions, tv, vv)
     res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
     if flags is not None:
         res.flags[:] |= np.asarray(flags, dtype=np.int32)
@@ -179,7 +181,8 @@ def _head(sums0, n_update: int, nb: int):
 _EMPTY_SUMS = np.asarray(core.empty_sums(xp=np))
 
 
-def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv=None):
+def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv=None,
+            vv=None):
     """Samples ``k`` to the end through the batch kernel, from the filter ``x`` and the current
     block's ``sums0`` of ``count`` samples. Returns the filter, the sums and the count after the
     last sample, and the :class:`Transitions` (None unless ``transitions``)."""
@@ -216,6 +219,7 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False,
         data[lead:m, CHUNK_SAMPLE.acc] = acc[lo:hi]
         data[lead:m, CHUNK_SAMPLE.dt] = dts[lo:hi]
         data[lead:m, CHUNK_SAMPLE.tilt_var] = 0.0 if tv is None else tv[lo:hi]
+        data[lead:m, CHUNK_SAMPLE.vel_var] = 0.0 if vv is None else vv[lo:hi]
         if m < size:
             data[m:, :] = 0.0
             data[m:, CHUNK_SAMPLE.dt] = np.nan

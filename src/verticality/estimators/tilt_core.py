@@ -16,8 +16,10 @@ Functions that the host side of the batch run also needs on NumPy arrays (sample
 the initialization, the output angles) take ``xp`` (``jax.numpy`` or ``numpy``): one code for both.
 
 The model (T eq. 1–13 in 3-D; docs/tilt.md): nominal state ``q_E_S``, gyro bias ``b_S``,
-horizontal velocity ``v_E``; error state (7) tilt ``δ`` (``R_true = exp([δ, 0]) R_est``), velocity
-``ṽ``, bias ``b̃``; prediction ``δ̇ = −Π R b̃``, ``ṽ̇ = g J δ``, bias random walk (T eq. 2, 7, 12);
+horizontal velocity ``v_E``, gyro scale-factor error ``s`` (the gyro reads ``(1 + s) ω + b``);
+error state (10) tilt ``δ`` (``R_true = exp([δ, 0]) R_est``), velocity ``ṽ``, bias ``b̃``, scale
+``s̃``; prediction ``δ̇ = −Π R (b̃ + s̃ ⊙ ω)``, ``ṽ̇ = g J δ``, bias random walk (T eq. 2, 7, 12),
+constant scale;
 the velocity pseudo-measurement ``0 = v + n_v`` (T §I, eq. 4–5: accelerations are short and
 periodic, so the velocity they produce stays small); Joseph-form updates.
 """
@@ -73,13 +75,19 @@ class TiltState(NamedTuple):
         return self.x[..., X.b]
 
     @property
+    def gyr_scale(self):
+        """(3,) the gyro's scale-factor error per axis: it reads ``(1 + s) ω + b``."""
+        return self.x[..., X.s]
+
+    @property
     def vel_E_m_s(self):
         """(2,) horizontal velocity in Earth (m/s), kept bounded by the pseudo-measurement."""
         return self.x[..., X.v]
 
     @property
     def P(self):
-        """(7, 7) covariance of the error state (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z) at the block start."""
+        """(10, 10) covariance of the error state (δx, δy, ṽx, ṽy, b̃x, b̃y, b̃z, s̃x, s̃y, s̃z) at
+        the block start."""
         return self.x[..., X.P].reshape(self.x.shape[:-1] + (NE, NE))
 
     @property
@@ -98,7 +106,8 @@ class TiltOutput(NamedTuple):
     up_S: jax.Array  # (3,) unit vector "up" (opposite to gravity) in the sensor frame
     quat_E_S: jax.Array  # (4,) wxyz, heading arbitrary
     bias_S_rad_s: jax.Array  # (3,)
-    var: jax.Array  # (7,) variances of (δx, δy [rad²], ṽx, ṽy [m²/s²], b̃x, b̃y, b̃z [rad²/s²])
+    var: jax.Array  # (10,) variances of (δx, δy [rad²], ṽx, ṽy [m²/s²], b̃x, b̃y, b̃z [rad²/s²],
+    #                 s̃x, s̃y, s̃z)
     flags: jax.Array  # int32 bit set (verticality.estimators.tilt_flags)
     measured: jax.Array  # bool: the accelerometer sample entered the filter
 
@@ -180,7 +189,8 @@ def _each(fn, v):
     return tuple(fn(c) for c in v) if isinstance(v, tuple) else fn(v)
 
 
-def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0) -> SampleTerms:
+def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0,
+                 vel_var=0.0) -> SampleTerms:
     """The per-sample part of the pre-integration: ``g`` (rad/s) and ``a`` (m/s²) vectors with the
     component axis first (arrays (3, ...), or tuples of three arrays), ``dt`` (s) of shape (...):
     the samples' validity and their term in each block sum (``S``; the vector ones in the form of
@@ -190,7 +200,9 @@ def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0) -> Sample
     the same arithmetic, each compiled the faster way (XLA runs few large kernels best, and a
     single sample's few small ones as vectors). ``tilt_var`` (rad², scalar or (...)): a tilt
     variance the sample adds besides its own terms (a clipped gyro axis's unknown excess,
-    :mod:`~verticality.estimators.tilt_limits`), summed with the dropouts' in ``qmiss``."""
+    :mod:`~verticality.estimators.tilt_limits`), summed with the dropouts' in ``qmiss``;
+    ``vel_var`` (m²/s²) likewise the velocity variance of a clipped accelerometer axis's unknown
+    excess (``vmiss``)."""
     dt_ok, gyr_ok, acc_ok, acc_n2 = masks(g, a, dt, xp)
     dts = xp.where(dt_ok, dt, 0.0)
     wa = xp.where(acc_ok, dts, 0.0)  # Δt of a valid accelerometer sample
@@ -206,7 +218,7 @@ def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0) -> Sample
                 qmiss=(xp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2)
                        + xp.where(dt_ok, tilt_var, 0.0)),
                 gsum=rot, asum=_each(lambda c: c * wa, a0), a2=acc_n2 * wa,
-                gap=gap.astype(xp.float64))
+                gap=gap.astype(xp.float64), vmiss=xp.where(dt_ok, vel_var, 0.0))
     return SampleTerms(dt_ok, gyr_ok, acc_ok, gap, dts, rot, a0, wa, sums)
 
 
@@ -223,7 +235,7 @@ def empty_sums(xp=jnp):
     """The sums of a block without samples (``S``)."""
     z = 0.0
     return S.pack(xp=xp, dquat=(1.0, z, z, z), tau=z, f=(z, z, z), t_acc=z, dev2=z, w2=z, t=z,
-                  qmiss=z, gsum=(z, z, z), asum=(z, z, z), a2=z, gap=z)
+                  qmiss=z, gsum=(z, z, z), asum=(z, z, z), a2=z, gap=z, vmiss=z)
 
 
 def accumulate(sums, terms: SampleTerms):
@@ -240,13 +252,13 @@ _KEEP_VEL = np.array([0.0 if i in range(E.vel.start, E.vel.stop) else 1.0 for i 
 
 
 def add_tilt_variance(P, var_rad2, xp=jnp):
-    """Covariance ``P`` (..., 7, 7) with ``var_rad2`` (scalar or (...,)) added to both tilt
+    """Covariance ``P`` (..., 10, 10) with ``var_rad2`` (scalar or (...,)) added to both tilt
     variances."""
     return P + xp.asarray(var_rad2)[..., None, None] * _TILT_DIAG
 
 
 def add_fix_variance(P, fix):
-    """Covariance ``P`` (7, 7) with the corrections ``fix`` (5,: tilt (2,) rad, bias (3,) rad/s)
+    """Covariance ``P`` (10, 10) with the corrections ``fix`` (5,: tilt (2,) rad, bias (3,) rad/s)
     that may not be real added as variance: ``|fix_tilt|²`` to both tilt variances, ``fix_b²`` to
     each bias variance."""
     P = add_tilt_variance(P, jnp.sum(fix[:2] * fix[:2]))
@@ -255,13 +267,13 @@ def add_fix_variance(P, fix):
 
 
 def widen_tilt(P, sigma_rad, xp=jnp):
-    """Covariance ``P`` (7, 7) with ``sigma_rad²`` added to both tilt variances (the accelerometer
+    """Covariance ``P`` (10, 10) with ``sigma_rad²`` added to both tilt variances (the accelerometer
     sample that initializes the filter may hold an inertial acceleration of unknown size)."""
     return add_tilt_variance(P, sigma_rad**2, xp)
 
 
 def reset_velocity(P, var_m2_s2):
-    """Covariance ``P`` (7, 7) with the velocity error forgotten: its rows and columns zeroed and
+    """Covariance ``P`` (10, 10) with the velocity error forgotten: its rows and columns zeroed and
     its variance set to ``var_m2_s2`` (after a gap the integrated velocity means nothing)."""
     return P * _KEEP_VEL[:, None] * _KEEP_VEL[None, :] + jnp.diag(var_m2_s2 * (1.0 - _KEEP_VEL))
 
@@ -285,7 +297,7 @@ def initialize(x, acc_m_s2, p, xp=jnp):
     may hold an inertial acceleration), and the tilt to be re-acquired after ``reacquire_s`` (as
     after a gap, so that a start in motion is caught)."""
     P = widen_tilt(x[X.P].reshape(NE, NE), p.init_tilt_rad, xp)
-    return X.pack(xp=xp, q=quat_from_acc(acc_m_s2, xp), b=x[X.b], v=x[X.v], P=P.reshape(-1),
+    return X.pack(xp=xp, q=quat_from_acc(acc_m_s2, xp), b=x[X.b], s=x[X.s], v=x[X.v], P=P.reshape(-1),
                   acc_dev_var=x[X.acc_dev_var], rest_s=x[X.rest_s], reacquire=1.0,
                   reacq_f_E=xp.zeros(3), reacq_t=0.0, vel_inn=xp.zeros(2), vel_fix=xp.zeros(5),
                   speed_var=x[X.speed_var], dv_var=x[X.dv_var])
@@ -301,7 +313,7 @@ def block_inputs(s, p):
     has_acc = t_acc > 0
     t_acc_s = jnp.where(has_acc, t_acc, 1.0)
     q_gyr = p.gyr_noise**2 * tau + p.gyr_scale_noise**2 * w2 + s[..., S.qmiss]
-    q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2
+    q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2 + s[..., S.vmiss]
     has_gyr = tau > 0
     tau_s = jnp.where(has_gyr, tau, 1.0)
     g_mean = s[..., S.gsum] / tau_s[..., None]
@@ -318,29 +330,34 @@ def block_inputs(s, p):
                   g_mean=g_mean, quiet0=quiet0,
                   r_vel=(p.vel_m_s**2 * p.vel_corr_s) / t_acc_s,
                   r_vel_rest=(p.vel_rest_m_s**2 * p.vel_corr_s) / t_acc_s,
-                  r_b=p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2, gap=gap, t_acc=t_acc)
+                  r_b=p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2, gap=gap, t_acc=t_acc,
+                  gsum=s[..., S.gsum])
 
 
 _J = np.array([[0.0, 1.0], [-1.0, 0.0]])  # (δ × e3)_{x,y} = J δ
 
 
-def error_transition(R, T, g):
-    """The error-state transition ``F`` (7 × 7) of a block of length ``T`` (s) whose orientation
-    at its end is ``R`` (3 × 3): the continuous error dynamics ``δ̇ = −Π R b̃``, ``ṽ̇ = g J δ``,
-    ``ḃ̃ = 0`` over ``T`` with ``R`` held, ``F = exp(F_c T)`` (exact: ``F_c³ = 0``)::
+def error_transition(R, T, g, G):
+    """The error-state transition ``F`` (10 × 10) of a block of length ``T`` (s) whose orientation
+    at its end is ``R`` (3 × 3) and whose raw gyro rotation is ``G = Σ ω Δt`` (3,): the gyro reads
+    ``(1 + s) ω + b``, so a scale error ``s̃`` acts as a bias error ``s̃ ⊙ ω``; the continuous error
+    dynamics ``δ̇ = −Π R (b̃ + s̃ ⊙ ω)``, ``ṽ̇ = g J δ``, ``ḃ̃ = 0``, ``s̃̇ = 0`` over ``T`` with
+    ``R`` held, ``F = exp(F_c T)`` (exact: ``F_c³ = 0``)::
 
-        δ ← δ + A b̃                      A = −T Π R
-        ṽ ← ṽ + T g J δ + ½ T g J A b̃
-        b̃ ← b̃
+        δ ← δ + A b̃ + A_s s̃             A = −T Π R,  A_s = −Π R diag(G)
+        ṽ ← ṽ + T g J δ + ½ T g J (A b̃ + A_s s̃)
+        b̃ ← b̃,  s̃ ← s̃
 
     Checked against ``jax.jacfwd`` of the error flow (tests/test_tilt.py)."""
     A = -T * R[:2, :]  # (2, 3)
-    gJA = jnp.stack([A[1], -A[0]]) * g  # g J A
+    As = -R[:2, :] * G[None, :]  # (2, 3)
+    AA = jnp.concatenate([A, As], axis=1)  # (2, 6)
+    gJA = jnp.stack([AA[1], -AA[0]]) * g  # g J [A As]
     z2 = jnp.zeros((2, 2))
     return jnp.concatenate([
-        jnp.concatenate([jnp.eye(2), z2, A], axis=1),
+        jnp.concatenate([jnp.eye(2), z2, AA], axis=1),
         jnp.concatenate([T * g * _J, jnp.eye(2), 0.5 * T * gJA], axis=1),
-        jnp.concatenate([jnp.zeros((3, 4)), jnp.eye(3)], axis=1)], axis=0)
+        jnp.concatenate([jnp.zeros((6, 4)), jnp.eye(6)], axis=1)], axis=0)
 
 
 def disturbed_velocity_scale(acc_dev_var, p):
@@ -377,7 +394,7 @@ def joseph_update(P, rows: slice, z, r):
     selected), Joseph form, symmetrized; written element-wise (no ``dot``), so that the scan over
     blocks compiles to few fused kernels. Returns ``(dx, P)``."""
     i0, m = rows.start, rows.stop - rows.start
-    PHt = P[:, i0:i0 + m]  # (7, m)
+    PHt = P[:, i0:i0 + m]  # (NE, m)
     Sm = P[i0:i0 + m, i0:i0 + m] + r * jnp.eye(m)
     if m == 2:
         det = Sm[0, 0] * Sm[1, 1] - Sm[0, 1] * Sm[1, 0]
@@ -389,7 +406,7 @@ def joseph_update(P, rows: slice, z, r):
                          jnp.stack([c * e - b * f, a * f - c * c, b * c - a * e]),
                          jnp.stack([b * e - c * d, b * c - a * e, a * d - b * b])])
         Si = cof / (a * (d * f - e * e) + b * (c * e - b * f) + c * (b * e - c * d))
-    K = sum(PHt[:, j:j + 1] * Si[j][None, :] for j in range(m))  # (7, m)
+    K = sum(PHt[:, j:j + 1] * Si[j][None, :] for j in range(m))  # (NE, m)
     dx = sum(K[:, j] * z[j] for j in range(m))
     M = P - sum(K[:, j:j + 1] * P[i0 + j][None, :] for j in range(m))  # (I − K H) P
     Pn = (M - sum(M[:, i0 + j:i0 + j + 1] * K[:, j][None, :] for j in range(m))
@@ -410,10 +427,12 @@ def tilt_error_from_force(f_E):
 
 def block_prediction(x, c):
     """The nominal prediction over a block: ``(q_end, f_E, vel)``, the orientation at the block's
-    end ``q0 ⊗ dquat ⊗ exp(−b τ)`` (strapdown with the bias-corrected gyro, T eq. 1, 7), the
+    end ``q0 ⊗ dquat ⊗ exp(−(b τ + s ⊙ G))`` (strapdown with the bias- and scale-corrected gyro,
+    T eq. 1, 7), the
     block's specific force rotated to Earth ``Σ R f Δt`` and the velocity ``v + Π f_E``."""
     q0 = x[X.q]
-    q_end = so3.quat_multiply(so3.quat_multiply(q0, c[C.dquat]), so3.quat_exp(-x[X.b] * c[C.tau]))
+    q_end = so3.quat_multiply(so3.quat_multiply(q0, c[C.dquat]),
+                              so3.quat_exp(-(x[X.b] * c[C.tau] + x[X.s] * c[C.gsum])))
     q_end = so3.quat_normalize(q_end)
     f_E = so3.quat_rotate(q0, c[C.f])
     return q_end, f_E, x[X.v] + f_E[:2]
@@ -431,9 +450,9 @@ class BlockTransition(NamedTuple):
     re-acquires; its update is no linear step of the error (the re-acquisition measures the tilt
     with the sum of several blocks), so the smoothing does not cross into it."""
 
-    F: jax.Array  # (7, 7) the error transition over the block (velocity rows zeroed on a reset)
-    P_prior: jax.Array  # (7, 7) the covariance before the block's measurement updates
-    dx: jax.Array  # (7,) the correction the updates applied (x_new ⊖ x_prior)
+    F: jax.Array  # (10, 10) the error transition over the block (velocity rows zeroed on a reset)
+    P_prior: jax.Array  # (10, 10) the covariance before the block's measurement updates
+    dx: jax.Array  # (10,) the correction the updates applied (x_new ⊖ x_prior)
     split: jax.Array  # () bool
 
 
@@ -455,8 +474,10 @@ def block_update(x, c, p, gaps: bool = True):
     collecting = reacquire0 & ~gap  # a block after a gap (or the start): the tilt error is unknown
 
     q_end, f_E, vel = block_prediction(x, c)
-    F = error_transition(so3.matrix_from_quat(q_end), T, g)
-    Qd = jnp.stack([c[C.q_gyr], c[C.q_gyr], c[C.q_vel], c[C.q_vel], c[C.qb], c[C.qb], c[C.qb]])
+    F = error_transition(so3.matrix_from_quat(q_end), T, g, c[C.gsum])
+    z = jnp.zeros_like(c[C.qb])  # the scale factors are constants (no process noise)
+    Qd = jnp.stack([c[C.q_gyr], c[C.q_gyr], c[C.q_vel], c[C.q_vel], c[C.qb], c[C.qb], c[C.qb],
+                    z, z, z])
     FP = jnp.sum(F[:, :, None] * P0[None, :, :], axis=1)
     P = jnp.sum(FP[:, None, :] * F[None, :, :], axis=2) + jnp.diag(Qd)
 
@@ -570,7 +591,7 @@ def block_update(x, c, p, gaps: bool = True):
 
     q_new = so3.quat_multiply(so3.quat_exp(jnp.stack([dx[0], dx[1], 0.0])), q_end)
     q_new = so3.quat_normalize(q_new)
-    x_new = X.pack(q=q_new, b=b + dx[E.bias], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
+    x_new = X.pack(q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
                    vel_inn=inn, vel_fix=fix, speed_var=speed_var, dv_var=dv_var)
     vel_reset = jump | gap | collecting
@@ -591,13 +612,13 @@ def close_block(x, sums, p):
 
 # --- the outputs of a sample ---
 
-def sample_quat(q0, dq, b, tau, qexp=so3.quat_exp_components):
+def sample_quat(q0, dq, b, tau, s, G, qexp=so3.quat_exp_components):
     """``q_E_S`` at a sample inside a block, on component tuples, before normalization:
-    ``q0 ⊗ dq ⊗ exp(−b τ)`` (``q0``, ``b`` the block-start estimate, ``dq``, ``tau`` the block's
-    sums so far). ``qexp`` the quaternion exponential on components (the batch kernel passes its
+    ``q0 ⊗ dq ⊗ exp(−(b τ + s ⊙ G))`` (``q0``, ``b``, ``s`` the block-start estimate, ``dq``,
+    ``tau``, ``G`` the block's sums so far: raw rotation, gyro time and Σ ω Δt). ``qexp`` the quaternion exponential on components (the batch kernel passes its
     faster one); the caller normalizes (component-wise in the batch kernel, as one vector in
     :func:`step`: fewer kernels per call)."""
-    qb = qexp(-b[0] * tau, -b[1] * tau, -b[2] * tau)
+    qb = qexp(*(-(b[i] * tau + s[i] * G[i]) for i in range(3)))
     return so3.quat_multiply_components(so3.quat_multiply_components(q0, dq), qb)
 
 
@@ -622,18 +643,18 @@ def output_var(P, initialized, qmiss, p, xp=jnp):
 
 # --- the per-sample step ---
 
-def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0):
+def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0, vel_var=0.0):
     """One sample: gyro ``gyr`` (3,) rad/s, accelerometer ``acc`` (3,) m/s², ``dt`` s since the
     previous sample. The sample is pre-integrated into the block; at the block's end the block
     update runs. Before the initialization, the first usable accelerometer sample sets the tilt
-    (flag INIT), to be re-acquired after reacquire_s. ``tilt_var``, ``flags``: the sample's extra
-    tilt variance (rad²) and flags from the recording's limits
+    (flag INIT), to be re-acquired after reacquire_s. ``tilt_var``, ``vel_var``, ``flags``: the
+    sample's extra tilt (rad²) and velocity (m²/s²) variances and flags from the recording's limits
     (:class:`~verticality.estimators.tilt_limits.Limits`; none by default). Returns
     ``(state, TiltOutput)``."""
     gyr = jnp.asarray(gyr, dtype=jnp.float64)
     acc = jnp.asarray(acc, dtype=jnp.float64)
     dt = jnp.asarray(dt, dtype=jnp.float64)
-    t = sample_terms(gyr, acc, dt, p, tilt_var=tilt_var)
+    t = sample_terms(gyr, acc, dt, p, tilt_var=tilt_var, vel_var=vel_var)
     init_now = ~state.initialized & t.acc_ok
     x = jnp.where(init_now, initialize(state.x, t.acc, p), state.x)
     sums = jnp.where(state.initialized, accumulate(state.sums, t), state.sums)
@@ -649,7 +670,7 @@ def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0):
         initialized & (count >= block), close,
         lambda a: (*a, jnp.array(False), jnp.array(False)), (x, sums, count))
     q = so3.quat_normalize(jnp.stack(sample_quat(tuple(x[X.q]), tuple(sums[S.dquat]), x[X.b],
-                                                  sums[S.tau])))
+                                                  sums[S.tau], x[X.s], sums[S.gsum])))
     q = jnp.where(count == 0, x[X.q], q)
     up, roll, pitch = up_roll_pitch(tuple(q))
     flags = flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, disturbed, t.gap, reacq,

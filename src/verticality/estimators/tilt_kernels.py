@@ -90,7 +90,7 @@ for _sl in (S.dquat, S.f, S.tau):
 def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool = True,
                transitions: bool = False):
     """Filter a chunk of ``n = nb * block`` samples that starts at a block boundary of the
-    initialized filter ``x`` (``X``). ``data`` (n, ``CHUNK_SAMPLE``) = [gyr (3), acc (3), dt, tilt_var] per sample
+    initialized filter ``x`` (``X``). ``data`` (n, ``CHUNK_SAMPLE``) = [gyr (3), acc (3), dt, tilt_var, vel_var] per sample
     (one array: one host-to-device transfer per chunk). ``head`` (``HEAD``): ``sums0``, the sums
     the first block starts from (the samples of a block begun before the chunk; they stand in for
     as many leading samples of ``data``, which the caller fills with skipped samples, dt = NaN),
@@ -116,7 +116,8 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     # structure of arrays (one transpose): sample k of every block in one contiguous row
     ds = data.reshape(nb, block, CHUNK_SAMPLE.size).transpose(2, 1, 0)  # (CHUNK_SAMPLE, block, nb)
     t = core.sample_terms(tuple(ds[CHUNK_SAMPLE.gyr]), tuple(ds[CHUNK_SAMPLE.acc]),
-                          ds[CHUNK_SAMPLE.dt], p, gaps=gaps, tilt_var=ds[CHUNK_SAMPLE.tilt_var])
+                          ds[CHUNK_SAMPLE.dt], p, gaps=gaps, tilt_var=ds[CHUNK_SAMPLE.tilt_var],
+                          vel_var=ds[CHUNK_SAMPLE.vel_var])
     # (component arrays (block, nb): XLA's faster form here)
     e = quat_exp_batched(*t.rot)
 
@@ -132,6 +133,8 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
                   for sl, vals in ((S.dquat, (1.0, 0.0, 0.0, 0.0)), (S.f, (0.0, 0.0, 0.0))))
     (dq_end, f_end), dq_all = jax.lax.scan(pre, start, jnp.arange(block))  # dq_all (block, 4, nb)
     tau_b = jnp.cumsum(t.sums["tau"], axis=0) + jnp.where(first, sums0[S.tau], 0.0)
+    gsum_b = tuple(jnp.cumsum(gi, axis=0) + jnp.where(first, sums0[S.gsum][i], 0.0)
+                   for i, gi in enumerate(t.sums["gsum"]))
     reduced = {k: (tuple(jnp.sum(c, 0) for c in v) if isinstance(v, tuple) else jnp.sum(v, 0))
                for k, v in t.sums.items() if k != "tau"}
     sums = S.pack(dquat=dq_end, tau=tau_b[-1], f=f_end, **reduced)  # (nb, S)
@@ -143,7 +146,7 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
         xn = jnp.where(j < head[HEAD.n_update], xn, xc)
         # (reading the re-acquisition state costs ~30 % when no gap is in the chunk)
         pend = (xc[X.reacquire], xn[X.reacquire]) if gaps else (0.0, 0.0)
-        row = ROW.pack(q0=xc[X.q], b0=xc[X.b], var0=xc[P_DIAG], q1=xn[X.q], b1=xn[X.b],
+        row = ROW.pack(q0=xc[X.q], b0=xc[X.b], s0=xc[X.s], var0=xc[P_DIAG], q1=xn[X.q], b1=xn[X.b],
                        var1=xn[P_DIAG], disturbed=disturbed, reacquired=reacq,
                        reacquire0=pend[0], reacquire1=pend[1])
         if transitions:
@@ -157,8 +160,10 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     # carries the updated estimate
     q0 = tuple(rows[:, ROW.q0][:, i] for i in range(4))
     b0 = tuple(rows[:, ROW.b0][:, i] for i in range(3))
+    s0 = tuple(rows[:, ROW.s0][:, i] for i in range(3))
     q = so3.quat_normalize_components(core.sample_quat(
-        q0, tuple(dq_all[:, i] for i in range(4)), b0, tau_b, qexp=quat_exp_batched))  # (block, nb)
+        q0, tuple(dq_all[:, i] for i in range(4)), b0, tau_b, s0, gsum_b,
+        qexp=quat_exp_batched))  # (block, nb)
     last = jnp.arange(block)[:, None] == block - 1
     q = tuple(jnp.where(last, rows[:, ROW.q1][:, i], q[i]) for i in range(4))
     up, roll, pitch = core.up_roll_pitch(q, atan2=atan2)

@@ -9,7 +9,7 @@ arrays. The layouts:
 * :data:`E` the error state (7): tilt error ``δ`` about Earth's horizontal axes, horizontal
   velocity error ``ṽ``, gyro bias error ``b̃``; the rows and columns of ``P``.
 * :data:`X` the filter at a block boundary (``TiltState.x``): ``q`` = ``q_E_S`` (wxyz), ``b`` the
-  gyro bias (rad/s), ``v`` the horizontal velocity ``v_E`` (m/s), ``P`` (7 × 7, row-major), the
+  gyro bias (rad/s), ``v`` the horizontal velocity ``v_E`` (m/s), ``P`` (10 × 10, row-major), the
   low-passed ``(|f| − g)²`` ``acc_dev_var``, the time at rest ``rest_s``, and the re-acquisition
   after a gap or the start: ``reacquire`` (1.0 while pending), ``reacq_f_E`` (Σ R f Δt since the
   gap, Earth) and ``reacq_t`` (its Σ Δt); the persistence test's running mean of the whitened
@@ -21,15 +21,16 @@ arrays. The layouts:
   integrated by a valid gyro, ``f`` Σ f Δt (block-start sensor frame) over valid accelerometer
   samples, ``t_acc`` their Σ Δt, ``dev2`` Σ (|f| − g)² Δt, ``w2`` Σ |ω|² Δt, ``t`` Σ Δt, ``qmiss``
   Σ (ω_missing Δt)² over gyro dropouts and gaps, ``gsum`` Σ ω Δt, ``asum`` Σ f Δt (sensor frame),
-  ``a2`` Σ |f|² Δt, ``gap`` the number of gap samples.
+  ``a2`` Σ |f|² Δt, ``gap`` the number of gap samples, ``vmiss`` the velocity variance of clipped
+  accelerometer samples (m²/s²).
 * :data:`C` the per-block inputs of the block update that do not depend on the filter state
   (computed for all the blocks of a chunk before the scan over blocks).
 * :data:`Z` the real-time stepper's state: ``x``, ``sums``, ``count`` (samples in the block),
   ``initialized`` (1.0 or 0.0).
 * :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input).
-* :data:`CHUNK_SAMPLE` a batch chunk's row: a :data:`SAMPLE` (same offsets) and ``tilt_var``, the
-  tilt variance (rad²) the sample adds besides its own terms (clipped gyro axes,
-  :mod:`~verticality.estimators.tilt_limits`).
+* :data:`CHUNK_SAMPLE` a batch chunk's row: a :data:`SAMPLE` (same offsets), ``tilt_var`` and
+  ``vel_var``, the tilt (rad²) and velocity (m²/s²) variances the sample adds besides its own
+  terms (clipped gyro and accelerometer axes, :mod:`~verticality.estimators.tilt_limits`).
 * :data:`OUT` the stepper's output ``[roll, pitch, up (3), quat (4), bias (3), flags]``.
 * :data:`ROW` the batch kernel's row per block: the state at its start (``q0``, ``b0``, ``var0``
   the diagonal of ``P``) and after its update (``q1``, ``b1``, ``var1``), whether the update found
@@ -91,25 +92,27 @@ class Packed:
         return xp.concatenate(parts, axis=axis)
 
 
-NE = 7  # error-state dimension
-E = Packed([("tilt", 2), ("vel", 2), ("bias", 3)])
+NE = 10  # error-state dimension
+E = Packed([("tilt", 2), ("vel", 2), ("bias", 3), ("scale", 3)])
 X = Packed([("q", 4), ("b", 3), ("v", 2), ("P", NE * NE), ("acc_dev_var", None),
             ("rest_s", None), ("reacquire", None), ("reacq_f_E", 3), ("reacq_t", None),
-            ("vel_inn", 2), ("vel_fix", 5), ("speed_var", None), ("dv_var", None)])
+            ("vel_inn", 2), ("vel_fix", 5), ("speed_var", None), ("dv_var", None),
+            ("s", 3)])
 P_DIAG = slice(X.P.start, X.P.stop, NE + 1)  # the diagonal of the packed P
 S = Packed([("dquat", 4), ("tau", None), ("f", 3), ("t_acc", None), ("dev2", None),
             ("w2", None), ("t", None), ("qmiss", None), ("gsum", 3), ("asum", 3), ("a2", None),
-            ("gap", None)])
+            ("gap", None), ("vmiss", None)])
 C = Packed([("dquat", 4), ("tau", None), ("f", 3), ("T", None), ("has_acc", None),
             ("q_gyr", None), ("q_vel", None), ("qb", None), ("alpha", None), ("dev2", None),
             ("g_mean", 3), ("quiet0", None), ("r_vel", None), ("r_vel_rest", None),
-            ("r_b", None), ("gap", None), ("t_acc", None)])
+            ("r_b", None), ("gap", None), ("t_acc", None), ("gsum", 3)])
 Z = Packed([("x", X.size), ("sums", S.size), ("count", None), ("initialized", None)])
 SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None)])
-CHUNK_SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None), ("tilt_var", None)])
+CHUNK_SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None), ("tilt_var", None),
+                       ("vel_var", None)])
 OUT = Packed([("roll", None), ("pitch", None), ("up", 3), ("quat", 4), ("bias", 3),
               ("flags", None)])
-ROW = Packed([("q0", 4), ("b0", 3), ("var0", NE), ("q1", 4), ("b1", 3), ("var1", NE),
+ROW = Packed([("q0", 4), ("b0", 3), ("s0", 3), ("var0", NE), ("q1", 4), ("b1", 3), ("var1", NE),
               ("disturbed", None), ("reacquired", None), ("reacquire0", None),
               ("reacquire1", None)])
 TRANS = Packed([("P0", NE * NE), ("F", NE * NE), ("P_prior", NE * NE), ("dx", NE),

@@ -82,7 +82,9 @@ DEFAULT_PARAMS = TiltParams()
 # with a tighter prior a bias of 0.1 rad/s left the estimate 11° off for tens of seconds while σ
 # claimed 1° (docs/tilt.md, "The uncertainty under faults").
 BIAS_PRIOR_RAD_S = 0.1
-DEFAULT_P0 = np.diag([0.05**2, 0.05**2, 0.1**2, 0.1**2] + [BIAS_PRIOR_RAD_S**2] * 3)
+SCALE_PRIOR = 0.005
+DEFAULT_P0 = np.diag([0.05**2, 0.05**2, 0.1**2, 0.1**2] + [BIAS_PRIOR_RAD_S**2] * 3
+                     + [SCALE_PRIOR**2] * 3)
 BLOCK = 32  # samples per Kalman update (the canal signal is integrated in between)
 
 # Physical range of a sample: twice the largest common MEMS ranges (gyros ±2000 °/s, accelerometers

@@ -60,7 +60,7 @@ def check_size(n: int) -> None:
 
 def matmul(a, b):
     """``a @ b`` of (..., n, k) and (..., k, m) stacks, element-wise (XLA on a CPU runs a
-    broadcast product and a sum over 7 × 7 matrices faster than a dot)."""
+    broadcast product and a sum over 10 × 10 matrices faster than a dot)."""
     return jnp.sum(a[..., :, :, None] * b[..., None, :, :], axis=-2)
 
 
@@ -85,7 +85,7 @@ def solve_spd(A, B):
 
 
 def rts_gains(P0, F, P_prior, split):
-    """The smoother gains ``C = P0 Fᵀ (P⁻)⁻¹`` of a stack of blocks ((M, 7, 7) each; ``split``
+    """The smoother gains ``C = P0 Fᵀ (P⁻)⁻¹`` of a stack of blocks ((M, 10, 10) each; ``split``
     (M,) bool: ``C = 0``). ``P⁻`` and ``P0`` are symmetric: ``C = ((P⁻)⁻¹ F P0)ᵀ``. A gain that
     is not finite (a covariance singular to rounding) splits there too: nothing finite becomes
     non-finite."""
@@ -95,9 +95,9 @@ def rts_gains(P0, F, P_prior, split):
 
 
 def rts_backward(P0, F, P_prior, dx, split, P_end):
-    """The backward pass (module doc) over M blocks: ``P0``, ``F``, ``P_prior`` (M, 7, 7), ``dx``
-    (M, 7), ``split`` (M,) bool, ``P_end`` (7, 7) the filtered covariance after the last block.
-    Returns ``(e, Ps)``: the smoothed error (M, 7) and covariance (M, 7, 7) at each block's start
+    """The backward pass (module doc) over M blocks: ``P0``, ``F``, ``P_prior`` (M, 10, 10), ``dx``
+    (M, 10), ``split`` (M,) bool, ``P_end`` (10, 10) the filtered covariance after the last block.
+    Returns ``(e, Ps)``: the smoothed error (M, 10) and covariance (M, 10, 10) at each block's start
     (a reverse ``lax.scan``)."""
     C = rts_gains(P0, F, P_prior, split)
 
@@ -119,8 +119,8 @@ def _diag(P):
 
 @jax.jit
 def _smooth_ends(rows, P_end):
-    """Per block (``rows`` (M, ``TRANS``), ``P_end`` (7, 7)): what its samples need (``ENDS``
-    (M, 43), see :func:`_smooth_samples`): the error corrections at its start ``e``, at its end
+    """Per block (``rows`` (M, ``TRANS``), ``P_end`` (10, 10)): what its samples need (``ENDS``
+    (M, 6 NE + 1), see :func:`_smooth_samples`): the error corrections at its start ``e``, at its end
     relative to the gyro-carried prediction ``e' + dx`` and at its last sample ``e'``; the
     smoothed variances minus the filtered ones at its start and end, and the smoothed ones at its
     end; ``split``."""
@@ -139,9 +139,9 @@ def _smooth_ends(rows, P_end):
 
 @jax.jit
 def _smooth_samples(ends, quat, bias, var, dts):
-    """The smoothed samples of a chunk of whole blocks: ``ends`` (M, 43) from
+    """The smoothed samples of a chunk of whole blocks: ``ends`` (M, 6 NE + 1) from
     :func:`_smooth_ends`, the filter's ``quat`` (M, block, 4), ``bias`` (M, block, 3), ``var``
-    (M, block, 7) and the valid steps ``dts`` (M, block) (0 where a sample's Δt is not valid).
+    (M, block, NE) and the valid steps ``dts`` (M, block) (0 where a sample's Δt is not valid).
     Returns the smoothed ``(quat, up, roll, pitch, bias, var)`` in the same layout."""
     block = dts.shape[1]
     e0, e1, e_last, v0, v1, v_last = (ends[:, None, i * NE:(i + 1) * NE] for i in range(6))
@@ -171,7 +171,7 @@ def _padded_blocks(m: int) -> int:
 def smoothed_output(out: core.TiltOutput, trans: Transitions, P_end, dts,
                     block: int) -> core.TiltOutput:
     """The filter's output ``out`` (NumPy, from the recording's start) smoothed with the run's
-    block updates ``trans`` (``tilt_batch.run(..., transitions=True)``), ``P_end`` (7, 7) the
+    block updates ``trans`` (``tilt_batch.run(..., transitions=True)``), ``P_end`` (10, 10) the
     final filtered covariance, ``dts`` (N,) the steps. The samples before the first updated
     block (up to the initialization) and after the last (the unfinished block) are the filter's:
     there the smoothed estimate is the filtered one. Flags and ``measured`` are the filter's.

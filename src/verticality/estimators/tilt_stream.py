@@ -84,12 +84,13 @@ def _tilt_error_from_force(f):
 
 def _kf(P, i0, m, z, r):
     """Joseph-form update for z = x[i0:i0+m] + n, n ~ N(0, r I) (as ``tilt_core.joseph_update``)."""
-    H = np.zeros((m, 7))
+    ne = P.shape[0]
+    H = np.zeros((m, ne))
     H[np.arange(m), i0 + np.arange(m)] = 1.0
     PHt = P[:, i0:i0 + m]
     S = P[i0:i0 + m, i0:i0 + m] + r * np.eye(m)
     K = PHt @ np.linalg.inv(S)
-    IKH = np.eye(7) - K @ H
+    IKH = np.eye(ne) - K @ H
     P = IKH @ P @ IKH.T + r * (K @ K.T)
     return K @ z, 0.5 * (P + P.T)
 
@@ -113,8 +114,9 @@ class Stream:
     ``gyr_range_rad_s``, ``acc_range_m_s2`` the full-scale readings (scalar or one per axis; None:
     no clipping; a stream cannot infer them from the recording's flat tops). A gyro component at or
     beyond its range adds the variance of an unknown constant excess rate (σ = ``EXCESS_FRACTION``
-    × range) over its clipped run to the tilt; an accelerometer sample with a component there is
-    dropped; both flag ``CLIPPED``. A sample repeating the previous one bit for bit is flagged
+    × range) over its clipped run to the tilt; an accelerometer component there is kept (the
+    other components are right, the clipped one a lower bound) and the same unknown excess over its
+    run widens the velocity; both flag ``CLIPPED``. A sample repeating the previous one bit for bit is flagged
     ``HELD``."""
 
     def __init__(self, params=None, block: int = BLOCK, P0=None, x0=None, gyr_range_rad_s=None,
@@ -124,6 +126,7 @@ class Stream:
         self.acc_range = None if acc_range_m_s2 is None else [
             float(v) for v in np.broadcast_to(np.asarray(acc_range_m_s2, dtype=float), (3,))]
         self.clip_t = [0.0, 0.0, 0.0]  # how long each gyro axis has been clipped
+        self.acc_clip_t = [0.0, 0.0, 0.0]  # and each accelerometer axis
         self.prev_bits = None  # the previous sample's six channels, as bytes
         self.p = DEFAULT_PARAMS if params is None else params
         self.block = block
@@ -133,6 +136,7 @@ class Stream:
         else:
             self.q = _qnorm(tuple(float(c) for c in x0[0]))
             self.b, self.initialized = [float(c) for c in x0[1]], True
+        self.s = [0.0, 0.0, 0.0]  # the gyro's scale-factor error per axis (reads 1 + s times)
         self.vel = np.zeros(2)
         self.acc_dev_var = 0.0
         self.rest_s = 0.0
@@ -159,6 +163,7 @@ class Stream:
     def _zero(self):
         self.dq = (1.0, 0.0, 0.0, 0.0)
         self.tau = self.t_acc = self.dev2 = self.w2 = self.t = self.qmiss = self.a2 = 0.0
+        self.vmiss = 0.0
         self.gap = 0
         self.f = [0.0, 0.0, 0.0]
         self.gsum = [0.0, 0.0, 0.0]
@@ -176,8 +181,18 @@ class Stream:
         held = bits == self.prev_bits and not any(math.isnan(v) for v in (*gyr3, *acc3))
         self.prev_bits = bits
         # clipping: a component at or beyond the given full scale
-        acc_clipped = self.acc_range is not None and any(
-            math.isfinite(v) and abs(v) >= r for v, r in zip(acc3, self.acc_range, strict=True))
+        # an accelerometer axis there: the reading is kept, its unknown excess (an unknown
+        # constant of σ = EXCESS_FRACTION × range over the run) widens the velocity
+        acc_clipped, clip_vvar = False, 0.0
+        for i in range(3):
+            if self.acc_range is not None and math.isfinite(acc3[i]) \
+                    and abs(acc3[i]) >= self.acc_range[i]:
+                acc_clipped = True
+                t0 = self.acc_clip_t[i]
+                self.acc_clip_t[i] = t1 = t0 + (dt if dt_ok else 0.0)
+                clip_vvar += (EXCESS_FRACTION * self.acc_range[i]) ** 2 * (t1 * t1 - t0 * t0)
+            else:
+                self.acc_clip_t[i] = 0.0
         clip_var, gyr_clipped = 0.0, False
         for i in range(3):
             if self.gyr_range is not None and math.isfinite(gyr3[i]) \
@@ -190,8 +205,7 @@ class Stream:
                 self.clip_t[i] = 0.0
         gyr_ok = dt_ok and abs(gx) < MAX_RATE_RAD_S and abs(gy) < MAX_RATE_RAD_S \
             and abs(gz) < MAX_RATE_RAD_S
-        acc_in = (abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
-                  and not acc_clipped)
+        acc_in = abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
         n2 = ax * ax + ay * ay + az * az if acc_in else 0.0
         acc_ok = dt_ok and n2 > 1e-6
         dts = dt if dt_ok else 0.0
@@ -208,8 +222,9 @@ class Stream:
                 self.tau += dts
             if gap or not gyr_ok:  # the rotation inside a gap is unknown
                 self.qmiss += (p.omega_missing_rad_s * dts) ** 2
-            if dt_ok:  # a clipped gyro axis's unknown excess
+            if dt_ok:  # a clipped gyro or accelerometer axis's unknown excess
                 self.qmiss += clip_var
+                self.vmiss += clip_vvar
             self.gap += gap
             r = _rotate(dq, (ax, ay, az))
             f, gs, as_ = self.f, self.gsum, self.asum
@@ -239,9 +254,9 @@ class Stream:
         if self.count == 0:
             q = self.q
         else:
-            b = self.b
+            b, s, gs = self.b, self.s, self.gsum
             q = _qnorm(_qmul(_qmul(self.q, self.dq),
-                             _qexp(-b[0] * self.tau, -b[1] * self.tau, -b[2] * self.tau)))
+                             _qexp(*(-(b[i] * self.tau + s[i] * gs[i]) for i in range(3)))))
         w, x, y, z = q
         up = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
         fl = ((0 if acc_ok or not dt_ok else ACC_MISSING) | (0 if gyr_ok or not dt_ok else GYR_MISSING)
@@ -258,8 +273,9 @@ class Stream:
         """The block update (T eq. 2, 7–13 in 3-D) in NumPy; (disturbed, re-acquired)."""
         p = self.p
         g = p.g_m_s2
-        b = np.array(self.b)
-        q_end = _qnorm(_qmul(_qmul(self.q, self.dq), _qexp(*(-b * self.tau))))
+        b, s, G = np.array(self.b), np.array(self.s), np.array(self.gsum)
+        # the gyro read as ω (1 + s) + b: the block's rotation corrected by b τ + s ⊙ Σ ω Δt
+        q_end = _qnorm(_qmul(_qmul(self.q, self.dq), _qexp(*(-(b * self.tau + s * G)))))
         w, x, y, z = q_end
         R2 = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)]])
@@ -270,14 +286,15 @@ class Stream:
         vel = self.vel + np.array(f_E)[:2]
         A = -T * R2
         gJ = g * np.array([[0.0, 1.0], [-1.0, 0.0]])
-        F = np.eye(7)
-        F[:2, 4:] = A
+        A_s = -R2 * G[None, :]  # the scale errors act as the bias errors, weighted by Σ ω Δt
+        F = np.eye(10)
+        F[:2, 4:7], F[:2, 7:] = A, A_s
         F[2:4, :2] = T * gJ
-        F[2:4, 4:] = 0.5 * T * gJ @ A
+        F[2:4, 4:7], F[2:4, 7:] = 0.5 * T * gJ @ A, 0.5 * T * gJ @ A_s
         q_gyr = p.gyr_noise**2 * tau + p.gyr_scale_noise**2 * self.w2 + self.qmiss
-        q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2
+        q_vel = p.acc_noise**2 * t_acc + (p.acc_missing_m_s2 * (T - t_acc)) ** 2 + self.vmiss
         qb = p.bias_walk**2 * T
-        P = F @ self.P @ F.T + np.diag([q_gyr, q_gyr, q_vel, q_vel, qb, qb, qb])
+        P = F @ self.P @ F.T + np.diag([q_gyr, q_gyr, q_vel, q_vel, qb, qb, qb, 0.0, 0.0, 0.0])
         dev2 = self.dev2 / t_acc_s
         if has_acc:
             alpha = 1.0 - math.exp(-t_acc / p.acc_tau_s)
@@ -296,7 +313,7 @@ class Stream:
                  and gd @ gd < p.rest_gyr_rad_s**2 and a_var < p.rest_acc_m_s2**2 and not gap)
         self.rest_s = self.rest_s + T if quiet else 0.0
         at_rest = self.rest_s >= p.rest_min_s
-        dx = np.zeros(7)
+        dx = np.zeros(10)
         f_sum = self.reacq_f_E + np.array(f_E) if collecting else np.zeros(3)
         t_sum = self.reacq_t + t_acc if collecting else 0.0
         reacq = collecting and t_sum >= p.reacquire_s
@@ -324,11 +341,11 @@ class Stream:
             widen = max(1.0, (v_dist / p.vel_m_s) ** 2)  # the speed a disturbance makes
             if persist:  # that window's tilt and bias corrections may be wrong: widen by them
                 P = _widen_tilt(P, float(self.vel_fix[:2] @ self.vel_fix[:2]))
-                P[4:, 4:] += np.diag(self.vel_fix[2:] ** 2)  # and the bias's
+                P[4:7, 4:7] += np.diag(self.vel_fix[2:] ** 2)  # and the bias's
             elif not jump:
                 dx, P1 = _kf(P, 2, 2, -vel,
                              widen * s_vel / t_acc_s * tau_motion / p.vel_corr_s)
-                self.vel_fix = lam * self.vel_fix + np.concatenate([dx[:2], dx[4:]])
+                self.vel_fix = lam * self.vel_fix + np.concatenate([dx[:2], dx[4:7]])
                 self.vel_inn, kept, P = inn, True, P1
             jump = jump or persist
         if not kept and (has_acc or gap or collecting):
@@ -341,10 +358,11 @@ class Stream:
             P[2, 2] = P[3, 3] = p.vel_m_s**2
         if at_rest:
             r_b = p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2
-            dx3, P = _kf(P, 4, 3, g_mean - (b + dx[4:]), r_b)
+            dx3, P = _kf(P, 4, 3, g_mean - (b + dx[4:7]), r_b)
             dx = dx + dx3
         self.q = _qnorm(_qmul(_qexp(dx[0], dx[1], 0.0), q_end))
-        self.b = [float(v) for v in b + dx[4:]]
+        self.b = [float(v) for v in b + dx[4:7]]
+        self.s = [float(v) for v in s + dx[7:]]
         self.vel = np.zeros(2) if forget else vel + dx[2:4]
         self.P = P
         self.reacquire = gap or (collecting and not reacq)

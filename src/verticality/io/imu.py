@@ -109,31 +109,6 @@ def check_units(gyr, acc, *, gyr_units: str | None = None, acc_units: str | None
     return gyr, acc
 
 
-SATURATION_MIN_M_S2 = 1.5 * G_M_S2  # a saturation level is above this ...
-SATURATION_MIN_COUNT = 3  # ... and read exactly by at least this many samples
-
-
-def mark_saturated(acc_m_s2) -> np.ndarray:
-    """The accelerometer with its saturated (clipped) readings replaced by ±inf: on each axis and
-    side, the extreme value when it is beyond ``SATURATION_MIN_M_S2`` and read exactly by at least
-    ``SATURATION_MIN_COUNT`` samples is the sensor's range, and a reading there stands for a value
-    beyond it. The filter takes such a reading as beyond the sensor's range (skipped, flag
-    ``OUT_OF_RANGE``), so that a clipped shake does not drive the estimate off while σ claims
-    precision. A noisy sensor reads no extreme value twice; a copy is returned."""
-    acc = np.array(acc_m_s2, dtype=np.float64)
-    for i in range(acc.shape[1] if acc.ndim == 2 else 0):
-        col = acc[:, i]
-        finite = col[np.isfinite(col)]
-        if finite.size == 0:
-            continue
-        for level, sign in ((finite.max(), 1.0), (finite.min(), -1.0)):
-            if sign * level > SATURATION_MIN_M_S2:
-                at = col == level
-                if np.count_nonzero(at) >= SATURATION_MIN_COUNT:
-                    col[at] = sign * np.inf
-    return acc
-
-
 def check_gyro_units_in_motion(gyr, acc, dt_s, source: str = "input") -> None:
     """Refuse a gyro (as rad/s) that looks like deg/s from how it moves with the accelerometer
     over steps ``dt_s`` (s): the accelerometer direction turns as the gyro would in deg/s
@@ -346,7 +321,6 @@ def _piece_from_rows(rows, line_numbers, lay, source, gyr_units, acc_units, prev
     gyr = data[:, [lay.index[k] for k in ("gyr_x", "gyr_y", "gyr_z")]]
     acc = data[:, [lay.index[k] for k in ("acc_x", "acc_y", "acc_z")]]
     gyr, acc = check_units(gyr, acc, gyr_units=gyr_units, acc_units=acc_units, source=source)
-    acc = mark_saturated(acc)
     if lay.time_unit is None and looks_like_ms(gyr, acc, dt_s):  # first: the time is the ruler
         raise InputError(f"{source}: the accelerometer direction turns as the gyro would if the "
                          "time steps were ms, not s; pass --time-unit ms (or time_unit='ms') to "

@@ -60,7 +60,6 @@ def load_imu(path, units: Iterable[str] = (), columns: str | dict[str, str] | No
         trial = broad.load_trial(path)
         gyr, acc = imu.check_units(trial.gyr_rad_s, trial.acc_m_s2, gyr_units=gyr_u,
                                    acc_units=acc_u, source=str(path), dt_s=trial.dt_s)
-        acc = imu.mark_saturated(acc)
         t = trial.t_s
         return ImuInput(t, gyr, acc, np.full(t.shape, trial.dt_s), None)
     mapping = imu_layout.parse_columns_spec(columns) if isinstance(columns, str) else columns
