@@ -17,6 +17,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from verticality.commands import add_engine_arguments
 from verticality.errors import InputError
 
 
@@ -32,11 +33,8 @@ def register(sub):
     p.add_argument("--out", type=Path, required=True, metavar="OUT.csv",
                    help="output CSV t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags "
                         "(a folder when INPUT is one)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="folder only: a local Dask cluster of N worker processes (default: the "
-                        "recordings one after the other in this process)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="folder only: run the recordings on a running Dask scheduler")
+    add_engine_arguments(p, "folder only: one task per recording",
+                         "the recordings one after the other in this process")
     p.add_argument("--resume", action="store_true",
                    help="folder only: keep the outputs of DIR that are complete, compute the rest")
     p.add_argument("--sigma", action="store_true",

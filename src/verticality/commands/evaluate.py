@@ -9,6 +9,8 @@ import json
 import sys
 from pathlib import Path
 
+from verticality.commands import add_engine_arguments
+
 
 def register(sub):
     p = sub.add_parser("evaluate", help="score tilt filters on recorded benchmarks")
@@ -21,11 +23,7 @@ def register(sub):
     b.add_argument("--filters", nargs="+", default=None, metavar="NAME",
                    help="filters to run (default: verticality, every installed peer, "
                         "verticality-offline (our smoother) and vqf-offline (offlineVQF))")
-    b.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="one task per trial on a local Dask cluster of N worker processes "
-                        "(default: the trials one after the other in this process)")
-    b.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="one task per trial on a running Dask scheduler")
+    add_engine_arguments(b, "one task per trial", "the trials one after the other in this process")
     b.set_defaults(func=run_broad)
 
 

@@ -5,14 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from verticality.commands import add_engine_arguments
+
 
 def register(sub):
     p = sub.add_parser("sweep", help="run a parameter sweep (Dask) into a Parquet table")
     p.add_argument("spec", type=Path, metavar="SPEC.toml", help="the sweep's specification")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="a running Dask scheduler (default: a local cluster of worker processes)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="worker processes of the local cluster (default: one per core)")
+    add_engine_arguments(p, "the sweep's tasks", "a local cluster of one worker per core")
     p.add_argument("--out", type=Path, default=Path("sweep-out"), metavar="DIR",
                    help="output folder (default: sweep-out)")
     p.add_argument("--resume", action="store_true",

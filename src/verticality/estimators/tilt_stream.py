@@ -104,6 +104,23 @@ def _widen_tilt(P, var_rad2):
     return P
 
 
+def _clipped(v, ranges, run_t, dt):
+    """Whether the sample ``v`` (3,) has a component at or beyond its full scale ``ranges`` (None:
+    no range), and the variance its unknown excess adds: per clipped axis an unknown constant of
+    σ = ``EXCESS_FRACTION`` × range over the clipped run, ``σ² (t_k² − t_{k−1}²)``. ``run_t``
+    (3,) each axis's run so far, updated in place."""
+    clipped, var = False, 0.0
+    for i in range(3):
+        if ranges is not None and math.isfinite(v[i]) and abs(v[i]) >= ranges[i]:
+            clipped = True
+            t0 = run_t[i]
+            run_t[i] = t1 = t0 + dt
+            var += (EXCESS_FRACTION * ranges[i]) ** 2 * (t1 * t1 - t0 * t0)
+        else:
+            run_t[i] = 0.0
+    return clipped, var
+
+
 class Stream:
     """Sample-by-sample tilt filter: ``s = Stream()``, ``out = s.step(gyr, acc, dt)`` with
     ``out = (roll, pitch, up(3), quat(4), bias(3), flags)`` — the per-sample outputs of
@@ -180,29 +197,11 @@ class Stream:
         bits = struct.pack("6d", gx, gy, gz, ax, ay, az)
         held = bits == self.prev_bits and not any(math.isnan(v) for v in (*gyr3, *acc3))
         self.prev_bits = bits
-        # clipping: a component at or beyond the given full scale
-        # an accelerometer axis there: the reading is kept, its unknown excess (an unknown
-        # constant of σ = EXCESS_FRACTION × range over the run) widens the velocity
-        acc_clipped, clip_vvar = False, 0.0
-        for i in range(3):
-            if self.acc_range is not None and math.isfinite(acc3[i]) \
-                    and abs(acc3[i]) >= self.acc_range[i]:
-                acc_clipped = True
-                t0 = self.acc_clip_t[i]
-                self.acc_clip_t[i] = t1 = t0 + (dt if dt_ok else 0.0)
-                clip_vvar += (EXCESS_FRACTION * self.acc_range[i]) ** 2 * (t1 * t1 - t0 * t0)
-            else:
-                self.acc_clip_t[i] = 0.0
-        clip_var, gyr_clipped = 0.0, False
-        for i in range(3):
-            if self.gyr_range is not None and math.isfinite(gyr3[i]) \
-                    and abs(gyr3[i]) >= self.gyr_range[i]:
-                gyr_clipped = True
-                t0 = self.clip_t[i]
-                self.clip_t[i] = t1 = t0 + (dt if dt_ok else 0.0)
-                clip_var += (EXCESS_FRACTION * self.gyr_range[i]) ** 2 * (t1 * t1 - t0 * t0)
-            else:
-                self.clip_t[i] = 0.0
+        # clipping: a component at or beyond the given full scale; the reading is kept and its
+        # unknown excess widens the tilt (gyro) or the velocity (accelerometer)
+        gyr_clipped, clip_var = _clipped(gyr3, self.gyr_range, self.clip_t, dt if dt_ok else 0.0)
+        acc_clipped, clip_vvar = _clipped(acc3, self.acc_range, self.acc_clip_t,
+                                          dt if dt_ok else 0.0)
         gyr_ok = dt_ok and abs(gx) < MAX_RATE_RAD_S and abs(gy) < MAX_RATE_RAD_S \
             and abs(gz) < MAX_RATE_RAD_S
         acc_in = abs(ax) < MAX_ACC_M_S2 and abs(ay) < MAX_ACC_M_S2 and abs(az) < MAX_ACC_M_S2
