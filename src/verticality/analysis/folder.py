@@ -167,14 +167,12 @@ def estimate_options(units=(), columns=None, time_unit=None, filter_name: str | 
     """The options of every recording's ``estimate`` (checked once, before any task), as a
     JSON-able dict."""
     from verticality.analysis.broad_eval import OURS
-    from verticality.analysis.imu_estimate import check_offline, check_ranges
+    from verticality.analysis.imu_estimate import check_offline, check_ranges, check_sigma
     from verticality.io.recording import parse_units
 
     filter_name = filter_name or OURS
     check_offline(filter_name, offline)
-    if sigma and filter_name != OURS:
-        raise InputError(f"--sigma: filter {filter_name} reports no uncertainty; use --filter "
-                         f"{OURS}")
+    check_sigma(filter_name, sigma)
     parse_units(units)
     if isinstance(columns, str):
         from verticality.io.imu_layout import parse_columns_spec

@@ -29,6 +29,13 @@ def check_offline(filter_name: str, offline: bool) -> None:
                          f"runs causally only (use --filter {OURS}, or leave out --offline)")
 
 
+def check_sigma(filter_name: str, sigma: bool) -> None:
+    """Refuse ``sigma`` for a filter other than ours (the peers report no uncertainty)."""
+    if sigma and filter_name != OURS:
+        raise InputError(f"--sigma: filter {filter_name} reports no uncertainty; use --filter "
+                         f"{OURS}")
+
+
 def check_ranges(filter_name: str, ranges: dict | None) -> dict:
     """The sensor ranges (``tilt.estimate``'s ``gyr_range_rad_s``, ``acc_range_m_s2``) that were
     given, refused for a filter other than ours (the peers do not take them)."""

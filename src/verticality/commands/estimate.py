@@ -52,7 +52,8 @@ def register(sub):
                         "docs/tilt.md, Sensors at their limits)")
     p.add_argument("--acc-range", type=float, default=None, metavar="G",
                    help="the accelerometer's full-scale range in g (e.g. 16): a reading there is "
-                        "clipped and dropped (flag 512; our filter only; default: inferred)")
+                        "clipped, kept with its excess's uncertainty (flag 512; our filter only; "
+                        "default: inferred)")
     p.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                    help="also draw roll, pitch, bias, the tilt's σ and the flags over time")
     add_layout_options(p)
@@ -85,9 +86,8 @@ def sensor_ranges(gyr_range_deg_s, acc_range_g) -> dict:
 def run(args) -> int:
     from rich.console import Console
 
-    from verticality.analysis.broad_eval import OURS
     from verticality.analysis.folder import is_folder_input
-    from verticality.analysis.imu_estimate import estimate_file
+    from verticality.analysis.imu_estimate import check_sigma, estimate_file
     from verticality.io.paths import check_input_file, check_paths
 
     if is_folder_input(args.input):
@@ -97,8 +97,7 @@ def run(args) -> int:
     if given:
         raise InputError(f"{', '.join(given)}: for a folder of recordings; {args.input} is a file")
     check_input_file(args.input)
-    if args.sigma and args.filter != OURS:
-        raise InputError(f"--sigma: filter {args.filter} reports no uncertainty; use --filter {OURS}")
+    check_sigma(args.filter, args.sigma)
     check_paths({"--out": args.out, "--plot": args.plot}, [args.input], figures=["--plot"])
 
     # a spinner on a terminal (nothing otherwise): a long recording takes a while to read and write

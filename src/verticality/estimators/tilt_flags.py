@@ -18,8 +18,8 @@ REACQUIRING = 128  # from a gap (or the start) to its re-acquisition: the estima
 OUT_OF_RANGE = 256  # a gyro or accelerometer component beyond the sensor's physical range
 # (tilt_params.MAX_RATE_RAD_S, MAX_ACC_M_S2; ±inf included): a corrupt sample, taken as missing
 CLIPPED = 512  # a gyro or accelerometer component at the sensor's clip level (tilt_limits): a
-# clipped gyro axis widens the tilt variance for its unknown excess, a clipped accelerometer sample
-# is taken as missing (with ACC_MISSING)
+# clipped gyro axis widens the tilt variance for its unknown excess, a clipped accelerometer axis
+# the velocity variance (both readings are kept)
 HELD = 1024  # the row repeats the previous row's six channels bit for bit (tilt_limits): a logger
 # faster than its sensor; filtered as any row (a zero-order hold over its true Δt)
 

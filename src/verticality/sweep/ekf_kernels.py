@@ -40,9 +40,10 @@ from typing import Any
 import numpy as np
 
 from verticality.experiments import ekf as E
+from verticality.experiments.newton import DIVERGED_DEG as NEWTON_DIVERGED_DEG
 from verticality.sweep.kernels import Kernel, Knob
 
-DIVERGED_DEG = 30.0
+DIVERGED_DEG = NEWTON_DIVERGED_DEG  # one rule for every kernel: newton-lissajous's
 SCALE_LO, SCALE_HI = 0.25, 3.0  # the trunk-motion scales allowed (a jump 4× faster: 4 ms edges)
 HEAD_RATE_SIGMA = E.SIGMA_PROCESS[3]  # P13 §5's σ_w
 

@@ -123,15 +123,19 @@ def map_tasks(fn: Callable, calls: Mapping[str, tuple], *, scheduler: str | None
     function)."""
     check_workers(workers)
     results: dict[str, object] = {}
+
+    def settle(key, get):  # the task's result, or its error's fate
+        try:
+            results[key] = get()
+        except Exception as exc:
+            if on_error is None:
+                raise
+            results[key] = on_error(key, exc)
+
     if not scheduler and workers is None:
         with progress_bar(description, len(calls), progress) as advance:
             for key, args in calls.items():
-                try:
-                    results[key] = fn(*args)
-                except Exception as exc:
-                    if on_error is None:
-                        raise
-                    results[key] = on_error(key, exc)
+                settle(key, lambda args=args: fn(*args))
                 advance()
         return results
     require_engine()
@@ -142,11 +146,6 @@ def map_tasks(fn: Callable, calls: Mapping[str, tuple], *, scheduler: str | None
                    for key, args in calls.items()}
         with progress_bar(description, len(futures), progress) as advance:
             for fut in as_completed(list(futures)):
-                try:
-                    results[futures[fut]] = fut.result()  # a task's error is raised here
-                except Exception as exc:
-                    if on_error is None:
-                        raise
-                    results[futures[fut]] = on_error(futures[fut], exc)
+                settle(futures[fut], fut.result)  # a task's error is raised by result()
                 advance()
     return {key: results[key] for key in calls}
