@@ -222,7 +222,7 @@ def _check_newton_knobs(extents: dict[str, tuple[float, float]]) -> str | None:
     - ``frequency_scale`` ≤ :data:`SCALE_HI` = 4: Θ's fastest component, 1 Hz in P11's motion,
       becomes 4 Hz, still 10 observer samples per period and 250 plant steps of 1 ms (whose inputs
       are held over the step: a relative error of (2π·4 Hz·1 ms)²/24 ≈ 3e-5);
-    - ``amplitude_scale`` ≤ 4: the trunk tilts up to 4 × P11's 45°, once around;
+    - ``amplitude_scale`` ≤ 4: the trunk tilts up to ±4 × P11's 45° = ±180°;
     - ``kp_Nm_rad`` ≤ :data:`KP_HI`, ``kd_Nms_rad`` ≤ :data:`KD_HI`: the PD torque is computed from
       the 1 ms estimate and held over each 1 ms step of a head of inertia K = 0.05 kg·m², so
       K_d·Δt/K must stay below 2 for the rate loop not to overshoot and grow; at 50 N·m·s/rad it is
