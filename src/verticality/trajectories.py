@@ -185,7 +185,10 @@ def jolt_position(t, t_c, sigma, peak_m_s2):
 # --------------------------------------------------------------------------------------------
 
 
-def lissajous_trunk(t_s, amplitude: float = 0.25):
+LISSAJOUS_AMPLITUDE = 0.25  # P11 §VI's A (m; the tilt's amplitude is A·π rad)
+
+
+def lissajous_trunk(t_s, amplitude: float = LISSAJOUS_AMPLITUDE):
     """P11 §VI / F §4.3.2, the one definition of the Lissajous trunk motion:
     ``(x, z, Θ)(t) = A·(sin 0.5πt, sin πt, π sin 2πt)``, A = 0.25 — horizontal and vertical
     position (m) and tilt (rad, about the axis normal to the plane), stacked on a leading axis of
@@ -196,7 +199,7 @@ def lissajous_trunk(t_s, amplitude: float = 0.25):
                       A * jnp.pi * jnp.sin(2.0 * jnp.pi * t_s)])
 
 
-def lissajous(amplitude: float = 0.25, duration_s: float = 10.0) -> Trajectory:
+def lissajous(amplitude: float = LISSAJOUS_AMPLITUDE, duration_s: float = 10.0) -> Trajectory:
     """P11 §VI (and F §4.3): :func:`lissajous_trunk` as a 3-D trajectory.
 
     P11's plane is the coronal plane (models/planar.py: the head's y–z plane, rotations about x):

@@ -82,6 +82,7 @@ from verticality.models.planar import (
     head_frame_to_inertial,
     inclinometer_reading,
 )
+from verticality.trajectories import LISSAJOUS_AMPLITUDE
 
 DT_S = 1e-3
 SUBSTEPS = 25  # 1 ms plant steps per observer sample (25 ms spacing)
@@ -122,25 +123,37 @@ def make_observer(p_obs: PlanarHead, config: newton.NewtonConfig = CONFIG,
 
 @partial(jax.jit, static_argnames=("n_blocks", "config"))
 def simulate(p_true: PlanarHead, p_obs: PlanarHead, fixed, noise_rad, key, n_blocks: int,
-             config: newton.NewtonConfig = CONFIG) -> RunSeries:
-    """Closed loop of plant, 1 ms estimate propagation, PD (stabilized) and the Newton observer."""
+             config: newton.NewtonConfig = CONFIG, *, amplitude_scale=1.0, frequency_scale=1.0,
+             kp_Nm_rad=KP, kd_Nms_rad=KD) -> RunSeries:
+    """Closed loop of plant, 1 ms estimate propagation, PD (stabilized) and the Newton observer.
+
+    The trunk moves through :func:`lissajous_plant.trunk` with amplitude ``amplitude_scale`` × P11's
+    A and time scale ``frequency_scale`` (the motion at t is the published one at
+    ``frequency_scale · t``); the fixed head starts with the rate of that motion, ω_H(0) = Θ̇(0).
+    ``kp_Nm_rad``, ``kd_Nms_rad``: the stabilized head's PD gains (the fixed head has no
+    controller). All four may be traced (vmapped over); at their defaults the run is P11's."""
     obs = make_observer(p_obs, config)
     plant, model = lp.plant(p_true), lp.plant(p_obs)
-    theta_dot0 = lp.trunk(0.0).Theta_dot_rad_s
+    amplitude = LISSAJOUS_AMPLITUDE * amplitude_scale
+
+    def trunk_at(t):
+        return lp.trunk(t, amplitude, frequency_scale)
+
+    theta_dot0 = trunk_at(0.0).Theta_dot_rad_s
     x0 = PlanarState(jnp.asarray(0.0), jnp.asarray(0.0), jnp.where(fixed, 0.0, 0.1),
                      jnp.where(fixed, theta_dot0, 0.0))
     xh0 = PlanarState(*(jnp.zeros(()) for _ in range(4)))
     noise = noise_rad * jax.random.normal(key, (n_blocks,))
     # the trunk's motion at the middle of every 1 ms step, for the whole run at once (vectorized)
     t_mid = jnp.arange(n_blocks * SUBSTEPS) * DT_S + 0.5 * DT_S
-    trunk = jax.tree_util.tree_map(lambda a: a.reshape(n_blocks, SUBSTEPS), lp.trunk(t_mid))
+    trunk = jax.tree_util.tree_map(lambda a: a.reshape(n_blocks, SUBSTEPS), trunk_at(t_mid))
 
     def fast(carry, tr):
         x, xh = carry
         # the trunk's acceleration in head-frame components (what the head's IMU reads)
         a_h_H, a_z_H = head_frame_to_inertial(tr.a_h_I_m_s2, tr.a_z_I_m_s2, -x.theta_H_rad)
         tau = jnp.where(fixed, p_true.K_kg_m2 * tr.Theta_ddot_rad_s2,
-                        -KP * xh.theta_H_rad - KD * xh.omega_H_rad_s)
+                        -kp_Nm_rad * xh.theta_H_rad - kd_Nms_rad * xh.omega_H_rad_s)
         u = HeadInput(tau, a_h_H, a_z_H)
         x1 = step_rk4(plant, x, u, DT_S)
         xh1 = step_rk4(model, xh, u, DT_S)

@@ -30,7 +30,7 @@ import jax.numpy as jnp
 
 from verticality.models.planar import PlanarHead, WithHeadFrameInput
 from verticality.models.ramp_discretized import RampDiscretized
-from verticality.trajectories import lissajous_trunk
+from verticality.trajectories import LISSAJOUS_AMPLITUDE, lissajous_trunk
 
 
 def p11_head(scale: float = 1.0) -> PlanarHead:
@@ -65,14 +65,20 @@ class TrunkSample(NamedTuple):
     Theta_ddot_rad_s2: jnp.ndarray
 
 
-def trunk(t_s, amplitude: float = 0.25) -> TrunkSample:
+def trunk(t_s, amplitude=LISSAJOUS_AMPLITUDE, frequency_scale=1.0) -> TrunkSample:
     """The trunk's horizontal and vertical acceleration and its tilt Θ with two derivatives at the
     times ``t_s`` (any shape): the derivatives of :func:`verticality.trajectories.lissajous_trunk`
-    by forward-mode autodiff."""
+    by forward-mode autodiff.
+
+    ``amplitude`` is the motion's A (default P11's 0.25; x, z and Θ all scale with it);
+    ``frequency_scale`` is its time scale: the motion at time t is the published one at
+    ``frequency_scale · t`` (so velocities scale by ``frequency_scale``, accelerations by its
+    square, by the chain rule of the autodiff). Both may be traced values. At the defaults the
+    samples are the published motion's to the bit (the products by 1.0 are exact)."""
     t = jnp.asarray(t_s, dtype=jnp.float64)
 
     def pos(s):
-        return lissajous_trunk(s, amplitude)
+        return lissajous_trunk(frequency_scale * s, amplitude)
 
     def vel(s):
         return jax.jvp(pos, (s,), (jnp.ones_like(s),))

@@ -23,6 +23,24 @@ the reading noise is the same with or without it): a level is a bound on every p
 "uncertainties of up to ±level". The drawn parts are columns of the table (``m_drawn_error``, …;
 the observer's error of ``m`` is ``m_rel_error + m_drawn_error``); at level 0 they are zero and
 every run gives the numbers it gave before the knob existed (to the bit).
+
+The knobs of the trunk motion and of the controller, all traced (per run, inside one compiled
+batch), are keywords of :func:`~verticality.experiments.newton.simulate`:
+
+- ``amplitude_scale`` (≥ 0, default 1): the Lissajous amplitude A = 0.25 times this (x, z and Θ
+  all scale with A; 0 is a trunk at rest);
+- ``frequency_scale`` (> 0, default 1): the motion's time scale, the trunk at t being the published
+  motion at ``frequency_scale · t`` (:func:`verticality.models.lissajous_plant.trunk`); the fixed
+  head starts with that motion's rate Θ̇(0);
+- ``kp_Nm_rad``, ``kd_Nms_rad`` (> 0, default P11's 230 and 15): the stabilized head's PD gains;
+  the fixed head has no controller and does not use them.
+
+The names and meaning of the scales are those of the ``ekf-*`` kernels; their ranges and the
+gains' are justified in ``_check_newton_knobs``. A batch whose runs are all at the published motion
+(both scales 1) leaves the scales out of the compiled function: the motion's samples are then
+constants, as before the knobs existed, and the runs are today's to the bit; scales of 1 in a batch
+with other scales give the same runs within ~2e-15 relative (XLA then computes the motion at run
+time instead of folding it into constants, and the runs differ in the last bits).
 """
 
 from __future__ import annotations
@@ -121,16 +139,25 @@ def drawn_errors(error_level, seeds):
     return jax.vmap(one)(error_level, seeds)
 
 
+MOTION_KNOBS = ("amplitude_scale", "frequency_scale", "kp_Nm_rad", "kd_Nms_rad")  # simulate's
+SCALE_HI = 4.0  # the greatest amplitude and frequency scales (see _check_newton_knobs)
+KP_HI = 2000.0  # N·m/rad: ω_n = √(K_p / K) = 200 rad/s, 0.2 rad per 1 ms step (K = 0.05 kg·m²)
+KD_HI = 50.0  # N·m·s/rad: K_d·Δt / K = 1, the rate loop's per-step limit (see _check_newton_knobs)
+
+
 @partial(jax.jit, static_argnames=("n_blocks",))
-def newton_lissajous_batch(rel_errors, fixed, noise_rad, seeds, n_blocks: int):
+def newton_lissajous_batch(rel_errors, fixed, noise_rad, seeds, motion=None, *, n_blocks: int):
     """vmap over runs of the `newton-lissajous` closed loop; ``rel_errors`` is a
     :class:`~verticality.models.planar.PlanarHead` of (B,) relative errors (the observer's value is
-    the plant's, leaf by leaf, times ``1 + error``); returns the per-run metrics."""
+    the plant's, leaf by leaf, times ``1 + error``); ``motion`` maps each of :data:`MOTION_KNOBS`
+    to its (B,) values (keywords of :func:`~verticality.experiments.newton.simulate`, traced;
+    None or a knob left out: simulate's default); returns the per-run metrics."""
     p_true = lp.p11_head(1.0)
+    motion = {} if motion is None else motion
 
-    def one(rel, f, sigma, seed):
+    def one(rel, f, sigma, seed, mo):
         p_obs = jax.tree_util.tree_map(lambda v, e: v * (1.0 + e), p_true, rel)
-        s = E.simulate(p_true, p_obs, f, sigma, jax.random.PRNGKey(seed), n_blocks)
+        s = E.simulate(p_true, p_obs, f, sigma, jax.random.PRNGKey(seed), n_blocks, **mo)
         err = E.tilt_error_deg(s)
         scored = s.t_s >= E.SETTLE_S - 1e-9
         finite = jnp.all(jnp.isfinite(jnp.where(scored, err, 0.0))) & jnp.all(
@@ -146,10 +173,10 @@ def newton_lissajous_batch(rel_errors, fixed, noise_rad, seeds, n_blocks: int):
                 "converged_fraction": conv,
                 "diverged": ~finite | (max_err > E.DIVERGED_DEG)}
 
-    return jax.vmap(one)(rel_errors, fixed, noise_rad, seeds)
+    return jax.vmap(one)(rel_errors, fixed, noise_rad, seeds, motion)
 
 
-def _newton_lissajous_args(columns: dict[str, np.ndarray], seeds: np.ndarray, duration_s: float):
+def newton_lissajous_args(columns: dict[str, np.ndarray], seeds: np.ndarray, duration_s: float):
     """The batch function's arguments and the drawn errors (B, 5) of the runs."""
     n = seeds.shape[0]
     seeds = jnp.asarray(seeds, dtype=jnp.int64)
@@ -158,27 +185,49 @@ def _newton_lissajous_args(columns: dict[str, np.ndarray], seeds: np.ndarray, du
     rel = PlanarHead(**{leaf: jnp.asarray(columns[_rel_name(leaf)], dtype=jnp.float64) + drawn[:, i]
                         for i, leaf in enumerate(PARAMETERS)}, g_m_s2=jnp.zeros(n))
     n_blocks = int(round(duration_s / (E.SUBSTEPS * E.DT_S)))
+    # a batch of the published motion leaves the scales out (simulate's constants 1): the motion's
+    # samples are then known when compiling and XLA folds them, as it did before the scales were
+    # knobs (traced scales of 1 give the same runs within ~2e-15 relative, not to the bit)
+    published = all(np.all(np.asarray(columns[k], dtype=np.float64) == 1.0)
+                    for k in ("amplitude_scale", "frequency_scale"))
+    motion = {k: jnp.asarray(columns[k], dtype=jnp.float64) for k in MOTION_KNOBS
+              if not (published and k in ("amplitude_scale", "frequency_scale"))}
     return (rel, jnp.asarray(columns["head"] == "fixed"),
-            jnp.asarray(columns["noise_rad"], dtype=jnp.float64), seeds, n_blocks), drawn
+            jnp.asarray(columns["noise_rad"], dtype=jnp.float64), seeds, motion, n_blocks), drawn
 
 
 def _newton_lissajous(columns: dict[str, np.ndarray], seeds: np.ndarray, *,
                       duration_s: float) -> dict[str, np.ndarray]:
-    args, drawn = _newton_lissajous_args(columns, seeds, duration_s)
-    out = {k: np.asarray(v) for k, v in newton_lissajous_batch(*args).items()}
+    args, drawn = newton_lissajous_args(columns, seeds, duration_s)
+    out = {k: np.asarray(v) for k, v in newton_lissajous_batch(*args[:-1],
+                                                                n_blocks=args[-1]).items()}
     return out | {_drawn_name(leaf): np.asarray(drawn[:, i]) for i, leaf in enumerate(PARAMETERS)}
 
 
 def _compile_newton_lissajous(batch: int, *, duration_s: float) -> None:
     columns = {k: np.full(batch, v.default, dtype=object if v.choices else np.float64)
                for k, v in NEWTON_LISSAJOUS.knobs.items()}
-    args, _ = _newton_lissajous_args(columns, np.zeros(batch, dtype=np.int64), duration_s)
+    args, _ = newton_lissajous_args(columns, np.zeros(batch, dtype=np.int64), duration_s)
     newton_lissajous_batch.lower(*args[:-1], n_blocks=args[-1]).compile()
 
 
 def _check_newton_knobs(extents: dict[str, tuple[float, float]]) -> str | None:
     """Every parameter's total error, its knob plus a draw down to −error_level, must stay > −1
-    (a positive parameter)."""
+    (a positive parameter).
+
+    The motion's and the gains' own ranges keep the runs within what the 1 ms simulation and the
+    25 ms observer resolve (no combination of them needs a further limit: a fixed head that cannot
+    follow a fast, wide motion diverges, which the table says):
+
+    - ``frequency_scale`` ≤ :data:`SCALE_HI` = 4: Θ's fastest component, 1 Hz in P11's motion,
+      becomes 4 Hz, still 10 observer samples per period and 250 plant steps of 1 ms (whose inputs
+      are held over the step: a relative error of (2π·4 Hz·1 ms)²/24 ≈ 3e-5);
+    - ``amplitude_scale`` ≤ 4: the trunk tilts up to ±4 × P11's 45° = ±180°;
+    - ``kp_Nm_rad`` ≤ :data:`KP_HI`, ``kd_Nms_rad`` ≤ :data:`KD_HI`: the PD torque is computed from
+      the 1 ms estimate and held over each 1 ms step of a head of inertia K = 0.05 kg·m², so
+      K_d·Δt/K must stay below 2 for the rate loop not to overshoot and grow; at 50 N·m·s/rad it is
+      1 (the rate is cancelled in one step), and at 2000 N·m/rad the loop's natural frequency
+      √(K_p/K) is 200 rad/s, 0.2 rad per step."""
     level = extents["error_level"][1]
     for leaf in PARAMETERS:
         least = extents[_rel_name(leaf)][0]
@@ -206,7 +255,15 @@ NEWTON_LISSAJOUS = Kernel(
                              lo_open=True, hi=10.0) for leaf in PARAMETERS}
     | {"noise_rad": Knob(1e-4, "σ of the white noise on each 25 ms reading (rad)", lo=0.0, hi=1.0)}
     | {"error_level": Knob(0.0, "bound of a random error, uniform in ±level, drawn from the seed "
-                                "for every parameter on top of its own", lo=0.0, hi=0.99)},
+                                "for every parameter on top of its own", lo=0.0, hi=0.99)}
+    | {"amplitude_scale": Knob(1.0, "the Lissajous amplitude A = 0.25 × this (x, z and Θ)",
+                               lo=0.0, hi=SCALE_HI),
+       "frequency_scale": Knob(1.0, "the motion's time scale, t → this × t (frequencies × this)",
+                               lo=0.0, lo_open=True, hi=SCALE_HI),
+       "kp_Nm_rad": Knob(E.KP, "the stabilized head's PD gain on θ̂_H (N·m/rad; not the fixed "
+                               "head's)", lo=0.0, lo_open=True, hi=KP_HI),
+       "kd_Nms_rad": Knob(E.KD, "the stabilized head's PD gain on ω̂_H (N·m·s/rad; not the fixed "
+                                "head's)", lo=0.0, lo_open=True, hi=KD_HI)},
     options={"duration_s": 10.0},
     metrics=("max_error_deg", "rms_error_deg", "converged_fraction"),
     drawn=tuple(_drawn_name(leaf) for leaf in PARAMETERS),
