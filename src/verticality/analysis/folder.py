@@ -32,11 +32,7 @@ SUMMARY_NAMES = ("summary.csv", "summary.json", "folder.json")  # in OUT beside 
 FILE_SUFFIXES = (".csv", ".json", ".parquet", ".h5", ".hdf5", ".txt", ".png")
 ROWS_DIR = "rows"
 # the summary's count of samples carrying each flag bit (tilt_flags), by column
-FLAG_COLUMNS = {F.ACC_MISSING: "n_acc_missing", F.GYR_MISSING: "n_gyr_missing",
-                F.BAD_DT: "n_bad_dt", F.ACC_DISTURBED: "n_acc_disturbed", F.INIT: "n_init",
-                F.DT_GAP: "n_dt_gap", F.REACQUIRED: "n_reacquired",
-                F.REACQUIRING: "n_reacquiring", F.OUT_OF_RANGE: "n_out_of_range",
-                F.CLIPPED: "n_clipped", F.HELD: "n_held"}
+FLAG_COLUMNS = {bit: f"n_{key}" for bit, key in F.FLAG_KEYS.items()}
 SUMMARY_COLUMNS = (("file", "output", "status", "error", "rows", "duration_s", "share_flagged",
                     "mean_sigma_deg") + tuple(FLAG_COLUMNS.values()) + ("wall_s",))
 
