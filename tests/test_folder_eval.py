@@ -142,6 +142,19 @@ def test_folder_inputs_refused_before_work(tmp_path, capsys):
         assert len(err) == 1 and words in err[0], err
 
 
+def test_a_file_name_as_the_folder_output_is_refused(tmp_path, capsys):
+    d = tmp_path / "in"
+    d.mkdir()
+    gyr, acc, _ = tumbling(np.zeros(3), 200)
+    imu.write_imu_csv(d / "r.csv", imu.ImuRecording(np.arange(200) * 0.01, gyr, acc))
+    assert cli.main(["estimate", str(d), "--out", str(tmp_path / "est.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "names a folder, not a .csv file" in err[0], err
+    assert not (tmp_path / "est.csv").exists()
+    assert cli.main(["estimate", str(d), "--out", str(tmp_path / "est")]) == 0
+    assert (tmp_path / "est" / "r.csv").is_file()
+
+
 def test_without_the_extra_the_distributed_path_says_what_to_install(tmp_path, monkeypatch,
                                                                      capsys):
     d = tmp_path / "in"

@@ -28,13 +28,11 @@ from verticality.estimators import tilt_flags as F
 
 RECORDING_SUFFIXES = (".csv", ".hdf5", ".h5")
 SUMMARY_NAMES = ("summary.csv", "summary.json", "folder.json")  # in OUT beside the outputs
+# suffixes of files, not folders: a new --out with one is a file name given by mistake
+FILE_SUFFIXES = (".csv", ".json", ".parquet", ".h5", ".hdf5", ".txt", ".png")
 ROWS_DIR = "rows"
 # the summary's count of samples carrying each flag bit (tilt_flags), by column
-FLAG_COLUMNS = {F.ACC_MISSING: "n_acc_missing", F.GYR_MISSING: "n_gyr_missing",
-                F.BAD_DT: "n_bad_dt", F.ACC_DISTURBED: "n_acc_disturbed", F.INIT: "n_init",
-                F.DT_GAP: "n_dt_gap", F.REACQUIRED: "n_reacquired",
-                F.REACQUIRING: "n_reacquiring", F.OUT_OF_RANGE: "n_out_of_range",
-                F.CLIPPED: "n_clipped", F.HELD: "n_held"}
+FLAG_COLUMNS = {bit: f"n_{key}" for bit, key in F.FLAG_KEYS.items()}
 SUMMARY_COLUMNS = (("file", "output", "status", "error", "rows", "duration_s", "share_flagged",
                     "mean_sigma_deg") + tuple(FLAG_COLUMNS.values()) + ("wall_s",))
 
@@ -188,6 +186,9 @@ def prepare(out_dir: Path, options: dict, resume: bool, recordings: list[Path]) 
     made with the same options."""
     from verticality.io.paths import check_output_folder
 
+    if not out_dir.exists() and out_dir.suffix.lower() in FILE_SUFFIXES:
+        raise InputError(f"--out {out_dir}: a folder of recordings gives one output per "
+                         f"recording, so --out names a folder, not a {out_dir.suffix} file")
     out_dir = check_output_folder(out_dir, "--out", recordings)
     record = out_dir / "folder.json"
     if record.exists():

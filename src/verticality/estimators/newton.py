@@ -18,9 +18,12 @@ manifold: the Newton step δ lives in the model's tangent coordinates, ``ξ ← 
 than the papers did it:
 
 - **Exact Jacobian** ∂H_T/∂δ by forward-mode autodiff (the papers used finite differences): the
-  per-sample Jacobians ∂(F(x ⊞ δ) ⊟ F(x))/∂δ and ∂H(x ⊞ δ)/∂δ by ``jax.jacfwd`` at every sample of
-  the window at once (``vmap``), chained along the window (Φ_k = A_k·Φ_{k−1}, rows C_k·Φ_k); equal
-  to ``jacfwd`` through the whole window to rounding, at about half its cost on CPU.
+  per-sample transition Jacobians ∂(F(x ⊞ δ) ⊟ F(x))/∂δ come out of the window's rollout itself
+  (``jax.jacfwd`` of each transition with the next state as its auxiliary output: one forward pass
+  gives the trajectory and its tangents, so the model is evaluated once per sub-step, not once for
+  the rollout and again for the Jacobian), the output Jacobians ∂H(x ⊞ δ)/∂δ at every sample at
+  once (``vmap``); they are chained along the window (Φ_k = A_k·Φ_{k−1}, rows C_k·Φ_k). Equal to
+  ``jacfwd`` through the whole window to rounding.
 - **Damped least squares** (Levenberg–Marquardt) instead of the inverse in F 4.4: the map may be
   non-square (N·p ≠ n) or ill-conditioned. Columns of the Jacobian are scaled to unit norm (states of
   different units), the step is ``δ = V diag(s/(s²+μ²)) Uᵀ r`` from a thin SVD, and the damping μ² is
@@ -28,9 +31,9 @@ than the papers did it:
   square map and μ → 0 this is exactly Newton's step (F 4.4).
 - **Warm start**: the observer keeps its estimated trajectory over the window; the first guess of
   a new window is the previous solution carried forward (or the model prediction before any solve).
-  That carried trajectory is the model's rollout from the guess, so the first linearization reuses
-  it (``NewtonState.rollout`` counts its consistent entries; a non-finite prediction resets it and
-  the window is then rolled out again).
+  The first linearization rolls the window out from that guess again (the rollout gives the
+  Jacobian too, so reusing the carried trajectory would save nothing, and a branch on whether it
+  can be reused costs both branches under ``vmap``).
 - **Flags**: ``rank_deficient`` (scaled s_min/s_max < ``rcond``; the estimate stays finite, along
   unobservable directions it keeps the warm start), ``converged`` (an accepted step changed the
   predicted outputs by less than ``step_tol`` within d iterations, and the window is not
@@ -85,7 +88,6 @@ class NewtonState(NamedTuple):
     count: jnp.ndarray  # samples received
     since_solve: jnp.ndarray
     last: Any  # NewtonOutput of the last solve (diagnostics carried between solves)
-    rollout: jnp.ndarray  # trailing entries of xs_window that are the model's rollout (N: all)
 
 
 class NewtonOutput(NamedTuple):
@@ -156,11 +158,18 @@ class NewtonObserver:
     def _n_outputs(self, x) -> int:
         return jax.eval_shape(self._h, x, self.u_template).shape[0]
 
-    def _jac_f(self, x, u, x_next, dt):
-        """∂(F(x ⊞ δ) ⊟ x_next)/∂δ at δ = 0 (x_next = F(x): the tangent transition matrix)."""
+    def _transition_jac(self, x, u, dt):
+        """``(F(x), A)`` with A = ∂(F(x ⊞ δ) ⊟ F(x))/∂δ at δ = 0 (the tangent transition matrix),
+        from one forward-mode pass: F(x) is the pass's primal (auxiliary output), not a second
+        evaluation."""
         zero = jnp.zeros_like(self.model.difference(x, x))
-        return jax.jacfwd(lambda d: self.model.difference(
-            self.model.transition(self.model.retract(x, d), u, dt), x_next))(zero)
+
+        def f(d):
+            x1 = self.model.transition(self.model.retract(x, d), u, dt)
+            return self.model.difference(x1, jax.lax.stop_gradient(x1)), x1
+
+        A, x1 = jax.jacfwd(f, has_aux=True)(zero)
+        return x1, A
 
     def _jac_h(self, x, u):
         zero = jnp.zeros_like(self.model.difference(x, x))
@@ -168,33 +177,36 @@ class NewtonObserver:
 
     # ------------------------------------------------------------------ one window
 
-    def observability_map(self, xi, us, dt):
-        """H_T of F §4.3.1: the predicted outputs over the window from ξ (flat, (N·p,)), and the
-        trajectory (model states with a leading axis N)."""
+    def rollout(self, xi, us, dt):
+        """The window rolled out from ξ: the predicted outputs H_T(ξ, U) (flat, (N·p,)), the
+        trajectory (model states with a leading axis N) and the N − 1 tangent transition matrices
+        A_k along it (:meth:`_transition_jac`), all from one pass. Callers that use only the first
+        two get the plain rollout: under ``jit`` the unused tangents are dead code."""
         u0 = _index(us, 0)
         rest = _tmap(lambda a: a[1:], us)
 
         def body(x, u):
-            x1 = self.model.transition(x, u, dt)
-            return x1, (self._h(x1, u), x1)
+            x1, A = self._transition_jac(x, u, dt)
+            return x1, (self._h(x1, u), x1, A)
 
-        _, (ys_rest, xs_rest) = jax.lax.scan(body, xi, rest)
+        _, (ys_rest, xs_rest, A) = jax.lax.scan(body, xi, rest)
         Y = jnp.concatenate([self._h(xi, u0)[None], ys_rest], axis=0).reshape(-1)
         xs = _tmap(lambda a, b: jnp.concatenate([a[None], b], axis=0), xi, xs_rest)
+        return Y, xs, A
+
+    def observability_map(self, xi, us, dt):
+        """H_T of F §4.3.1: the predicted outputs over the window from ξ (flat, (N·p,)), and the
+        trajectory (model states with a leading axis N)."""
+        Y, xs, _ = self.rollout(xi, us, dt)
         return Y, xs
 
-    def solve(self, xi0, us, ys, mask, dt, xs0=None) -> WindowSolution:
+    def solve(self, xi0, us, ys, mask, dt) -> WindowSolution:
         """Up to d damped Gauss–Newton (Levenberg–Marquardt) iterations on one window (F 4.3–4.4).
 
-        ``xs0``, if given, must be the model's trajectory from ``xi0`` through the window
-        (``observability_map(xi0, us, dt)[1]``, e.g. the observer's carried warm start): the first
-        linearization then reuses it instead of rolling the window out again.
-
-        Each iteration costs one pass through the window for the outputs and the trajectory at the
-        candidate, then the exact Jacobian by the chain rule: the per-sample tangent transition
-        Jacobians (``jax.jacfwd`` of the model, all samples at once under ``vmap``) multiplied
-        along the window (the same exact derivative as ``jacfwd`` through the whole window, to
-        rounding, at about half the cost on CPU). A candidate that does not lower the cost is
+        Each iteration costs one forward-mode pass through the window (:meth:`rollout`: the
+        outputs, the trajectory and the per-sample tangent transition matrices at the candidate),
+        then the exact Jacobian by the chain rule along the window (the same exact derivative as
+        ``jacfwd`` through the whole window, to rounding). A candidate that does not lower the cost is
         rejected (the damping grows, the stored Jacobian is reused). Iterations stop early once
         the next proposed step would change the predicted outputs by less than ``step_tol`` (RMS,
         relative to 1 + RMS of the measurements): that is the convergence flag; d is the maximum
@@ -209,17 +221,8 @@ class NewtonObserver:
         m = jnp.maximum(jnp.sum(w), 1.0)
         y_scale = 1.0 + jnp.sqrt(jnp.sum((w * ys_flat) ** 2) / m)
 
-        rest = _tmap(lambda a: a[1:], us)
-        x_next = lambda xs: _tmap(lambda a: a[1:], xs)  # noqa: E731
-        x_prev = lambda xs: _tmap(lambda a: a[:-1], xs)  # noqa: E731
-
-        def evaluate(xi, xs_known=None):
-            if xs_known is None:
-                Y, xs = self.observability_map(xi, us, dt)
-            else:
-                xs = xs_known
-                Y = jax.vmap(self._h)(xs, us).reshape(-1)
-            A = jax.vmap(lambda x, u, x1: self._jac_f(x, u, x1, dt))(x_prev(xs), rest, x_next(xs))
+        def evaluate(xi):
+            Y, xs, A = self.rollout(xi, us, dt)
             C = jax.vmap(self._jac_h)(xs, us)
 
             def chain(P, a):
@@ -244,7 +247,7 @@ class NewtonObserver:
             lin = (Us, s, Vt, scale, jnp.where(jnp.isfinite(r), r, 0.0))
             return ok, jnp.where(ok, cost, jnp.inf), xs, lin, deficient, cond
 
-        ok0, cost0, xs_0, lin0, def0, cond0 = evaluate(xi0, xs0)
+        ok0, cost0, xs_0, lin0, def0, cond0 = evaluate(xi0)
 
         def proposal(lin, mu2):
             Us, s, Vt, scale, r = lin
@@ -321,24 +324,18 @@ class NewtonObserver:
                             measured=jnp.zeros(p, dtype=bool))
         xs = _tmap(lambda a: jnp.broadcast_to(a, (N,) + jnp.shape(a)), x0)
         return NewtonState(x_hat=x0, xs_window=xs, ys=jnp.zeros((N, p)), mask=jnp.zeros((N, p)),
-                           us=us, count=jnp.asarray(0), since_solve=jnp.asarray(0), last=last,
-                           rollout=jnp.asarray(1))
+                           us=us, count=jnp.asarray(0), since_solve=jnp.asarray(0), last=last)
 
     def _predicted(self, state: NewtonState, u, y, dt):
         """Predict (F 4.1) and push (u, y) into the window: the step without a solve."""
-        N = int(self.config.window)
         y = jnp.reshape(jnp.asarray(y, dtype=float), state.ys.shape[1:])
         finite_y = jnp.isfinite(y)
-        x_pred, pred_ok = keep_finite(self.model.transition(state.x_hat, u, dt), state.x_hat)
-        # the window stays the model's rollout from its first entry while predictions are pushed
-        # (x_hat is always the window's last entry); a replaced non-finite prediction breaks it
-        rollout = jnp.where(pred_ok, jnp.minimum(state.rollout + 1, N), 1)
+        x_pred, _ = keep_finite(self.model.transition(state.x_hat, u, dt), state.x_hat)
         out = state.last._replace(x_hat=x_pred, solved=jnp.asarray(False), measured=finite_y)
         return NewtonState(x_hat=x_pred, xs_window=_push(state.xs_window, x_pred),
                            ys=_push(state.ys, jnp.where(finite_y, y, 0.0)),
                            mask=_push(state.mask, finite_y.astype(float)), us=_push(state.us, u),
-                           count=state.count + 1, since_solve=state.since_solve + 1, last=out,
-                           rollout=rollout)
+                           count=state.count + 1, since_solve=state.since_solve + 1, last=out)
 
     def predict(self, state: NewtonState, u, dt) -> NewtonState:
         """The time update alone: the model's prediction, (u, no measurement) pushed, no solve."""
@@ -353,20 +350,14 @@ class NewtonObserver:
                     & jnp.any(pred.last.measured))
 
         def solved(_):
-            # warm start: the carried window is already the rollout from its first entry (reuse
-            # it), unless a non-finite prediction broke it (roll the window out again)
-            xs_start = jax.lax.cond(
-                pred.rollout >= N, lambda: pred.xs_window,
-                lambda: self.observability_map(_index(pred.xs_window, 0), pred.us, dt)[1])
-            sol = self.solve(_index(pred.xs_window, 0), pred.us, pred.ys, pred.mask, dt, xs_start)
+            # warm start: the first entry of the carried window
+            sol = self.solve(_index(pred.xs_window, 0), pred.us, pred.ys, pred.mask, dt)
             out = NewtonOutput(x_hat=_index(sol.xs, -1), solved=jnp.asarray(True),
                                converged=sol.converged, rank_deficient=sol.rank_deficient,
                                residual_rms=sol.residual_rms, cond=sol.cond,
                                iterations=sol.iterations, measured=pred.last.measured)
-            # the solution is a rollout (of the accepted ξ, or of the warm start) unless the solve
-            # fell back to a constant window, which needs a non-finite warm-start rollout
             return pred._replace(x_hat=out.x_hat, xs_window=sol.xs, since_solve=jnp.asarray(0),
-                                 last=out, rollout=jnp.where(all_finite(xs_start), N, 1))
+                                 last=out)
 
         new_state = jax.lax.cond(do_solve, solved, lambda _: pred, None)
         return new_state, new_state.last

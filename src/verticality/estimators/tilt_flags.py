@@ -29,6 +29,11 @@ FLAG_NAMES = {ACC_MISSING: "accelerometer missing", GYR_MISSING: "gyro missing",
               REACQUIRED: "tilt re-acquired", REACQUIRING: "re-acquiring",
               OUT_OF_RANGE: "beyond the sensor's range", CLIPPED: "clipped",
               HELD: "held (repeated row)"}
+# short identifiers of the bits (table columns such as a folder summary's ``n_<key>``)
+FLAG_KEYS = {ACC_MISSING: "acc_missing", GYR_MISSING: "gyr_missing", BAD_DT: "bad_dt",
+             ACC_DISTURBED: "acc_disturbed", INIT: "init", DT_GAP: "dt_gap",
+             REACQUIRED: "reacquired", REACQUIRING: "reacquiring", OUT_OF_RANGE: "out_of_range",
+             CLIPPED: "clipped", HELD: "held"}
 
 
 def accelerometer_used(flags):
