@@ -147,3 +147,43 @@ def test_bad_knob_is_one_clear_error(change, words):
     with pytest.raises(InputError) as exc:
         S.parse(TINY.replace(*change))
     assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_sweep_plot_maps_each_feed(tmp_path, capsys):
+    """`sweep-plot` of an ambiguity-walking table (made up, written as a finished sweep): one
+    column of maps per feed; each cell's divergence share and median final tilt error (over the
+    runs that did not diverge) equal the group-by of the table."""
+    import pyarrow as pa
+
+    from verticality.cli import main
+    from verticality.sweep import category_maps, maps
+
+    rng = np.random.default_rng(1)
+    n = 300
+    cols = _columns(n, feed=list(rng.choice(["known", "luenberger", "ekf"], n)),
+                    walking_scale=list(rng.choice([0.0, 0.5, 1.0], n)),
+                    head_inertia_rel_error=list(rng.choice([-0.3, 0.0, 0.3], n)))
+    cols["feed"] = cols["feed"].astype(str)
+    table = {"run": np.arange(n), **cols, "seed": np.zeros(n, dtype=np.int64)}
+    diverged = rng.random(n) < 0.3
+    table |= {m: rng.gamma(2.0, 1.0, n) for m in METRICS} | {"diverged": diverged}
+    pq.write_table(pa.table(table), tmp_path / "results.parquet")
+    (tmp_path / "spec.toml").write_text(TINY, encoding="utf-8")
+    png = tmp_path / "maps.png"
+    assert main(["sweep-plot", str(tmp_path), "--x", "head_inertia_rel_error", "--y",
+                 "walking_scale", "--out", str(png)]) == 0
+    assert capsys.readouterr().out.strip() == str(png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    m = category_maps.compute(*maps.read(tmp_path), "head_inertia_rel_error", "walking_scale")
+    assert list(m.runs) == ["known", "luenberger", "ekf"] and m.metric == "final_tilt_error_deg"
+    for feed in m.runs:
+        for j, y in enumerate(m.y_values):
+            for i, x in enumerate(m.x_values):
+                sel = ((cols["feed"] == feed) & (cols["head_inertia_rel_error"] == x)
+                       & (cols["walking_scale"] == y))
+                assert m.runs[feed][j, i] == sel.sum()
+                assert m.p_diverged[feed][j, i] == diverged[sel].mean()
+                assert m.median[feed][j, i] == np.median(
+                    table["final_tilt_error_deg"][sel & ~diverged])
+    assert main(["sweep-plot", str(tmp_path), "--x", "feed"]) == 2
+    assert "cannot map over 'feed'" in capsys.readouterr().err
