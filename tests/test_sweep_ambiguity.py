@@ -129,6 +129,8 @@ def test_internal_model_errors_reach_the_observer_and_the_pd():
     assert internal_model(0.0, 0.0, 0.0)[0] == true
     assert E.pd_gains() == (E.KP_NM_RAD, E.KD_NMS_RAD)
     assert E.luenberger_poles(E.OMEGA_N_RAD_S) == E.LUENBERGER_POLES
+    with pytest.raises(InputError, match="both noise_rad and seeds"):
+        E.sweep("known", [5.0], [0.0], 2.0, noise_rad=[1e-4])
 
 
 @pytest.mark.parametrize("change, words", [

@@ -71,6 +71,7 @@ import numpy as np
 
 from verticality import trajectories as tr
 from verticality.analysis import ambiguity as am
+from verticality.errors import InputError
 from verticality.estimators import luenberger as lu
 from verticality.estimators.ekf import ExtendedKalmanFilter
 from verticality.experiments import Result, check, register
@@ -256,6 +257,8 @@ def sweep(kind: str, theta0_deg, ref_deg, duration_s: float, walking_scale: floa
     value), the observer's ``poles`` and the PD's ``gains`` are those of every run; ``noise_rad``
     and ``seeds`` (arrays of the sweep's length, both or neither) add to each run's reading a white
     noise of σ ``noise_rad`` drawn from its seed (:func:`reading_noise_rad`)."""
+    if (noise_rad is None) != (seeds is None):
+        raise InputError("ambiguity sweep: give both noise_rad and seeds, or neither")
     n = int(round(duration_s / DT_S))
     acc, acc_st = jax.tree_util.tree_map(lambda v: walking_scale * v, walking_head_acceleration(n))
     th0 = jnp.radians(jnp.asarray(theta0_deg, float))
