@@ -71,6 +71,7 @@ import numpy as np
 
 from verticality import trajectories as tr
 from verticality.analysis import ambiguity as am
+from verticality.errors import InputError
 from verticality.estimators import luenberger as lu
 from verticality.estimators.ekf import ExtendedKalmanFilter
 from verticality.experiments import Result, check, register
@@ -95,10 +96,7 @@ from verticality.params import (
 DT_S = 1e-4
 SUBSTEPS = 1
 OMEGA_N_RAD_S = 2.0 * math.pi * F452_OTOLITH_NATURAL_HZ
-LUENBERGER_POLES = tuple(-2.0 * OMEGA_N_RAD_S * k for k in (1.0, 1.1, 1.2, 1.3))
 HEAD_LOOP_RAD_S = 10.0
-KP_NM_RAD = F452_HEAD_INERTIA_KG_M2 * HEAD_LOOP_RAD_S**2
-KD_NMS_RAD = 2.0 * F452_HEAD_INERTIA_KG_M2 * HEAD_LOOP_RAD_S
 THETA0_DEG = 5.0
 WALK_T0_S = 2.0  # the walking stimulus from 2 s on: steady gait, after its 1 s start-up
 CONVERGED_DEG = 10.0
@@ -110,24 +108,48 @@ KINDS = ("known", "luenberger", "luenberger_exact", "ekf", "ekf_gauss_markov")
 UNKNOWN_FEEDS = KINDS[1:]
 
 
-def plant() -> WithHeadFrameInput:
-    """F §4.5.2's head + otolith (the planar model value, driven by torque and ᴴa)."""
+def plant(omega_n_rad_s: float = OMEGA_N_RAD_S,
+          damping_ratio: float = F452_OTOLITH_DAMPING_RATIO,
+          J_h_kg_m2: float = F452_HEAD_INERTIA_KG_M2) -> WithHeadFrameInput:
+    """F §4.5.2's head + otolith (the planar model value, driven by torque and ᴴa); the arguments
+    give an internal model with other values (the otolith's natural frequency and damping ratio,
+    the head's inertia), defaults F's."""
     return WithHeadFrameInput(f44_platform(
-        g_over_l_s2=OMEGA_N_RAD_S**2, beta_over_ml2_s=2.0 * F452_OTOLITH_DAMPING_RATIO * OMEGA_N_RAD_S,
-        J_h_kg_m2=F452_HEAD_INERTIA_KG_M2))
+        g_over_l_s2=omega_n_rad_s**2, beta_over_ml2_s=2.0 * damping_ratio * omega_n_rad_s,
+        J_h_kg_m2=J_h_kg_m2))
 
 
-def linear_model() -> LinearModel:
-    """F 4.10: :func:`plant` linearized at upright; inputs (τ, ᴴa_h), output the reading."""
+def luenberger_poles(omega_n_rad_s: float = OMEGA_N_RAD_S) -> tuple[float, ...]:
+    """The observer's poles, twice the (assumed) sensor's natural frequency: ``−2ω_n·(1, 1.1,
+    1.2, 1.3)``."""
+    return tuple(-2.0 * omega_n_rad_s * k for k in (1.0, 1.1, 1.2, 1.3))
+
+
+def pd_gains(J_h_kg_m2: float = F452_HEAD_INERTIA_KG_M2,
+             loop_rad_s: float = HEAD_LOOP_RAD_S) -> tuple[float, float]:
+    """``(k_p, k_d)`` of a critically damped head loop at ``loop_rad_s`` on the (assumed) head
+    inertia: ``(J ω², 2 J ω)``."""
+    return J_h_kg_m2 * loop_rad_s**2, 2.0 * J_h_kg_m2 * loop_rad_s
+
+
+LUENBERGER_POLES = luenberger_poles()
+KP_NM_RAD, KD_NMS_RAD = pd_gains()
+
+
+def linear_model(model: WithHeadFrameInput | None = None) -> LinearModel:
+    """F 4.10: ``model`` (default :func:`plant`) linearized at upright; inputs (τ, ᴴa_h), output
+    the reading."""
     z = jnp.asarray(0.0)
-    return select_inputs(linearize(plant(), PlanarState(z, z, z, z), HeadInput(z, z, z)), [0, 1])
+    model = plant() if model is None else model
+    return select_inputs(linearize(model, PlanarState(z, z, z, z), HeadInput(z, z, z)), [0, 1])
 
 
-def ekf(a_decay_1_s: float = 0.0) -> ExtendedKalmanFilter:
-    """The EKF on :func:`plant` with the horizontal acceleration as a state: a random walk
-    (``a_decay_1_s = 0``) or a first-order Gauss–Markov process of time constant ``1/a_decay_1_s``."""
-    model = Discretized(WithAccelerationState(plant(), a_decay_1_s), substeps=SUBSTEPS,
-                        single_input=True)
+def ekf(a_decay_1_s: float = 0.0, model: WithHeadFrameInput | None = None) -> ExtendedKalmanFilter:
+    """The EKF on ``model`` (default :func:`plant`) with the horizontal acceleration as a state: a
+    random walk (``a_decay_1_s = 0``) or a first-order Gauss–Markov process of time constant
+    ``1/a_decay_1_s``."""
+    model = Discretized(WithAccelerationState(plant() if model is None else model, a_decay_1_s),
+                        substeps=SUBSTEPS, single_input=True)
     return ExtendedKalmanFilter(model=model, Q=jnp.diag(jnp.asarray(EKF_Q_SIGMAS) ** 2),
                                 R=jnp.array([[EKF_R_RAD**2]]), reset_jacobian=False)
 
@@ -157,11 +179,14 @@ class Series(NamedTuple):
     reading: jnp.ndarray
 
 
-def closed_loop(kind: str, theta0_rad, ref_rad, acc, acc_stages, n_steps: int, obs, disc, filt):
+def closed_loop(kind: str, theta0_rad, ref_rad, acc, acc_stages, n_steps: int, obs, disc, filt,
+                gains=(KP_NM_RAD, KD_NMS_RAD), noise_rad=None):
     """One closed-loop run of feed ``kind`` (:data:`KINDS`) with the Luenberger observer ``obs``
-    (``disc`` its discretization at :data:`DT_S`) or the EKF ``filt``; returns :class:`Series` per
-    sample."""
+    (``disc`` its discretization at :data:`DT_S`) or the EKF ``filt``, the PD's ``gains``
+    ``(k_p, k_d)``; ``noise_rad`` (n_steps,), if given, is added to the otolith's reading (what the
+    observer, the EKF and the reconstruction see); returns :class:`Series` per sample."""
     truth = plant()
+    kp, kd = gains
     a_h, a_z = (jnp.asarray(v) for v in acc)
     a_h_st, a_z_st = (jnp.asarray(v) for v in acc_stages)
     r0 = am.planar_reading(a_h[0], a_z[0], theta0_rad)
@@ -174,6 +199,8 @@ def closed_loop(kind: str, theta0_rad, ref_rad, acc, acc_stages, n_steps: int, o
     def body(carry, k):
         x, ls, es, u_prev = carry
         y = truth.output(x)
+        if noise_rad is not None:
+            y = y + noise_rad[k]
         if kind.startswith("ekf"):
             es, _ = filt.step(es, u_prev, y, DT_S)
             th_hat, om_hat, a_hat = es.x.head.theta_H_rad, es.x.head.omega_H_rad_s, es.x.a_h_H_m_s2
@@ -184,7 +211,7 @@ def closed_loop(kind: str, theta0_rad, ref_rad, acc, acc_stages, n_steps: int, o
             else:
                 a_hat = am.planar_head_acceleration(y[0], a_z[k], th_hat,
                                                     small_angle=(kind == "luenberger"))
-        tau = KP_NM_RAD * (ref_rad - th_hat) - KD_NMS_RAD * om_hat
+        tau = kp * (ref_rad - th_hat) - kd * om_hat
         if not kind.startswith("ekf"):
             ls, _ = obs.step_discrete(ls, jnp.stack([tau, a_hat]), y, disc)
 
@@ -204,21 +231,47 @@ def closed_loop(kind: str, theta0_rad, ref_rad, acc, acc_stages, n_steps: int, o
 
 
 _closed_loop_batch = jax.jit(
-    jax.vmap(closed_loop, in_axes=(None, 0, 0, None, None, None, None, None, None)),
+    jax.vmap(closed_loop, in_axes=(None, 0, 0, None, None, None, None, None, None, None, 0)),
     static_argnums=(0, 5))
 
 
-def sweep(kind: str, theta0_deg, ref_deg, duration_s: float, walking_scale: float = 1.0) -> Series:
+@jax.jit
+def reading_noise_rad(noise_rad, seeds, like):
+    """Per run, ``noise_rad`` × standard normal samples of the shape of ``like`` (n_steps,), drawn
+    from ``jax.random.PRNGKey(seed)``; at σ = 0 they are −0.0, which added to a reading leaves it
+    unchanged to the bit (sign of zero included)."""
+
+    def one(sigma, seed):
+        z = jax.random.normal(jax.random.PRNGKey(seed), like.shape)
+        return jnp.where(sigma == 0.0, -0.0, sigma * z)
+
+    return jax.vmap(one)(noise_rad, seeds)
+
+
+def sweep(kind: str, theta0_deg, ref_deg, duration_s: float, walking_scale: float = 1.0, *,
+          model: WithHeadFrameInput | None = None, gains=(KP_NM_RAD, KD_NMS_RAD),
+          poles=LUENBERGER_POLES, noise_rad=None, seeds=None) -> Series:
     """Runs of ``kind`` for each pair (θ₀, θ_ref) in degrees (arrays of one length), the walking
     acceleration scaled by ``walking_scale`` (0: a head that only rotates); numpy :class:`Series`
-    with a leading sweep axis."""
+    with a leading sweep axis. The internal model ``model`` (default :func:`plant`, the truth's
+    value), the observer's ``poles`` and the PD's ``gains`` are those of every run; ``noise_rad``
+    and ``seeds`` (arrays of the sweep's length, both or neither) add to each run's reading a white
+    noise of σ ``noise_rad`` drawn from its seed (:func:`reading_noise_rad`)."""
+    if (noise_rad is None) != (seeds is None):
+        raise InputError("ambiguity sweep: give both noise_rad and seeds, or neither")
     n = int(round(duration_s / DT_S))
     acc, acc_st = jax.tree_util.tree_map(lambda v: walking_scale * v, walking_head_acceleration(n))
     th0 = jnp.radians(jnp.asarray(theta0_deg, float))
     ref = jnp.radians(jnp.asarray(ref_deg, float))
-    obs = lu.design(linear_model(), LUENBERGER_POLES)
-    filt = ekf(1.0 / EKF_GAUSS_MARKOV_TAU_S if kind == "ekf_gauss_markov" else 0.0)
-    out = _closed_loop_batch(kind, th0, ref, acc, acc_st, n, obs, obs.discretize(DT_S), filt)
+    obs = lu.design(linear_model(model), poles)
+    filt = ekf(1.0 / EKF_GAUSS_MARKOV_TAU_S if kind == "ekf_gauss_markov" else 0.0, model)
+    noise = None
+    if noise_rad is not None:
+        noise = reading_noise_rad(jnp.asarray(noise_rad, float), jnp.asarray(seeds, jnp.int64),
+                                  jnp.zeros(n))
+    gains = tuple(jnp.asarray(g, float) for g in gains)
+    out = _closed_loop_batch(kind, th0, ref, acc, acc_st, n, obs, obs.discretize(DT_S), filt,
+                             gains, noise)
     return Series(*(np.asarray(v) for v in out))
 
 

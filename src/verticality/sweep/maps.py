@@ -17,12 +17,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from verticality.errors import InputError
 from verticality.sweep import spec as sweep_spec
 from verticality.sweep.kernels import Kernel
+
+if TYPE_CHECKING:
+    from verticality.sweep.category_maps import CategoryMaps
 
 HEADS = ("fixed", "stabilized")
 MAX_LEVELS = 12
@@ -129,13 +133,18 @@ def read(out_dir: Path) -> tuple[Kernel, dict[str, np.ndarray]]:
 
 
 def write(out_dir: Path, x: str | None = None, y: str | None = None,
-          path: Path | None = None) -> tuple[Path, Maps]:
+          path: Path | None = None) -> tuple[Path, Maps | CategoryMaps]:
     """Read the sweep in ``out_dir``, compute its maps and write them as a PNG (default
-    ``out_dir/maps-X-Y.png``)."""
+    ``out_dir/maps-X-Y.png``); a kernel without a ``head`` knob gets
+    :mod:`verticality.sweep.category_maps`' maps instead."""
     from verticality.sweep.distribute import require_engine
 
     require_engine()
     kernel, columns = read(out_dir)
+    if "head" not in kernel.knobs:  # no heads to compare: maps per value of its category
+        from verticality.sweep import category_maps
+
+        return category_maps.write(kernel, columns, out_dir, x, y, path)
     maps = compute(kernel, columns, x, y)
     path = Path(path) if path is not None else Path(out_dir) / f"maps-{maps.x}-{maps.y}.png"
     return figure(maps, path, f"{kernel.name}: {columns['run'].size} runs"), maps
