@@ -57,24 +57,9 @@ def compute(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None = None
     xv, xi, xb = head_maps.cells(columns[x])
     yv, yi, yb = head_maps.cells(columns[y])
     cat = np.asarray(columns[category]).astype(str)
-    diverged = np.asarray(columns["diverged"], dtype=bool)
-    values = np.asarray(columns[metric], dtype=np.float64)
     present = [c for c in kernel.knobs[category].choices if np.any(cat == c)]
-    runs, p_div, med = {}, {}, {}
-    for c in present:
-        n = np.zeros((yv.size, xv.size))
-        p = np.full((yv.size, xv.size), np.nan)
-        m = np.full((yv.size, xv.size), np.nan)
-        for j in range(yv.size):
-            for i in range(xv.size):
-                sel = (cat == c) & (xi == i) & (yi == j)
-                n[j, i] = np.sum(sel)
-                if n[j, i]:
-                    p[j, i] = np.mean(diverged[sel])
-                    kept = values[sel & ~diverged]
-                    if kept.size:
-                        m[j, i] = np.median(kept)
-        runs[c], p_div[c], med[c] = n, p, m
+    runs, p_div, med = head_maps.grid_cells(cat, present, xi, yi, xv.size, yv.size,
+                                            columns["diverged"], columns[metric])
     return CategoryMaps(x, y, category, metric, xv, yv, (xb, yb), runs, p_div, med)
 
 

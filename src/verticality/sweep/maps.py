@@ -85,6 +85,32 @@ def choose_knobs(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None,
     return x, y
 
 
+def grid_cells(group, groups, xi, yi, nx: int, ny: int, diverged, values):
+    """Per value ``g`` of ``groups`` (the runs whose column ``group`` equals it), on the (ny, nx)
+    grid of cell indices ``xi``, ``yi``: the number of runs, the share that diverged and the
+    median of ``values`` over the runs that did not (NaN where a cell has none); three dicts
+    ``g →`` (ny, nx) array."""
+    group = np.asarray(group).astype(str)
+    diverged = np.asarray(diverged, dtype=bool)
+    values = np.asarray(values, dtype=np.float64)
+    runs, p_div, med = {}, {}, {}
+    for g in groups:
+        n = np.zeros((ny, nx))
+        p = np.full((ny, nx), np.nan)
+        m = np.full((ny, nx), np.nan)
+        for j in range(ny):
+            for i in range(nx):
+                sel = (group == g) & (xi == i) & (yi == j)
+                n[j, i] = np.sum(sel)
+                if n[j, i]:
+                    p[j, i] = np.mean(diverged[sel])
+                    kept = values[sel & ~diverged]
+                    if kept.size:
+                        m[j, i] = np.median(kept)
+        runs[g], p_div[g], med[g] = n, p, m
+    return runs, p_div, med
+
+
 def compute(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None = None,
             y: str | None = None) -> Maps:
     """The maps of the table ``columns`` (name → array) of a sweep of ``kernel``."""
@@ -94,24 +120,8 @@ def compute(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None = None
     x, y = choose_knobs(kernel, columns, x, y)
     xv, xi, xb = cells(columns[x])
     yv, yi, yb = cells(columns[y])
-    head = np.asarray(columns["head"]).astype(str)
-    diverged = np.asarray(columns["diverged"], dtype=bool)
-    err = np.asarray(columns["max_error_deg"], dtype=np.float64)
-    runs, p_div, med = {}, {}, {}
-    for h in HEADS:
-        n = np.zeros((yv.size, xv.size))
-        p = np.full((yv.size, xv.size), np.nan)
-        m = np.full((yv.size, xv.size), np.nan)
-        for j in range(yv.size):
-            for i in range(xv.size):
-                sel = (head == h) & (xi == i) & (yi == j)
-                n[j, i] = np.sum(sel)
-                if n[j, i]:
-                    p[j, i] = np.mean(diverged[sel])
-                    kept = err[sel & ~diverged]
-                    if kept.size:
-                        m[j, i] = np.median(kept)
-        runs[h], p_div[h], med[h] = n, p, m
+    runs, p_div, med = grid_cells(columns["head"], HEADS, xi, yi, xv.size, yv.size,
+                                  columns["diverged"], columns["max_error_deg"])
     point = None
     if x in kernel.published and y in kernel.published:
         point = (kernel.published[x], kernel.published[y])
