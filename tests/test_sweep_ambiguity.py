@@ -189,3 +189,18 @@ def test_sweep_plot_maps_each_feed(tmp_path, capsys):
                     table["final_tilt_error_deg"][sel & ~diverged])
     assert main(["sweep-plot", str(tmp_path), "--x", "feed"]) == 2
     assert "cannot map over 'feed'" in capsys.readouterr().err
+    # the curve along a knob, one line per feed: the group-by of the table, printed as a table
+    from verticality.sweep import curves
+
+    c = curves.compute(*maps.read(tmp_path), "walking_scale")
+    assert (c.group, c.groups, c.metric) == ("feed", ("known", "luenberger", "ekf"),
+                                             "final_tilt_error_deg")
+    for feed in c.groups:
+        for i, v in enumerate(c.values):
+            sel = (cols["feed"] == feed) & (cols["walking_scale"] == v)
+            assert (c.runs[feed][i], c.diverged[feed][i]) == (sel.sum(), diverged[sel].sum())
+            assert c.median[feed][i] == np.median(table["final_tilt_error_deg"][sel & ~diverged])
+    assert main(["sweep-plot", str(tmp_path), "--curve", "walking_scale"]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out[:-1] == curves.table(c) and "luenberger: median final_tilt_error_deg" in out[0]
+    assert (tmp_path / "curve-walking_scale.png").stat().st_size > 10_000

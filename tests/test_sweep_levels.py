@@ -157,9 +157,9 @@ def _assert_curve_is_the_groupby(c: curves.Curve, cols) -> None:
             assert (c.p_low[h][i], c.p_high[h][i]) == pytest.approx(curves.wilson(k, n),
                                                                     nan_ok=True)
             if (h, v) in med:
-                assert c.median_max_error_deg[h][i] == med[(h, v)]
+                assert c.median[h][i] == med[(h, v)]
             else:
-                assert np.isnan(c.median_max_error_deg[h][i])
+                assert np.isnan(c.median[h][i])
     assert seen == len(g)
 
 

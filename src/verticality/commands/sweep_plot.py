@@ -1,7 +1,7 @@
 """``verticality sweep-plot DIR [--x KNOB] [--y KNOB] [--curve KNOB] [--out FILE.png]``: the maps
 of a finished sweep (divergence probability, median max error per head, their ratio) as one PNG,
-or with ``--curve`` the divergence rate along one knob per head, its table printed
-(docs/sweep.md)."""
+or with ``--curve`` the divergence rate along one knob per head (or per value of a kernel's
+categorical knob, e.g. the feed of ``ambiguity-walking``), its table printed (docs/sweep.md)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,8 @@ def register(sub):
     p.add_argument("--y", default=None, metavar="KNOB", help="knob along y (default: the next)")
     p.add_argument("--curve", default=None, metavar="KNOB",
                    help="instead of the maps: the divergence rate (95 %% intervals) and median max "
-                        "error along KNOB per head, drawn and printed as a table")
+                        "error along KNOB per head (per value of the categorical knob for a "
+                        "kernel without heads), drawn and printed as a table")
     p.add_argument("--out", type=Path, default=None, metavar="FILE.png",
                    help="the figure (default: DIR/maps-X-Y.png or DIR/curve-KNOB.png)")
     p.set_defaults(func=run)

@@ -1,10 +1,13 @@
-"""A sweep's divergence rate along one knob, per head, with its uncertainty.
+"""A sweep's divergence rate along one knob, per head (or per value of a categorical knob), with
+its uncertainty.
 
 For each value of the knob and each head (``fixed``, ``stabilized``): the number of runs, the
 number that **diverged** and their share with its 95 % **Wilson score interval**
 (:func:`wilson`; it stays inside [0, 1] and is not degenerate at 0 or n divergences, unlike the
 normal approximation), and the **median max error** of the runs that did not diverge (NaN when all
-did). Unlike the maps (:mod:`verticality.sweep.maps`) the knob is not binned: a curve is for a
+did). A kernel without a ``head`` knob (``ambiguity-walking``) is split instead by its first
+categorical knob (:func:`verticality.sweep.category_maps.category_of`, e.g. the feed), and the
+median is of its first metric. Unlike the maps (:mod:`verticality.sweep.maps`) the knob is not binned: a curve is for a
 knob the design sets to a few values, such as ``error_level``.
 
 :func:`compute` makes the curve from the table's columns; :func:`write` reads a finished sweep and
@@ -21,7 +24,7 @@ import numpy as np
 
 from verticality.errors import InputError
 from verticality.sweep.kernels import Kernel
-from verticality.sweep.maps import HEADS, NEEDED
+from verticality.sweep.maps import HEADS
 
 Z_95 = 1.959963984540054  # the standard normal's 97.5 % quantile
 MAX_VALUES = 30
@@ -43,27 +46,47 @@ def wilson(k: int, n: int, z: float = Z_95) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class Curve:
-    """Per head (keys of the dicts), arrays over ``values`` (the knob's distinct values)."""
+    """Per group (a value of the column ``group``: the heads, or a categorical knob's values; the
+    keys of the dicts), arrays over ``values`` (the knob's distinct values)."""
 
     knob: str
     values: np.ndarray
+    group: str  # the column that splits the runs ("head", or a categorical knob)
+    groups: tuple[str, ...]
+    metric: str  # the metric whose median is given ("max_error_deg" for heads)
     runs: dict[str, np.ndarray]
     diverged: dict[str, np.ndarray]  # counts
     p_low: dict[str, np.ndarray]  # the 95 % Wilson interval of the share diverged
     p_high: dict[str, np.ndarray]
-    median_max_error_deg: dict[str, np.ndarray]  # over the runs that did not diverge
+    median: dict[str, np.ndarray]  # of ``metric``, over the runs that did not diverge
     mark: tuple[float, str] | None = None  # a published threshold on the knob
 
-    def p_diverged(self, head: str) -> np.ndarray:
+    def p_diverged(self, group: str) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
-            return self.diverged[head] / self.runs[head]
+            return self.diverged[group] / self.runs[group]
+
+
+def grouping(kernel: Kernel, columns: dict[str, np.ndarray]) -> tuple[str, tuple[str, ...], str]:
+    """How a sweep of ``kernel`` is split: ``(column, its values, metric)`` — the heads and the max
+    error for a kernel with a ``head`` knob, else its first categorical knob's values (those
+    present in the table) and its first metric."""
+    from verticality.sweep.category_maps import category_of
+
+    if "head" in kernel.knobs:
+        column, groups, metric = "head", HEADS, "max_error_deg"
+    else:
+        column, metric = category_of(kernel), kernel.metrics[0]
+        present = set(np.asarray(columns.get(column, ())).astype(str))
+        groups = tuple(c for c in kernel.knobs[column].choices if c in present)
+    missing = [c for c in (column, "diverged", metric) if c not in columns]
+    if missing:
+        raise InputError(f"a sweep of {kernel.name} has no {', '.join(missing)}: no curve")
+    return column, groups, metric
 
 
 def compute(kernel: Kernel, columns: dict[str, np.ndarray], knob: str) -> Curve:
     """The curve along ``knob`` of the table ``columns`` (name → array) of a sweep of ``kernel``."""
-    missing = [c for c in NEEDED if c not in columns]
-    if missing:
-        raise InputError(f"a sweep of {kernel.name} has no {', '.join(missing)}: no head curve")
+    column, groups, metric = grouping(kernel, columns)
     numeric = [k for k, v in kernel.knobs.items() if not v.choices]
     if knob not in numeric:
         raise InputError(f"cannot draw a curve over {knob!r}; the numeric knobs of {kernel.name} "
@@ -74,11 +97,11 @@ def compute(kernel: Kernel, columns: dict[str, np.ndarray], knob: str) -> Curve:
         raise InputError(f"{knob} takes {values.size} values in this sweep (more than "
                          f"{MAX_VALUES}): a curve is for a knob set to a few values; map it "
                          "instead (sweep-plot --x)")
-    head = np.asarray(columns["head"]).astype(str)
+    head = np.asarray(columns[column]).astype(str)
     div = np.asarray(columns["diverged"], dtype=bool)
-    err = np.asarray(columns["max_error_deg"], dtype=np.float64)
+    err = np.asarray(columns[metric], dtype=np.float64)
     runs, n_div, lo, hi, med = {}, {}, {}, {}, {}
-    for h in HEADS:
+    for h in groups:
         n = np.array([np.sum((head == h) & (x == v)) for v in values], dtype=np.int64)
         k = np.array([np.sum((head == h) & (x == v) & div) for v in values], dtype=np.int64)
         kept = [err[(head == h) & (x == v) & ~div] for v in values]
@@ -87,22 +110,25 @@ def compute(kernel: Kernel, columns: dict[str, np.ndarray], knob: str) -> Curve:
         lo[h] = np.array([b[0] for b in bounds])
         hi[h] = np.array([b[1] for b in bounds])
         med[h] = np.array([np.median(e) if e.size else np.nan for e in kept])
-    return Curve(knob, values, runs, n_div, lo, hi, med, MARKS.get((kernel.name, knob)))
+    return Curve(knob, values, column, groups, metric, runs, n_div, lo, hi, med,
+                 MARKS.get((kernel.name, knob)))
 
 
 def table(curve: Curve) -> list[str]:
-    """The curve as Markdown table lines: per value, each head's diverged/runs (share, 95 %
-    interval) and median max error of the runs that did not diverge."""
-    lines = [f"| {curve.knob} | " + " | ".join(f"{h}: diverged | {h}: median max error (°)"
-                                                for h in HEADS) + " |",
-             "|---" * (1 + 2 * len(HEADS)) + "|"]
+    """The curve as Markdown table lines: per value, each group's diverged/runs (share, 95 %
+    interval) and the median of its metric (max error for heads) over the runs that did not
+    diverge."""
+    what = "median max error (°)" if curve.metric == "max_error_deg" else f"median {curve.metric}"
+    lines = [f"| {curve.knob} | " + " | ".join(f"{h}: diverged | {h}: {what}"
+                                                for h in curve.groups) + " |",
+             "|---" * (1 + 2 * len(curve.groups)) + "|"]
     for i, v in enumerate(curve.values):
         cells = []
-        for h in HEADS:
+        for h in curve.groups:
             n, k = int(curve.runs[h][i]), int(curve.diverged[h][i])
             share = (f"{k}/{n} ({100 * k / n:.1f} %, {100 * curve.p_low[h][i]:.1f}–"
                      f"{100 * curve.p_high[h][i]:.1f} %)") if n else "–"
-            m = curve.median_max_error_deg[h][i]
+            m = curve.median[h][i]
             cells += [share, f"{m:.3g}" if np.isfinite(m) else "–"]
         lines.append(f"| {v:g} | " + " | ".join(cells) + " |")
     return lines
@@ -122,25 +148,30 @@ def write(out_dir: Path, knob: str, path: Path | None = None) -> tuple[Path, Cur
 
 
 def figure(curve: Curve, path: Path, title: str) -> Path:
-    """Two panels along the knob: the share diverged with its 95 % intervals, and the median max
-    error of the runs that did not diverge; both heads, the published threshold marked."""
+    """Two panels along the knob: the share diverged with its 95 % intervals, and the median of
+    the metric (max error for heads) over the runs that did not diverge; one line per group, the
+    published threshold marked."""
     from verticality import plots
 
     fig, axes = plots.new_figure(1, 2, width=11.0, height_per_row=3.8, sharex=False)
     axes = axes[0]
+    heads = curve.group == "head"
     colours = {"fixed": "tab:red", "stabilized": "tab:blue"}
-    for h in HEADS:
+    label = (lambda h: f"{h} head") if heads else (lambda h: f"{curve.group} {h}")  # noqa: E731
+    for n_group, h in enumerate(curve.groups):
         if not np.any(curve.runs[h]):
             continue
         p = curve.p_diverged(h)
         axes[0].errorbar(curve.values, 100 * p,
                          yerr=100 * np.clip(np.vstack([p - curve.p_low[h], curve.p_high[h] - p]),
                                             0.0, None),
-                         marker="o", capsize=3, color=colours[h], label=f"{h} head")
-        axes[1].plot(curve.values, curve.median_max_error_deg[h], marker="o", color=colours[h],
-                     label=f"{h} head")
+                         marker="o", capsize=3, color=colours.get(h, f"C{n_group}"),
+                         label=label(h))
+        axes[1].plot(curve.values, curve.median[h], marker="o",
+                     color=colours.get(h, f"C{n_group}"), label=label(h))
     axes[0].set_ylabel("runs diverged (%, 95 % Wilson interval)")
-    axes[1].set_ylabel("median max error (°), runs not diverged")
+    axes[1].set_ylabel(("median max error (°)" if heads else f"median {curve.metric}")
+                       + ", runs not diverged")
     axes[1].set_yscale("log")
     for ax in axes:
         ax.set_xlabel(curve.knob)
