@@ -105,6 +105,28 @@ def part_complete(path: Path, n_rows: int) -> bool:
         return False
 
 
+def table_columns(kernel, design: sweep_spec.Design) -> list[str]:
+    """The columns of a task's table (:func:`task_table`), in order."""
+    return (["run", *design.columns, "seed", *kernel.drawn, *kernel.metrics, "diverged"])
+
+
+def check_part_columns(parts: Path, finished: list[int], expected: list[str], out_dir: Path):
+    """Refuse to resume with finished parts whose columns are not ``expected`` (written by a
+    version of the kernel with other knobs or metrics): the table would mix two layouts."""
+    import pyarrow.parquet as pq
+
+    for t in finished:
+        names = pq.read_schema(part_path(parts, t)).names
+        if names != expected:
+            extra = [c for c in names if c not in expected]
+            lacking = [c for c in expected if c not in names]
+            raise InputError(
+                f"{out_dir}: its finished part {t} has other columns than this version of the "
+                f"kernel writes (without {', '.join(lacking) or '–'}; with "
+                f"{', '.join(extra) or '–'}, or in another order); finish it with the version "
+                "that started it, or run the spec into another --out")
+
+
 def prepare(spec: sweep_spec.Spec, out_dir: Path, resume: bool) -> Path:
     """Make ``out_dir`` and check it matches ``spec`` (resume) or holds no sweep yet."""
     out_dir = Path(out_dir)
@@ -142,6 +164,8 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     parts = prepare(spec, out_dir, resume)
     bounds = [(t * size, min((t + 1) * size, n_runs)) for t in range(n_tasks)]
     todo = [t for t, (a, b) in enumerate(bounds) if not part_complete(part_path(parts, t), b - a)]
+    check_part_columns(parts, [t for t in range(n_tasks) if t not in todo],
+                       table_columns(spec.kernel_value, design), out_dir)
     from verticality.report import provenance
 
     commit = provenance.git_commit()  # the code the tasks run, before they run
