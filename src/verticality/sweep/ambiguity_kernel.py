@@ -54,7 +54,7 @@ import numpy as np
 
 from verticality.experiments import ambiguity as E
 from verticality.params import F452_HEAD_INERTIA_KG_M2, F452_OTOLITH_DAMPING_RATIO
-from verticality.sweep.kernels import Kernel, Knob
+from verticality.sweep.kernels import Kernel, Knob, grouped_rows
 
 MODEL_ERRORS = ("otolith_frequency_rel_error", "otolith_damping_rel_error",
                 "head_inertia_rel_error")
@@ -93,8 +93,7 @@ def run_batch(columns: dict[str, np.ndarray], seeds: np.ndarray, *,
     out = {m: np.full(n, np.nan) for m in METRICS} | {"diverged": np.zeros(n, dtype=bool)}
     keys = [(str(columns["feed"][i]), *(float(columns[k][i]) for k in GROUP_KNOBS[1:]))
             for i in range(n)]
-    for key in dict.fromkeys(keys):
-        rows = np.array([i for i, k in enumerate(keys) if k == key])
+    for key, rows in grouped_rows(keys):
         got = run_group(key, np.asarray(columns["initial_tilt_deg"][rows], dtype=np.float64),
                         np.asarray(columns["desired_tilt_deg"][rows], dtype=np.float64),
                         np.asarray(columns["noise_rad"][rows], dtype=np.float64),

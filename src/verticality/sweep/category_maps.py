@@ -46,20 +46,26 @@ def category_of(kernel: Kernel) -> str:
     return names[0]
 
 
-def compute(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None = None,
-            y: str | None = None) -> CategoryMaps:
-    """The maps of the table ``columns`` (name → array) of a sweep of ``kernel``."""
+def split(kernel: Kernel, columns: dict[str, np.ndarray]) -> tuple[str, tuple[str, ...], str]:
+    """How a sweep's table of a kernel without heads is split: ``(category, its values present in
+    the table, metric)`` — :func:`category_of` and the kernel's first metric."""
     category, metric = category_of(kernel), kernel.metrics[0]
     missing = [c for c in (category, metric, "diverged") if c not in columns]
     if missing:
-        raise InputError(f"a sweep of {kernel.name} has no {', '.join(missing)}: no maps")
+        raise InputError(f"a sweep of {kernel.name} has no {', '.join(missing)}")
+    cat = np.asarray(columns[category]).astype(str)
+    return category, tuple(c for c in kernel.knobs[category].choices if np.any(cat == c)), metric
+
+
+def compute(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None = None,
+            y: str | None = None) -> CategoryMaps:
+    """The maps of the table ``columns`` (name → array) of a sweep of ``kernel``."""
+    category, present, metric = split(kernel, columns)
     x, y = head_maps.choose_knobs(kernel, columns, x, y)
     xv, xi, xb = head_maps.cells(columns[x])
     yv, yi, yb = head_maps.cells(columns[y])
-    cat = np.asarray(columns[category]).astype(str)
-    present = [c for c in kernel.knobs[category].choices if np.any(cat == c)]
-    runs, p_div, med = head_maps.grid_cells(cat, present, xi, yi, xv.size, yv.size,
-                                            columns["diverged"], columns[metric])
+    runs, p_div, med = head_maps.grid_cells(columns[category], present, xi, yi, xv.size,
+                                            yv.size, columns["diverged"], columns[metric])
     return CategoryMaps(x, y, category, metric, xv, yv, (xb, yb), runs, p_div, med)
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from verticality.errors import InputError
+from verticality.sweep import category_maps
 from verticality.sweep.kernels import Kernel
 from verticality.sweep.maps import HEADS
 
@@ -70,18 +71,12 @@ def grouping(kernel: Kernel, columns: dict[str, np.ndarray]) -> tuple[str, tuple
     """How a sweep of ``kernel`` is split: ``(column, its values, metric)`` — the heads and the max
     error for a kernel with a ``head`` knob, else its first categorical knob's values (those
     present in the table) and its first metric."""
-    from verticality.sweep.category_maps import category_of
-
-    if "head" in kernel.knobs:
-        column, groups, metric = "head", HEADS, "max_error_deg"
-    else:
-        column, metric = category_of(kernel), kernel.metrics[0]
-        present = set(np.asarray(columns.get(column, ())).astype(str))
-        groups = tuple(c for c in kernel.knobs[column].choices if c in present)
-    missing = [c for c in (column, "diverged", metric) if c not in columns]
+    if "head" not in kernel.knobs:
+        return category_maps.split(kernel, columns)
+    missing = [c for c in ("head", "diverged", "max_error_deg") if c not in columns]
     if missing:
-        raise InputError(f"a sweep of {kernel.name} has no {', '.join(missing)}: no curve")
-    return column, groups, metric
+        raise InputError(f"a sweep of {kernel.name} has no {', '.join(missing)}: no head curve")
+    return "head", HEADS, "max_error_deg"
 
 
 def compute(kernel: Kernel, columns: dict[str, np.ndarray], knob: str) -> Curve:

@@ -41,7 +41,7 @@ import numpy as np
 
 from verticality.experiments import ekf as E
 from verticality.experiments.newton import DIVERGED_DEG as NEWTON_DIVERGED_DEG
-from verticality.sweep.kernels import Kernel, Knob
+from verticality.sweep.kernels import Kernel, Knob, grouped_rows
 
 DIVERGED_DEG = NEWTON_DIVERGED_DEG  # one rule for every kernel: newton-lissajous's
 SCALE_LO, SCALE_HI = 0.25, 3.0  # the trunk-motion scales allowed (a jump 4× faster: 4 ms edges)
@@ -64,8 +64,7 @@ def run_scenario(scenario: str, columns: dict[str, np.ndarray], seeds: np.ndarra
            "diverged": np.zeros(n, dtype=bool)}
     keys = list(zip(columns["head"].astype(str), columns["amplitude_scale"].astype(float),
                     columns["frequency_scale"].astype(float), strict=True))
-    for key in dict.fromkeys(keys):
-        rows = np.array([i for i, k in enumerate(keys) if k == key])
+    for key, rows in grouped_rows(keys):
         head, amplitude, frequency = key
         traj = E.scenario_trajectory(scenario, quick, amplitude_scale=amplitude,
                                      frequency_scale=frequency)

@@ -111,6 +111,17 @@ class Kernel:
     published_label: str = ""
 
 
+def grouped_rows(keys: list) -> list[tuple[Any, np.ndarray]]:
+    """The rows of a batch grouped by their key (``keys[i]`` is row i's, hashable): ``(key,
+    rows)`` per distinct key in order of first appearance, the rows ascending. For kernels whose
+    closed loop shares something among the runs of one vmap (a trajectory, a model), so that each
+    group is one compiled batch."""
+    rows: dict[Any, list[int]] = {}
+    for i, k in enumerate(keys):
+        rows.setdefault(k, []).append(i)
+    return [(k, np.asarray(r)) for k, r in rows.items()]
+
+
 # ----------------------------------------------------------------------- newton-lissajous
 PARAMETERS = ("m_kg", "l_m", "J_kg_m2", "beta_Nms", "K_kg_m2")  # PlanarHead leaves with errors
 
