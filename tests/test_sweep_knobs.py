@@ -162,3 +162,16 @@ def test_in_range_knobs_are_accepted():
                    "kd_Nms_rad = [50.0]"))
     d = S.design(spec)
     assert d.n_runs == 16 and set(d.columns["frequency_scale"]) == {0.25, 4.0}
+
+
+def test_precompile_covers_the_forms_the_design_batches_need():
+    # a batch wholly at P11's motion compiles without the scales, any other with them traced:
+    # the parent compiles both when the design has both, so that no worker compiles on its own
+    n = 6
+    cols = {"amplitude_scale": np.ones(n), "frequency_scale": np.ones(n)}
+    assert K.published_batches(cols, 3) == {True}
+    cols["frequency_scale"] = np.array([1.0, 1.0, 1.0, 1.0, 0.5, 1.0])
+    assert K.published_batches(cols, 3) == {True, False}
+    assert K.published_batches(cols, 6) == {False}
+    cols["amplitude_scale"] = np.full(n, 2.0)
+    assert K.published_batches(cols, 3) == {False}

@@ -176,8 +176,9 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
         cache = compile_cache if compile_cache is not None else own
         if not scheduler and cache and str(cache) == str(own):
             # compile once here, into the cache the local workers load from (else every worker
-            # process compiles the same kernel, ~10 s each on this machine's shared cores)
-            spec.kernel_value.compile_batch(spec.batch, **spec.options)
+            # process compiles the same kernel, ~10 s each on this machine's shared cores;
+            # every compiled form the design's batches need)
+            spec.kernel_value.compile_batch(spec.batch, design.columns, **spec.options)
         _compute(spec, design, bounds, todo, parts, scheduler, n_workers, progress,
                  str(cache) if cache else None)
     wall = time.perf_counter() - start

@@ -101,9 +101,10 @@ class Kernel:
     # allowed (None if they are): a limit on a combination of knobs that no one knob has
     check_knobs: Callable[[dict[str, tuple[float, float]]], str | None] = field(
         default=lambda extents: None)
-    # (batch, **options) -> None: compile the batch function without running it (ahead of time,
-    # so that JAX's persistent compilation cache holds it before worker processes need it)
-    compile_batch: Callable[..., None] = field(default=lambda batch, **options: None)
+    # (batch, design columns, **options) -> None: compile the batch functions the design's
+    # batches need without running them (ahead of time, so that JAX's persistent compilation
+    # cache holds them before worker processes need them)
+    compile_batch: Callable[..., None] = field(default=lambda batch, columns, **options: None)
     # float64 columns a run draws from its seed (written between the seed and the metrics)
     drawn: tuple[str, ...] = ()
     # a published single point in the knobs (knob → value) and what was published there
@@ -199,8 +200,7 @@ def newton_lissajous_args(columns: dict[str, np.ndarray], seeds: np.ndarray, dur
     # a batch of the published motion leaves the scales out (simulate's constants 1): the motion's
     # samples are then known when compiling and XLA folds them, as it did before the scales were
     # knobs (traced scales of 1 give the same runs within ~2e-15 relative, not to the bit)
-    published = all(np.all(np.asarray(columns[k], dtype=np.float64) == 1.0)
-                    for k in ("amplitude_scale", "frequency_scale"))
+    published = bool(np.all(at_published_motion(columns)))
     motion = {k: jnp.asarray(columns[k], dtype=jnp.float64) for k in MOTION_KNOBS
               if not (published and k in ("amplitude_scale", "frequency_scale"))}
     return (rel, jnp.asarray(columns["head"] == "fixed"),
@@ -215,11 +215,29 @@ def _newton_lissajous(columns: dict[str, np.ndarray], seeds: np.ndarray, *,
     return out | {_drawn_name(leaf): np.asarray(drawn[:, i]) for i, leaf in enumerate(PARAMETERS)}
 
 
-def _compile_newton_lissajous(batch: int, *, duration_s: float) -> None:
-    columns = {k: np.full(batch, v.default, dtype=object if v.choices else np.float64)
-               for k, v in NEWTON_LISSAJOUS.knobs.items()}
-    args, _ = newton_lissajous_args(columns, np.zeros(batch, dtype=np.int64), duration_s)
-    newton_lissajous_batch.lower(*args[:-1], n_blocks=args[-1]).compile()
+def at_published_motion(columns: dict[str, np.ndarray]) -> np.ndarray:
+    """Per run: both motion scales are 1 (P11's motion)."""
+    return ((np.asarray(columns["amplitude_scale"], dtype=np.float64) == 1.0)
+            & (np.asarray(columns["frequency_scale"], dtype=np.float64) == 1.0))
+
+
+def published_batches(columns: dict[str, np.ndarray], batch: int) -> set[bool]:
+    """Which of the two compiled forms of :func:`newton_lissajous_batch` the design's batches of
+    ``batch`` runs need: True for a batch wholly at the published motion (the scales are left
+    out), False for one that varies the motion (the scales traced)."""
+    at = at_published_motion(columns)
+    return {bool(np.all(at[a:a + batch])) for a in range(0, at.size, batch)}
+
+
+def _compile_newton_lissajous(batch: int, columns: dict[str, np.ndarray], *,
+                              duration_s: float) -> None:
+    for published in published_batches(columns, batch):
+        cols = {k: np.full(batch, v.default, dtype=object if v.choices else np.float64)
+                for k, v in NEWTON_LISSAJOUS.knobs.items()}
+        if not published:
+            cols["amplitude_scale"] = np.full(batch, 2.0)
+        args, _ = newton_lissajous_args(cols, np.zeros(batch, dtype=np.int64), duration_s)
+        newton_lissajous_batch.lower(*args[:-1], n_blocks=args[-1]).compile()
 
 
 def _check_newton_knobs(extents: dict[str, tuple[float, float]]) -> str | None:
