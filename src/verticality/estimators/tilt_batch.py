@@ -26,7 +26,7 @@ from verticality.estimators.tilt_flags import (
     accelerometer_used,
 )
 from verticality.estimators.tilt_layout import CHUNK_SAMPLE, HEAD, NE, ROW, SOA, TRANS, E, S, X
-from verticality.estimators.tilt_params import MAX_RATE_RAD_S
+from verticality.estimators.tilt_params import MAX_ACC_M_S2, MAX_RATE_RAD_S
 
 CHUNK_BLOCKS = 256
 PIECE_SAMPLES = 2**18  # a long recording is filtered piece by piece (tilt.estimate, estimate's
@@ -41,11 +41,25 @@ def _acc_ok(acc, dts):
     return core.masks(acc.T, acc.T, dts, xp=np)[2]
 
 
+# the fields of a TiltOutput of n samples: (trailing shape, dtype), in TiltOutput's order
+_OUTPUT_FIELDS = (((), np.float64), ((), np.float64), ((3,), np.float64), ((4,), np.float64),
+                  ((3,), np.float64), ((NE,), np.float64), ((), np.int32), ((), np.bool_))
+
+
 def empty_output(n: int, alloc=np.zeros) -> core.TiltOutput:
     """A :class:`~verticality.estimators.tilt_core.TiltOutput` of ``n`` samples to be filled
-    (``alloc=np.empty`` when every sample will be written)."""
-    return core.TiltOutput(alloc(n), alloc(n), alloc((n, 3)), alloc((n, 4)), alloc((n, 3)),
-                           alloc((n, NE)), alloc(n, dtype=np.int32), alloc(n, dtype=bool))
+    (``alloc=np.empty`` when every sample will be written). Each field is a C-contiguous array
+    carved from one allocation: the operating system maps one large allocation in huge pages,
+    which is written several times faster the first time than eight separate arrays (on a
+    recording of 57 000 samples, ~0.6 ms instead of up to ~4 ms of page faults)."""
+    sizes = [n * int(np.prod(shape, dtype=np.int64)) * np.dtype(dt).itemsize
+             for shape, dt in _OUTPUT_FIELDS]
+    buf = alloc(sum(sizes), dtype=np.uint8)
+    fields, off = [], 0
+    for (shape, dt), size in zip(_OUTPUT_FIELDS, sizes, strict=True):
+        fields.append(buf[off:off + size].view(dt).reshape((n,) + shape))
+        off += size  # (the float64 fields come first: every offset is aligned for its dtype)
+    return core.TiltOutput(*fields)
 
 
 class Transitions(NamedTuple):
@@ -93,12 +107,22 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     if k < n:
         x, sums, count, trans = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k,
                                         transitions, tv, vv)
-    res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
+    if not _within(gyr, MAX_RATE_RAD_S) or not _within(acc, MAX_ACC_M_S2):
+        res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
     if flags is not None:
         res.flags[:] |= np.asarray(flags, dtype=np.int32)
     res.measured[:] = accelerometer_used(res.flags)
     final = core.TiltState(x, sums, np.int32(count), np.bool_(initialized))
     return (final, res, trans) if transitions else (final, res)
+
+
+def _within(a, limit: float) -> bool:
+    """Whether every component of ``a`` is below ``limit`` in size (False with a NaN: then the
+    caller tests component by component): two reductions over the contiguous values, faster
+    than ``tilt_core.out_of_range``'s six strided comparisons, which only a recording near its
+    sensor's range needs."""
+    flat = a.reshape(-1)
+    return bool(flat.size == 0 or (flat.max() < limit and flat.min() > -limit))
 
 
 def piece_cut(state: core.TiltState, acc, dts, block: int, final: bool) -> int:

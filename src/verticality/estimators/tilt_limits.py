@@ -100,10 +100,9 @@ def held_rows(gyr, acc, prev=None) -> np.ndarray:
     # candidates by two channels (a quantized gyro at rest repeats itself, but rarely together
     # with the accelerometer), then all six, bit for bit
     k = np.flatnonzero((gyr[1:, 0] == gyr[:-1, 0]) & (acc[1:, 2] == acc[:-1, 2])) + 1
-    if k.size:
-        rows = np.concatenate([gyr, acc], axis=1)
-        now = np.ascontiguousarray(rows[k]).view(np.int64)
-        before = np.ascontiguousarray(rows[k - 1]).view(np.int64)
+    if k.size:  # (the candidate rows only: a copy of whole recordings costs more than the test)
+        now = np.concatenate([gyr[k], acc[k]], axis=1).view(np.int64)
+        before = np.concatenate([gyr[k - 1], acc[k - 1]], axis=1).view(np.int64)
         k = k[np.all(now == before, axis=1)]
     held = np.zeros(n, dtype=bool)
     held[k] = True
