@@ -331,7 +331,7 @@ def block_inputs(s, p):
                   r_vel=(p.vel_m_s**2 * p.vel_corr_s) / t_acc_s,
                   r_vel_rest=(p.vel_rest_m_s**2 * p.vel_corr_s) / t_acc_s,
                   r_b=p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2, gap=gap, t_acc=t_acc,
-                  gsum=s[..., S.gsum])
+                  gsum=s[..., S.gsum], lam=jnp.exp(-T / p.vel_corr_s))
 
 
 _J = np.array([[0.0, 1.0], [-1.0, 0.0]])  # (δ × e3)_{x,y} = J δ
@@ -339,7 +339,7 @@ _J = np.array([[0.0, 1.0], [-1.0, 0.0]])  # (δ × e3)_{x,y} = J δ
 
 def error_transition(R, T, g, G):
     """The error-state transition ``F`` (10 × 10) of a block of length ``T`` (s) whose orientation
-    at its end is ``R`` (3 × 3) and whose raw gyro rotation is ``G = Σ ω Δt`` (3,): the gyro reads
+    at its end is ``R`` (3 × 3, or its first two rows) and whose raw gyro rotation is ``G = Σ ω Δt`` (3,): the gyro reads
     ``(1 + s) ω + b``, so a scale error ``s̃`` acts as a bias error ``s̃ ⊙ ω``; the continuous error
     dynamics ``δ̇ = −Π R (b̃ + s̃ ⊙ ω)``, ``ṽ̇ = g J δ``, ``ḃ̃ = 0``, ``s̃̇ = 0`` over ``T`` with
     ``R`` held, ``F = exp(F_c T)`` (exact: ``F_c³ = 0``)::
@@ -358,6 +358,15 @@ def error_transition(R, T, g, G):
         jnp.concatenate([jnp.eye(2), z2, AA], axis=1),
         jnp.concatenate([T * g * _J, jnp.eye(2), 0.5 * T * gJA], axis=1),
         jnp.concatenate([jnp.zeros((6, 4)), jnp.eye(6)], axis=1)], axis=0)
+
+
+def _rows01(q):
+    """The first two rows of ``R(q)`` (2, 3) of a unit quaternion ``q`` (4,): those of
+    ``so3.matrix_from_quat``, without its normalization (``q`` is unit already; the block scan's
+    body then holds two kernels fewer)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return jnp.stack([jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
+                      jnp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)])])
 
 
 def disturbed_velocity_scale(acc_dev_var, p):
@@ -474,7 +483,7 @@ def block_update(x, c, p, gaps: bool = True):
     collecting = reacquire0 & ~gap  # a block after a gap (or the start): the tilt error is unknown
 
     q_end, f_E, vel = block_prediction(x, c)
-    F = error_transition(so3.matrix_from_quat(q_end), T, g, c[C.gsum])
+    F = error_transition(_rows01(q_end), T, g, c[C.gsum])
     z = jnp.zeros_like(c[C.qb])  # the scale factors are constants (no process noise)
     Qd = jnp.stack([c[C.q_gyr], c[C.q_gyr], c[C.q_vel], c[C.q_vel], c[C.qb], c[C.qb], c[C.qb],
                     z, z, z])
@@ -504,7 +513,7 @@ def block_update(x, c, p, gaps: bool = True):
     # in the noise while moving: never longer (a tilt error's ramp, a slow motion keep the
     # prior) and never shorter than the block (the block is one measurement; an oscillation
     # slower than it has a lag-T correlation near or below zero, which no exponential fits)
-    lam = jnp.exp(-T / p.vel_corr_s)
+    lam = c[C.lam]
     dv = f_E[:2]
     eligible = has_acc & ~gap & ~collecting  # a velocity update may run
     speed_var = jnp.where(eligible, lam * x[X.speed_var] + (1 - lam) * 0.5 * jnp.sum(vel * vel),

@@ -105,7 +105,8 @@ S = Packed([("dquat", 4), ("tau", None), ("f", 3), ("t_acc", None), ("dev2", Non
 C = Packed([("dquat", 4), ("tau", None), ("f", 3), ("T", None), ("has_acc", None),
             ("q_gyr", None), ("q_vel", None), ("qb", None), ("alpha", None), ("dev2", None),
             ("g_mean", 3), ("quiet0", None), ("r_vel", None), ("r_vel_rest", None),
-            ("r_b", None), ("gap", None), ("t_acc", None), ("gsum", 3)])
+            ("r_b", None), ("gap", None), ("t_acc", None), ("gsum", 3),
+            ("lam", None)])
 Z = Packed([("x", X.size), ("sums", S.size), ("count", None), ("initialized", None)])
 SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None)])
 CHUNK_SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None), ("tilt_var", None),
