@@ -122,19 +122,23 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     e = quat_exp_batched(*t.rot)
 
     # pre-integration: block sequential steps, each over all nb blocks at once; the first block
-    # continues from sums0
+    # continues from sums0. The running sums of tau and gsum (the per-sample quaternion needs
+    # them) are carried along: cheaper than XLA's cumulative sums (reduce-windows)
     def pre(c, k):
         dq, f = core.preintegrate(c[0], c[1], tuple(ei[k] for ei in e),
                                   tuple(ai[k] for ai in t.acc), t.wa[k])
-        return (dq, f), jnp.stack(dq)
+        run = tuple(r + a[k] for r, a in zip(c[2], (t.sums["tau"],) + tuple(t.sums["gsum"]),
+                                             strict=True))
+        return (dq, f, run), jnp.stack(dq + run)
 
     first = jnp.arange(nb) == 0
     start = tuple(tuple(jnp.where(first, sums0[sl][i], v) for i, v in enumerate(vals))
                   for sl, vals in ((S.dquat, (1.0, 0.0, 0.0, 0.0)), (S.f, (0.0, 0.0, 0.0))))
-    (dq_end, f_end), dq_all = jax.lax.scan(pre, start, jnp.arange(block))  # dq_all (block, 4, nb)
-    tau_b = jnp.cumsum(t.sums["tau"], axis=0) + jnp.where(first, sums0[S.tau], 0.0)
-    gsum_b = tuple(jnp.cumsum(gi, axis=0) + jnp.where(first, sums0[S.gsum][i], 0.0)
-                   for i, gi in enumerate(t.sums["gsum"]))
+    zero = jnp.zeros(nb)
+    (dq_end, f_end, _), steps = jax.lax.scan(pre, start + ((zero,) * 4,), jnp.arange(block))
+    dq_all = steps[:, :4]  # (block, 4, nb)
+    tau_b = steps[:, 4] + jnp.where(first, sums0[S.tau], 0.0)
+    gsum_b = tuple(steps[:, 5 + i] + jnp.where(first, sums0[S.gsum][i], 0.0) for i in range(3))
     reduced = {k: (tuple(jnp.sum(c, 0) for c in v) if isinstance(v, tuple) else jnp.sum(v, 0))
                for k, v in t.sums.items() if k != "tau"}
     sums = S.pack(dquat=dq_end, tau=tau_b[-1], f=f_end, **reduced)  # (nb, S)
