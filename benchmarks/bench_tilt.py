@@ -77,7 +77,10 @@ def _device_time(gyr, acc, dt, reps):
     data[:n, CHUNK_SAMPLE.gyr], data[:n, CHUNK_SAMPLE.acc] = gyr, acc
     data[:n, CHUNK_SAMPLE.dt] = dt
     data[n:, CHUNK_SAMPLE.dt] = np.nan
-    parts = [jax.device_put(data[i * chunk:(i + 1) * chunk]) for i in range(nch)]
+    nb = tilt_batch.CHUNK_BLOCKS
+    parts = [jax.device_put(np.ascontiguousarray(
+        data[i * chunk:(i + 1) * chunk].reshape(nb, tilt.BLOCK, -1).transpose(2, 1, 0)))
+        for i in range(nch)]
     p = tilt.DEFAULT_PARAMS
     x0 = jax.device_put(tilt_core.initialize(tilt.TiltFilter().init().x, acc[0], p, xp=np))
     head = jax.device_put(HEAD.pack(xp=np, sums0=np.asarray(tilt_core.empty_sums(xp=np)),

@@ -299,7 +299,7 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     real = tilt_kernels.run_chunk
 
     def spy(*args, gaps=True, **kw):
-        used.append((gaps, args[2].shape[0] // tilt.BLOCK))
+        used.append((gaps, args[2].shape[2]))  # (CHUNK_SAMPLE, block, nb)
         return real(*args, gaps=gaps, **kw)
 
     monkeypatch.setattr(tilt_kernels, "run_chunk", spy)

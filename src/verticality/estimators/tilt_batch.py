@@ -229,24 +229,14 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False,
         gaps = bool(need[j:j + CHUNK_BLOCKS].any()) or 2 * (nv - v) <= CHUNK_BLOCKS * block
         nb = GAP_CHUNK_BLOCKS if gaps else CHUNK_BLOCKS
         size = nb * block
-        # the chunk's samples as CHUNK_SAMPLE rows (packed chunk by chunk, while the device works on
-        # the previous one); positions without a sample (the current block's samples before k,
-        # the padding after the last sample) are skipped samples (dt = NaN: BAD_DT), so that
-        # every chunk has one of the two compiled shapes
+        # the chunk's samples (packed chunk by chunk, while the device works on the previous
+        # one); positions without a sample: the current block's samples before k, the padding
+        # after the last sample
         m = min(size, nv - v)
         lead = pad if v == 0 else 0
-        data = np.empty((size, CHUNK_SAMPLE.size))
-        data[:lead, :] = 0.0
-        data[:lead, CHUNK_SAMPLE.dt] = np.nan
         lo, hi = base + v + lead, base + v + m
-        data[lead:m, CHUNK_SAMPLE.gyr] = gyr[lo:hi]
-        data[lead:m, CHUNK_SAMPLE.acc] = acc[lo:hi]
-        data[lead:m, CHUNK_SAMPLE.dt] = dts[lo:hi]
-        data[lead:m, CHUNK_SAMPLE.tilt_var] = 0.0 if tv is None else tv[lo:hi]
-        data[lead:m, CHUNK_SAMPLE.vel_var] = 0.0 if vv is None else vv[lo:hi]
-        if m < size:
-            data[m:, :] = 0.0
-            data[m:, CHUNK_SAMPLE.dt] = np.nan
+        data = chunk_data(nb, block, lead, gyr[lo:hi], acc[lo:hi], dts[lo:hi],
+                          None if tv is None else tv[lo:hi], None if vv is None else vv[lo:hi])
         n_update = m // block if v + m == nv else nb
         x, current, outs = tilt_kernels.run_chunk(x, _head(sums0 if v == 0 else None, n_update,
                                                            nb),
@@ -273,6 +263,28 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False,
     trans = (Transitions(base, np.concatenate([np.asarray(t) for t in trans]))
              if transitions else None)
     return np.asarray(x), sums, count, trans
+
+
+def chunk_data(nb: int, block: int, lead: int, gyr, acc, dts, tv=None, vv=None):
+    """A chunk's input for ``tilt_kernels.run_chunk``: (``CHUNK_SAMPLE``, block, nb), sample
+    ``k`` of block ``j`` at ``[:, k, j]``, from the ``m`` samples ``gyr``, ``acc`` (m, 3), ``dts``,
+    ``tv``, ``vv`` (m,) (None: zeros) placed from position ``lead`` on. The positions without a
+    sample (the ``lead`` ones, and those after the samples) are skipped samples (dt = NaN:
+    BAD_DT), so that every chunk has one of the two compiled shapes."""
+    size = nb * block
+    m = lead + gyr.shape[0]
+    rows = np.empty((size, CHUNK_SAMPLE.size))  # sample-major, then one transposing copy
+    rows[:lead, :] = 0.0
+    rows[:lead, CHUNK_SAMPLE.dt] = np.nan
+    rows[lead:m, CHUNK_SAMPLE.gyr] = gyr
+    rows[lead:m, CHUNK_SAMPLE.acc] = acc
+    rows[lead:m, CHUNK_SAMPLE.dt] = dts
+    rows[lead:m, CHUNK_SAMPLE.tilt_var] = 0.0 if tv is None else tv
+    rows[lead:m, CHUNK_SAMPLE.vel_var] = 0.0 if vv is None else vv
+    if m < size:
+        rows[m:, :] = 0.0
+        rows[m:, CHUNK_SAMPLE.dt] = np.nan
+    return np.ascontiguousarray(rows.reshape(nb, block, CHUNK_SAMPLE.size).transpose(2, 1, 0))
 
 
 def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p, tv=None):

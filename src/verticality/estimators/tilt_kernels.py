@@ -90,8 +90,10 @@ for _sl in (S.dquat, S.f, S.tau):
 def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool = True,
                transitions: bool = False):
     """Filter a chunk of ``n = nb * block`` samples that starts at a block boundary of the
-    initialized filter ``x`` (``X``). ``data`` (n, ``CHUNK_SAMPLE``) = [gyr (3), acc (3), dt, tilt_var, vel_var] per sample
-    (one array: one host-to-device transfer per chunk). ``head`` (``HEAD``): ``sums0``, the sums
+    initialized filter ``x`` (``X``). ``data`` (``CHUNK_SAMPLE``, block, nb): [gyr (3), acc (3),
+    dt, tilt_var, vel_var] of sample ``k`` of block ``j`` at ``[:, k, j]``, as the outputs (one
+    array: one host-to-device transfer per chunk; packed so by the host, which transposes faster
+    than XLA: :func:`verticality.estimators.tilt_batch.chunk_data`). ``head`` (``HEAD``): ``sums0``, the sums
     the first block starts from (the samples of a block begun before the chunk; they stand in for
     as many leading samples of ``data``, which the caller fills with skipped samples, dt = NaN),
     and ``n_update``, the number of leading blocks whose update is applied: a block after them is
@@ -110,11 +112,9 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     # ``params``: a TiltParams, or its values as one vector with ``names`` its fields (one
     # argument: passing it costs less than passing 20 scalars)
     p = SimpleNamespace(**dict(zip(names, params, strict=True))) if names else params
-    n = data.shape[0]
-    nb = n // block
+    ds = data  # (CHUNK_SAMPLE, block, nb): structure of arrays, sample k of every block in a row
+    nb = data.shape[2]
     sums0 = head[HEAD.sums0]
-    # structure of arrays (one transpose): sample k of every block in one contiguous row
-    ds = data.reshape(nb, block, CHUNK_SAMPLE.size).transpose(2, 1, 0)  # (CHUNK_SAMPLE, block, nb)
     t = core.sample_terms(tuple(ds[CHUNK_SAMPLE.gyr]), tuple(ds[CHUNK_SAMPLE.acc]),
                           ds[CHUNK_SAMPLE.dt], p, gaps=gaps, tilt_var=ds[CHUNK_SAMPLE.tilt_var],
                           vel_var=ds[CHUNK_SAMPLE.vel_var])

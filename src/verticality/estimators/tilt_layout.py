@@ -28,9 +28,10 @@ arrays. The layouts:
 * :data:`Z` the real-time stepper's state: ``x``, ``sums``, ``count`` (samples in the block),
   ``initialized`` (1.0 or 0.0).
 * :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input).
-* :data:`CHUNK_SAMPLE` a batch chunk's row: a :data:`SAMPLE` (same offsets), ``tilt_var`` and
+* :data:`CHUNK_SAMPLE` a batch chunk's sample: a :data:`SAMPLE` (same offsets), ``tilt_var`` and
   ``vel_var``, the tilt (rad²) and velocity (m²/s²) variances the sample adds besides its own
-  terms (clipped gyro and accelerometer axes, :mod:`~verticality.estimators.tilt_limits`).
+  terms (clipped gyro and accelerometer axes, :mod:`~verticality.estimators.tilt_limits`); along
+  the leading axis of the chunk's input (structure of arrays).
 * :data:`OUT` the stepper's output ``[roll, pitch, up (3), quat (4), bias (3), flags]``.
 * :data:`ROW` the batch kernel's row per block: the state at its start (``q0``, ``b0``, ``var0``
   the diagonal of ``P``) and after its update (``q1``, ``b1``, ``var1``), whether the update found
