@@ -136,7 +136,12 @@ def quat_exp(omega_rad):
 
 def matrix_from_quat(q_wxyz):
     """Rotation matrix of a quaternion (normalized first)."""
-    q = quat_normalize(q_wxyz)
+    return matrix_from_unit_quat(quat_normalize(q_wxyz))
+
+
+def matrix_from_unit_quat(q):
+    """Rotation matrix of a quaternion already of unit norm (not normalized again: a hot loop
+    that keeps its quaternion unit saves the norm)."""
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return jnp.stack(
         [

@@ -360,15 +360,6 @@ def error_transition(R, T, g, G):
         jnp.concatenate([jnp.zeros((6, 4)), jnp.eye(6)], axis=1)], axis=0)
 
 
-def _rows01(q):
-    """The first two rows of ``R(q)`` (2, 3) of a unit quaternion ``q`` (4,): those of
-    ``so3.matrix_from_quat``, without its normalization (``q`` is unit already; the block scan's
-    body then holds two kernels fewer)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return jnp.stack([jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
-                      jnp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)])])
-
-
 def disturbed_velocity_scale(acc_dev_var, p):
     """How much the velocity pseudo-measurement's variance grows under a disturbance: the speed
     prior becomes the larger of ``vel_m_s`` and the speed an inertial acceleration of mean square
@@ -483,7 +474,7 @@ def block_update(x, c, p, gaps: bool = True):
     collecting = reacquire0 & ~gap  # a block after a gap (or the start): the tilt error is unknown
 
     q_end, f_E, vel = block_prediction(x, c)
-    F = error_transition(_rows01(q_end), T, g, c[C.gsum])
+    F = error_transition(so3.matrix_from_unit_quat(q_end)[:2], T, g, c[C.gsum])
     z = jnp.zeros_like(c[C.qb])  # the scale factors are constants (no process noise)
     Qd = jnp.stack([c[C.q_gyr], c[C.q_gyr], c[C.q_vel], c[C.q_vel], c[C.qb], c[C.qb], c[C.qb],
                     z, z, z])
