@@ -102,14 +102,15 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
     assert rmse < 1.0
     assert cli.main(["evaluate", "broad", str(tmp_path), "--json", "--filters", "verticality"]) == 0
     res = json.loads(capsys.readouterr().out)
-    assert set(res) == {"trials", "mean"}
+    assert set(res) == {"trials", "mean", "sigma"}
     assert res["trials"]["slice"]["verticality"] == pytest.approx(rmse, rel=1e-9)
     assert res["mean"]["verticality"] == pytest.approx(rmse, rel=1e-9)
     # the reported σ against the same errors: it covers them, conservatively in motion (the RMS
-    # σ is 3.5× the RMSE on this slice: 0.91° against 0.26°), and the table shows it
+    # σ is 3.5× the RMSE on this slice: 0.91° against 0.26°), and the table and the JSON show it
     from verticality.analysis.broad_eval import evaluate_trials
 
     cal = evaluate_trials([tmp_path / "slice.hdf5"], ["verticality"])["sigma"]["slice"]
+    assert res["sigma"] == {"verticality": {"slice": cal}}
     assert cal["within_1sigma"] > 0.9 and cal["within_2sigma"] > 0.99
     assert rmse < cal["rms_sigma_deg"] < 5 * rmse
     assert cli.main(["evaluate", "broad", str(tmp_path), "--filters", "verticality"]) == 0

@@ -243,4 +243,7 @@ def test_local_cluster_of_two_workers(in_process, tmp_path, capsys):
     for key in ("trials", "mean", "sigma", "sigma_offline", "samples"):
         assert dist[key] == serial[key], key  # == on floats: bit for bit
     printed = json.loads(out.out[out.out.index("{"):])
-    assert printed == {"trials": serial["trials"], "mean": serial["mean"]}
+    sigmas = {name: serial[key] for name, key in (("verticality", "sigma"),
+                                                  ("verticality-offline", "sigma_offline"))
+              if serial[key]}
+    assert printed == {"trials": serial["trials"], "mean": serial["mean"], "sigma": sigmas}

@@ -50,7 +50,9 @@ def run_broad(args) -> int:
     sigmas = {name: res[key] for name, key in ((OURS, "sigma"), (OURS_OFFLINE, "sigma_offline"))
               if res[key]}
     if args.json:
-        json.dump({"trials": res["trials"], "mean": res["mean"]}, sys.stdout, indent=2)
+        # our filter's and smoother's σ calibration beside the errors: {FILTER: {NAME: {...}}}
+        json.dump({"trials": res["trials"], "mean": res["mean"], "sigma": sigmas}, sys.stdout,
+                  indent=2)
         sys.stdout.write("\n")
         return 0
     table = Table(title=f"BROAD inclination RMSE (deg), {len(res['trials'])} trials")
