@@ -421,6 +421,27 @@ def test_error_transition_is_the_jacobian_of_the_block_prediction(omega, b_hat):
         assert 1e-4 * off < np.max(np.abs(F_auto - F)) < 0.5 * wT * off
 
 
+def test_structured_covariance_propagation_is_the_dense_product():
+    """``tilt_core.propagate_covariance`` (the block update's ``F P Fᵀ`` from the structure of
+    ``F``, element-wise) equals the dense product with ``error_transition``'s ``F`` to rounding,
+    on random covariances, orientations and gyro sums, and is symmetric when ``P`` is."""
+    from verticality.estimators import tilt_core as core
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = rng.normal(size=4)
+        R = np.asarray(so3.matrix_from_quat(jnp.asarray(q)))[:2]
+        T, g, G = rng.uniform(0.01, 1.0), 9.81, rng.normal(size=3)
+        M = rng.normal(size=(10, 10)) * rng.uniform(1e-3, 10.0, size=10)
+        P = M @ M.T
+        F = np.asarray(core.error_transition(R, T, g, G))
+        dense = F @ P @ F.T
+        assert np.max(np.abs(dense - P)) > 1e-3 * np.max(np.abs(P))  # F is not the identity
+        got = np.asarray(core.propagate_covariance(jnp.asarray(P), R, T, g, G))
+        np.testing.assert_allclose(got, dense, rtol=0, atol=1e-14 * np.max(np.abs(dense)))
+        np.testing.assert_allclose(got, got.T, rtol=0, atol=1e-14 * np.max(np.abs(dense)))
+
+
 def test_the_filter_is_an_estimator_value_with_named_state():
     """TiltFilter follows the project's estimator interface; its state reads by name the flat
     vectors the kernels use, through one layout per vector."""

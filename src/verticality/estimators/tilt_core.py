@@ -261,9 +261,11 @@ def add_fix_variance(P, fix):
     """Covariance ``P`` (10, 10) with the corrections ``fix`` (5,: tilt (2,) rad, bias (3,) rad/s)
     that may not be real added as variance: ``|fix_tilt|²`` to both tilt variances, ``fix_b²`` to
     each bias variance."""
-    P = add_tilt_variance(P, jnp.sum(fix[:2] * fix[:2]))
-    i = jnp.arange(E.bias.start, E.bias.stop)
-    return P.at[i, i].add(fix[2:] * fix[2:])
+    t2 = fix[0] * fix[0] + fix[1] * fix[1]
+    z = jnp.zeros_like(t2)
+    # (a diagonal added element-wise: no scatter, so that it fuses in the batch kernel's scan)
+    return P + jnp.diag(jnp.stack([t2, t2, z, z, fix[2] * fix[2], fix[3] * fix[3],
+                                   fix[4] * fix[4], z, z, z]))
 
 
 def widen_tilt(P, sigma_rad, xp=jnp):
@@ -358,6 +360,42 @@ def error_transition(R, T, g, G):
         jnp.concatenate([jnp.eye(2), z2, AA], axis=1),
         jnp.concatenate([T * g * _J, jnp.eye(2), 0.5 * T * gJA], axis=1),
         jnp.concatenate([jnp.zeros((6, 4)), jnp.eye(6)], axis=1)], axis=0)
+
+
+def propagate_covariance(P, R, T, g, G):
+    """``F P Fᵀ`` for the block's error transition ``F`` (:func:`error_transition` of the same
+    ``R``, ``T``, ``g``, ``G``) and a covariance ``P`` (10 × 10), from ``F``'s structure: only its
+    tilt and velocity rows differ from the identity, so ``F P`` changes ``P``'s first four rows and
+    ``(F P) Fᵀ`` its first four columns, each a short sum of rows (columns) of ``P``. Written
+    element-wise (no ``dot`` and no reduction), so that it fuses with its neighbours in the batch
+    kernel's scan over blocks: the dense product's numbers but for the order of the sums."""
+    A = -T * R[:2, :]
+    AA = [A[0, 0], A[0, 1], A[0, 2], -R[0, 0] * G[0], -R[0, 1] * G[1], -R[0, 2] * G[2]], \
+        [A[1, 0], A[1, 1], A[1, 2], -R[1, 0] * G[0], -R[1, 1] * G[1], -R[1, 2] * G[2]]
+    Tg = T * g
+    # velocity rows: T g J δ + ½ T g J (A b̃ + A_s s̃), J = [[0, 1], [-1, 0]]
+    BB = ([0.5 * T * (AA[1][k] * g) for k in range(6)],
+          [0.5 * T * (-AA[0][k] * g) for k in range(6)])
+
+    def rows(M, get):  # the first four rows (columns) of F M (M Fᵀ) from M's rows (columns)
+        r0 = get(M, 0) + sum(AA[0][k] * get(M, 4 + k) for k in range(6))
+        r1 = get(M, 1) + sum(AA[1][k] * get(M, 4 + k) for k in range(6))
+        r2 = Tg * get(M, 1) + get(M, 2) + sum(BB[0][k] * get(M, 4 + k) for k in range(6))
+        r3 = -Tg * get(M, 0) + get(M, 3) + sum(BB[1][k] * get(M, 4 + k) for k in range(6))
+        return r0, r1, r2, r3
+
+    FP = jnp.concatenate([jnp.stack(rows(P, lambda M, i: M[i])), P[4:]], axis=0)
+    cols = rows(FP, lambda M, i: M[:, i])
+    return jnp.concatenate([jnp.stack(cols, axis=1), FP[:, 4:]], axis=1)
+
+
+def sum_sq(v):
+    """``Σ v_i²`` of a short vector (2 or 3,), written out: no reduction, which would end a fused
+    kernel in the batch kernel's scan over blocks."""
+    out = v[0] * v[0]
+    for i in range(1, v.shape[0]):
+        out = out + v[i] * v[i]
+    return out
 
 
 def disturbed_velocity_scale(acc_dev_var, p):
@@ -474,12 +512,12 @@ def block_update(x, c, p, gaps: bool = True):
     collecting = reacquire0 & ~gap  # a block after a gap (or the start): the tilt error is unknown
 
     q_end, f_E, vel = block_prediction(x, c)
-    F = error_transition(so3.matrix_from_unit_quat(q_end)[:2], T, g, c[C.gsum])
+    R = so3.matrix_from_unit_quat(q_end)[:2]
+    F = error_transition(R, T, g, c[C.gsum])  # (for the smoother; the filter needs F P Fᵀ only)
     z = jnp.zeros_like(c[C.qb])  # the scale factors are constants (no process noise)
     Qd = jnp.stack([c[C.q_gyr], c[C.q_gyr], c[C.q_vel], c[C.q_vel], c[C.qb], c[C.qb], c[C.qb],
                     z, z, z])
-    FP = jnp.sum(F[:, :, None] * P0[None, :, :], axis=1)
-    P = jnp.sum(FP[:, None, :] * F[None, :, :], axis=2) + jnp.diag(Qd)
+    P = propagate_covariance(P0, R, T, g, c[C.gsum]) + jnp.diag(Qd)
 
     # size of the inertial acceleration seen by the norm (for the ACC_DISTURBED flag only)
     acc_dev_var0 = x[X.acc_dev_var]
@@ -488,7 +526,7 @@ def block_update(x, c, p, gaps: bool = True):
     disturbed = has_acc & (acc_dev_var > p.acc_disturbed_m_s2**2)
 
     gd = c[C.g_mean] - b
-    quiet = (c[C.quiet0] > 0.5) & (jnp.sum(gd * gd) < p.rest_gyr_rad_s**2)
+    quiet = (c[C.quiet0] > 0.5) & (sum_sq(gd) < p.rest_gyr_rad_s**2)
     rest_s = jnp.where(quiet, x[X.rest_s] + T, 0.0)
     at_rest = rest_s >= p.rest_min_s
 
@@ -507,9 +545,9 @@ def block_update(x, c, p, gaps: bool = True):
     lam = c[C.lam]
     dv = f_E[:2]
     eligible = has_acc & ~gap & ~collecting  # a velocity update may run
-    speed_var = jnp.where(eligible, lam * x[X.speed_var] + (1 - lam) * 0.5 * jnp.sum(vel * vel),
+    speed_var = jnp.where(eligible, lam * x[X.speed_var] + (1 - lam) * 0.5 * sum_sq(vel),
                           x[X.speed_var])
-    dv_var = jnp.where(eligible, lam * x[X.dv_var] + (1 - lam) * 0.5 * jnp.sum(dv * dv), x[X.dv_var])
+    dv_var = jnp.where(eligible, lam * x[X.dv_var] + (1 - lam) * 0.5 * sum_sq(dv), x[X.dv_var])
     rho = jnp.clip(dv_var / jnp.maximum(2.0 * speed_var, 1e-12), 1.0 - lam, 1.0 - math.exp(-1.0))
     tau_motion = -T / jnp.log1p(-rho)
     r_v = r_v0 * disturbed_velocity_scale(acc_dev_var, p) * jnp.where(
@@ -521,7 +559,7 @@ def block_update(x, c, p, gaps: bool = True):
     # small for the one-block test): the running mean of the whitened innovations over
     # ~vel_corr_s (N(0, (1 − λ)/(1 + λ) I) when the filter is consistent) against the same χ²
     inn = lam * x[X.vel_inn] + (1.0 - lam) * whiten2(P, E.vel, -vel, r_v0)
-    persist = eligible & ~jump & (jnp.sum(inn * inn) * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
+    persist = eligible & ~jump & (sum_sq(inn) * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
     dx1, P1 = joseph_update(P, E.vel, -vel, r_v)
     fix = x[X.vel_fix]  # the tilt and bias corrections the velocity made over the window
     jump = jump | persist
