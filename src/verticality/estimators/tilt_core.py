@@ -470,9 +470,10 @@ def block_prediction(x, c):
     block's specific force rotated to Earth ``Σ R f Δt`` and the velocity ``v + Π f_E``."""
     q0 = x[X.q]
     q_end = so3.quat_multiply(so3.quat_multiply(q0, c[C.dquat]),
-                              so3.quat_exp(-(x[X.b] * c[C.tau] + x[X.s] * c[C.gsum])))
-    q_end = so3.quat_normalize(q_end)
-    f_E = so3.quat_rotate(q0, c[C.f])
+                              jnp.stack(so3.quat_exp_components(
+                                  *(-(x[X.b] * c[C.tau] + x[X.s] * c[C.gsum])))))
+    q_end = q_end / jnp.sqrt(sum_sq(q_end))  # (so3.quat_normalize without a reduction)
+    f_E = jnp.stack(so3.quat_rotate_components(tuple(q0), tuple(c[C.f])))
     return q_end, f_E, x[X.v] + f_E[:2]
 
 
@@ -627,8 +628,8 @@ def block_update(x, c, p, gaps: bool = True):
         vel, pending, reacq_f_E, reacq_t, reacq = (vel + dx[E.vel], 0.0, jnp.zeros(3), 0.0,
                                                    jnp.array(False))
 
-    q_new = so3.quat_multiply(so3.quat_exp(jnp.stack([dx[0], dx[1], 0.0])), q_end)
-    q_new = so3.quat_normalize(q_new)
+    q_new = so3.quat_multiply(jnp.stack(so3.quat_exp_components(dx[0], dx[1], 0.0)), q_end)
+    q_new = q_new / jnp.sqrt(sum_sq(q_new))
     x_new = X.pack(q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
                    vel_inn=inn, vel_fix=fix, speed_var=speed_var, dv_var=dv_var)
