@@ -95,19 +95,27 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     for name, v in (("tilt_var", tv), ("vel_var", vv)):
         if v is not None and (v.shape != (n,) or not np.all(np.isfinite(v) & (v >= 0))):
             raise InputError(f"{name} must be ({n},), finite and non-negative")
-    x = np.array(state.x, dtype=np.float64)
+    x0 = x = np.array(state.x, dtype=np.float64)
     sums = np.array(state.sums, dtype=np.float64)
     count, initialized = int(state.count), bool(state.initialized)
+    k = 0
+    if not initialized:  # the samples up to the first usable accelerometer sample, which
+        j = first_usable(acc, dts)  # initializes the filter (their outputs: below)
+        k, initialized = min(n, j + 1), j < n
+        if initialized:
+            x = core.initialize(x, acc[j], params, xp=np)
+    # the chunks are dispatched first (the device works on them asynchronously); the host work
+    # that does not need their outputs runs meanwhile, then their outputs are collected
+    run_ = _dispatch(params, block, x, sums, count, gyr, acc, dts, k, transitions, tv, vv) \
+        if k < n else None
     res = empty_output(n, np.empty)  # every sample is written below (by the samples before the
-    k = 0                             # initialization and by the chunks)
-    if not initialized:
-        k, x = _before_initialization(res, params, x, sums, gyr, acc, dts)
-        initialized = k > 0 and bool(res.flags[k - 1] & INIT)
+    if k > 0 and not bool(state.initialized):  # initialization and by the chunks)
+        _before_initialization(res, params, x0, sums, gyr, acc, dts)
+    in_range = _within(gyr, MAX_RATE_RAD_S) and _within(acc, MAX_ACC_M_S2)
     trans = Transitions(n, np.zeros((0, TRANS.size)))
-    if k < n:
-        x, sums, count, trans = _chunks(res, params, block, x, sums, count, gyr, acc, dts, k,
-                                        transitions, tv, vv)
-    if not _within(gyr, MAX_RATE_RAD_S) or not _within(acc, MAX_ACC_M_S2):
+    if run_ is not None:
+        x, sums, count, trans = _collect(res, run_)
+    if not in_range:
         res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
     if flags is not None:
         res.flags[:] |= np.asarray(flags, dtype=np.int32)
@@ -205,11 +213,28 @@ def _head(sums0, n_update: int, nb: int):
 _EMPTY_SUMS = np.asarray(core.empty_sums(xp=np))
 
 
-def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv=None,
-            vv=None):
+class _Dispatched(NamedTuple):
+    """The chunks of a batch run in flight (:func:`_dispatch`), for :func:`_collect`."""
+
+    x: object  # the filter after the last chunk (on the device)
+    current: object  # the sums of the unfinished last block (on the device)
+    pending: list  # (lo, lead, m, size, outs) per chunk
+    trans: list
+    transitions: bool
+    k: int
+    pad: int
+    base: int
+    nv: int
+    block: int
+    sums0: np.ndarray
+    dropout: np.ndarray | None  # what _add_dropout_variance adds (None: nothing)
+
+
+def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv=None, vv=None):
     """Samples ``k`` to the end through the batch kernel, from the filter ``x`` and the current
-    block's ``sums0`` of ``count`` samples. Returns the filter, the sums and the count after the
-    last sample, and the :class:`Transitions` (None unless ``transitions``)."""
+    block's ``sums0`` of ``count`` samples: every chunk dispatched (asynchronously), and the
+    host's own part of the result that needs no chunk's output computed meanwhile. Returns the
+    run in flight, which :func:`_collect` writes into the result."""
     n = gyr.shape[0]
     pad = count  # the block began before sample k: its samples are in sums0
     base = k - pad  # sample index of virtual position 0 (the current block's start)
@@ -248,6 +273,17 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False,
         pending.append((lo, lead, m, size, outs))
         v += m
         j += nb
+    dropout = _dropout_variance(gyr, acc, dts, k, pad, float(sums0[S.qmiss]), block, p, tv)
+    return _Dispatched(x, current, pending, trans, transitions, k, pad, base, nv, block, sums0,
+                       dropout)
+
+
+def _collect(res, run_: _Dispatched):
+    """Write the outputs of the dispatched chunks (:func:`_dispatch`) into ``res`` (as they
+    arrive: the host's copies overlap the device's work on the later chunks). Returns the filter,
+    the sums and the count after the last sample, and the :class:`Transitions` (None unless
+    ``transitions``)."""
+    x, current, pending, trans, transitions, k, pad, base, nv, block, sums0, dropout = run_
     for lo, lead, m, size, outs in pending:
         gap0 = bool(sums0[S.gap] > 0) if lo == k else False
         if lead == 0 and m == size:
@@ -257,7 +293,8 @@ def _chunks(res, p, block, x, sums0, count, gyr, acc, dts, k, transitions=False,
             put_chunk(tmp, 0, outs, block, gap0=gap0)
             for dst, src in zip(res, tmp, strict=True):
                 dst[lo:lo + m - lead] = src[lead:m]
-    _add_dropout_variance(res.var, gyr, acc, dts, k, pad, float(sums0[S.qmiss]), block, p, tv)
+    if dropout is not None:
+        res.var[k:, E.tilt] += dropout[:, None]
     count = nv % block
     sums = np.asarray(current) if count else _EMPTY_SUMS.copy()
     trans = (Transitions(base, np.concatenate([np.asarray(t) for t in trans]))
@@ -287,17 +324,17 @@ def chunk_data(nb: int, block: int, lead: int, gyr, acc, dts, tv=None, vv=None):
     return np.ascontiguousarray(rows.reshape(nb, block, CHUNK_SAMPLE.size).transpose(2, 1, 0))
 
 
-def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p, tv=None):
-    """Within each block, add to the tilt variances what gyro dropouts and gaps have added since
-    the block's start (``tilt_core.output_var``: the kernel gives the block-start variances; the
-    block's last sample already has the updated ones). Samples from ``k`` on, the first block
-    having begun ``pad`` samples before ``k`` with ``qmiss0`` in its sums. In place; nothing to do
-    on a recording without dropouts."""
+def _dropout_variance(gyr, acc, dts, k, pad, qmiss0, block, p, tv=None):
+    """What gyro dropouts and gaps have added to the tilt variances since each block's start
+    (``tilt_core.output_var``: the kernel gives the block-start variances; the block's last
+    sample already has the updated ones), per sample from ``k`` on (to add to both tilt
+    variances), the first block having begun ``pad`` samples before ``k`` with ``qmiss0`` in its
+    sums; None when there is nothing to add (a recording without dropouts)."""
     g = gyr[k:]
     extra = tv is not None and bool(np.any(tv[k:] > 0))
     if (qmiss0 == 0.0 and not extra and np.max(g, initial=0.0) < MAX_RATE_RAD_S
             and np.min(g, initial=0.0) > -MAX_RATE_RAD_S and not np.any(dts[k:] > p.gap_flag_s)):
-        return  # every gyro sample valid (a NaN fails the test), no gap, no clipping: the usual case
+        return None  # every gyro sample valid (a NaN fails the test), no gap, no clipping
     t = core.sample_terms(gyr[k:].T, acc[k:].T, dts[k:], p, xp=np,
                           tilt_var=tv[k:] if extra else 0.0)
     m = t.dts.shape[0]
@@ -306,7 +343,7 @@ def _add_dropout_variance(var, gyr, acc, dts, k, pad, qmiss0, block, p, tv=None)
     q[0] += qmiss0
     q = np.cumsum(q.reshape(-1, block), axis=1)
     q[:, -1] = 0.0
-    var[k:, E.tilt] += q.reshape(-1)[pad:pad + m, None]
+    return q.reshape(-1)[pad:pad + m]
 
 
 def blocks_needing_gaps(dts, acc, k, block, p, pending, t_sum, pad: int = 0,
