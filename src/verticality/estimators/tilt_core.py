@@ -630,7 +630,7 @@ def block_update(x, c, p, gaps: bool = True):
 
     q_new = so3.quat_multiply(jnp.stack(so3.quat_exp_components(dx[0], dx[1], 0.0)), q_end)
     q_new = q_new / jnp.sqrt(sum_sq(q_new))
-    x_new = X.pack(q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
+    x_new = X.pack(summed=True, q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
                    vel_inn=inn, vel_fix=fix, speed_var=speed_var, dv_var=dv_var)
     vel_reset = jump | gap | collecting

@@ -66,11 +66,13 @@ class Packed:
             offset += 1 if size is None else size
         self.size = offset
 
-    def pack(self, xp=jnp, axis: int = -1, **values):
+    def pack(self, xp=jnp, axis: int = -1, summed: bool = False, **values):
         """The vector (or, with leading axes, the stack of vectors along ``axis``) holding
         ``values``: every field by name; a vector field as an array with its size along ``axis``
         or as a tuple of its components; scalars are cast to float64. ``xp`` is ``jax.numpy`` or
-        ``numpy``."""
+        ``numpy``. ``summed``: the vector as the sum of its fields each padded with zeros (the
+        same values but for the sign of a zero; in a ``lax.scan`` body XLA fuses it with the
+        fields' computation, where it runs a concatenate as a kernel of its own)."""
         names = [n for n, _ in self.fields]
         if set(values) != set(names):
             missing = [n for n in names if n not in values]
@@ -90,7 +92,19 @@ class Packed:
                 if v.shape[axis] != size:
                     raise ValueError(f"pack: {name} has size {v.shape[axis]}, expected {size}")
             parts.append(v)
-        return xp.concatenate(parts, axis=axis)
+        if not summed:
+            return xp.concatenate(parts, axis=axis)
+        # each part padded with zeros to the full length, the parts added: element-wise, so that
+        # XLA fuses it with the parts' own computation (a concatenate is a kernel of its own, and
+        # so is each of its operands)
+        out, offset = None, 0
+        for v in parts:
+            widths = [(0, 0)] * v.ndim
+            widths[axis] = (offset, self.size - offset - v.shape[axis])
+            offset += v.shape[axis]
+            v = xp.pad(v, widths)
+            out = v if out is None else out + v
+        return out
 
 
 NE = 10  # error-state dimension
