@@ -464,6 +464,15 @@ def test_the_filter_is_an_estimator_value_with_named_state():
     assert X.speed_var == 123 and X.dv_var == 124 and X.s == slice(125, 128)
     L = Packed([("a", 2), ("b", None)])
     np.testing.assert_array_equal(L.pack(xp=np, b=3.0, a=(1.0, 2.0)), [1.0, 2.0, 3.0])
+    # the summed form (zero-padded fields added: what the block update's scan fuses) is the same
+    rng = np.random.default_rng(1)
+    vals = {name: rng.normal(size=size) if size else rng.normal() for name, size in X.fields}
+    for xp in (np, jnp):
+        np.testing.assert_array_equal(np.asarray(X.pack(xp=xp, summed=True, **vals)),
+                                      np.asarray(X.pack(xp=xp, **vals)))
+    np.testing.assert_array_equal(L.pack(xp=np, summed=True, b=np.array([3.0, -1.0]),
+                                         a=np.array([[1.0, 2.0], [4.0, 5.0]]), axis=0),
+                                  [[1.0, 2.0], [4.0, 5.0], [3.0, -1.0]])
     with pytest.raises(ValueError, match="missing"):
         L.pack(xp=np, a=(1.0, 2.0))
     with pytest.raises(ValueError, match="expected 2"):
