@@ -242,16 +242,24 @@ def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv
     # dispatch every chunk first (asynchronous, the state stays on the device), then copy the
     # outputs: the host copies overlap the device work of the later chunks
     p_vec = jax.device_put(np.asarray(p, dtype=np.float64))  # once per recording
+    x0 = x
     # the kernel without gap handling serves chunks with no gap and no re-acquisition in them
     # (the same numbers, faster)
-    need = blocks_needing_gaps(dts, acc, k, block, p, bool(x[X.reacquire] > 0.5),
-                               float(x[X.reacq_t]), pad=pad, gap0=bool(sums0[S.gap] > 0))
+    # a re-acquisition pending at the start (after the initialization): the first block needs
+    # the gap handling (blocks_needing_gaps says so too), and the first chunk is dispatched
+    # before the host looks for the others' gaps
+    pending0 = bool(x[X.reacquire] > 0.5)
+    need = None
     pending, trans, j, v = [], [], 0, 0
     while v < nv:
+        if need is None and not (v == 0 and pending0):
+            need = blocks_needing_gaps(dts, acc, k, block, p, pending0, float(x0[X.reacq_t]),
+                                       pad=pad, gap0=bool(sums0[S.gap] > 0))
         # a gap or a re-acquisition (after a gap, and after the initialization) within a chunk's
         # reach: short chunks with gap handling until it is past; and for a tail of at most half
         # a long chunk (less padding)
-        gaps = bool(need[j:j + CHUNK_BLOCKS].any()) or 2 * (nv - v) <= CHUNK_BLOCKS * block
+        gaps = (need is None or bool(need[j:j + CHUNK_BLOCKS].any())
+                or 2 * (nv - v) <= CHUNK_BLOCKS * block)
         nb = GAP_CHUNK_BLOCKS if gaps else CHUNK_BLOCKS
         size = nb * block
         # the chunk's samples (packed chunk by chunk, while the device works on the previous
