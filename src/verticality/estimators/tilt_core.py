@@ -339,26 +339,37 @@ def block_inputs(s, p):
 _J = np.array([[0.0, 1.0], [-1.0, 0.0]])  # (δ × e3)_{x,y} = J δ
 
 
+def transition_coefficients(R, T, g, G):
+    """The entries of the block's error transition (:func:`error_transition`) that are neither 0
+    nor 1, as nested lists of scalars (rows, then columns): ``AA`` (2 × 6) ``= [A, A_s]``, how the
+    bias and scale errors move the tilt error, and ``BB`` (2 × 6) ``= ½ T g J [A, A_s]``, how they
+    move the velocity error; ``R`` (3 × 3, or its first two rows). Scalars, not arrays, so that
+    :func:`propagate_covariance` fuses in the batch kernel's scan (a concatenate would not)."""
+    AA = tuple([-T * R[i, k] for k in range(3)] + [-R[i, k] * G[k] for k in range(3)]
+               for i in range(2))
+    BB = ([0.5 * T * (AA[1][k] * g) for k in range(6)],
+          [0.5 * T * (-AA[0][k] * g) for k in range(6)])
+    return AA, BB
+
+
 def error_transition(R, T, g, G):
     """The error-state transition ``F`` (10 × 10) of a block of length ``T`` (s) whose orientation
-    at its end is ``R`` (3 × 3, or its first two rows) and whose raw gyro rotation is ``G = Σ ω Δt`` (3,): the gyro reads
-    ``(1 + s) ω + b``, so a scale error ``s̃`` acts as a bias error ``s̃ ⊙ ω``; the continuous error
-    dynamics ``δ̇ = −Π R (b̃ + s̃ ⊙ ω)``, ``ṽ̇ = g J δ``, ``ḃ̃ = 0``, ``s̃̇ = 0`` over ``T`` with
-    ``R`` held, ``F = exp(F_c T)`` (exact: ``F_c³ = 0``)::
+    at its end is ``R`` (3 × 3, or its first two rows) and whose raw gyro rotation is
+    ``G = Σ ω Δt`` (3,): the gyro reads ``(1 + s) ω + b``, so a scale error ``s̃`` acts as a bias
+    error ``s̃ ⊙ ω``; the continuous error dynamics ``δ̇ = −Π R (b̃ + s̃ ⊙ ω)``, ``ṽ̇ = g J δ``,
+    ``ḃ̃ = 0``, ``s̃̇ = 0`` over ``T`` with ``R`` held, ``F = exp(F_c T)`` (exact: ``F_c³ = 0``)::
 
         δ ← δ + A b̃ + A_s s̃             A = −T Π R,  A_s = −Π R diag(G)
         ṽ ← ṽ + T g J δ + ½ T g J (A b̃ + A_s s̃)
         b̃ ← b̃,  s̃ ← s̃
 
-    Checked against ``jax.jacfwd`` of the error flow (tests/test_tilt.py)."""
-    A = -T * R[:2, :]  # (2, 3)
-    As = -R[:2, :] * G[None, :]  # (2, 3)
-    AA = jnp.concatenate([A, As], axis=1)  # (2, 6)
-    gJA = jnp.stack([AA[1], -AA[0]]) * g  # g J [A As]
+    (:func:`transition_coefficients`). Checked against ``jax.jacfwd`` of the error flow
+    (tests/test_tilt.py)."""
+    AA, BB = transition_coefficients(R, T, g, G)
     z2 = jnp.zeros((2, 2))
     return jnp.concatenate([
-        jnp.concatenate([jnp.eye(2), z2, AA], axis=1),
-        jnp.concatenate([T * g * _J, jnp.eye(2), 0.5 * T * gJA], axis=1),
+        jnp.concatenate([jnp.eye(2), z2, jnp.stack([jnp.stack(r) for r in AA])], axis=1),
+        jnp.concatenate([T * g * _J, jnp.eye(2), jnp.stack([jnp.stack(r) for r in BB])], axis=1),
         jnp.concatenate([jnp.zeros((6, 4)), jnp.eye(6)], axis=1)], axis=0)
 
 
@@ -369,13 +380,8 @@ def propagate_covariance(P, R, T, g, G):
     ``(F P) Fᵀ`` its first four columns, each a short sum of rows (columns) of ``P``. Written
     element-wise (no ``dot`` and no reduction), so that it fuses with its neighbours in the batch
     kernel's scan over blocks: the dense product's numbers but for the order of the sums."""
-    A = -T * R[:2, :]
-    AA = [A[0, 0], A[0, 1], A[0, 2], -R[0, 0] * G[0], -R[0, 1] * G[1], -R[0, 2] * G[2]], \
-        [A[1, 0], A[1, 1], A[1, 2], -R[1, 0] * G[0], -R[1, 1] * G[1], -R[1, 2] * G[2]]
+    AA, BB = transition_coefficients(R, T, g, G)
     Tg = T * g
-    # velocity rows: T g J δ + ½ T g J (A b̃ + A_s s̃), J = [[0, 1], [-1, 0]]
-    BB = ([0.5 * T * (AA[1][k] * g) for k in range(6)],
-          [0.5 * T * (-AA[0][k] * g) for k in range(6)])
 
     def rows(M, get):  # the first four rows (columns) of F M (M Fᵀ) from M's rows (columns)
         r0 = get(M, 0) + sum(AA[0][k] * get(M, 4 + k) for k in range(6))
@@ -630,7 +636,8 @@ def block_update(x, c, p, gaps: bool = True):
 
     q_new = so3.quat_multiply(jnp.stack(so3.quat_exp_components(dx[0], dx[1], 0.0)), q_end)
     q_new = q_new / jnp.sqrt(sum_sq(q_new))
-    x_new = X.pack(summed=True, q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel, P=P.reshape(-1), acc_dev_var=acc_dev_var,
+    x_new = X.pack(summed=True, q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel,
+                   P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
                    vel_inn=inn, vel_fix=fix, speed_var=speed_var, dv_var=dv_var)
     vel_reset = jump | gap | collecting
