@@ -68,19 +68,15 @@ def _device_time(gyr, acc, dt, reps):
     in the batch run, inputs already packed): the run's time minus this is the host side
     (packing, transfers, writing the result arrays)."""
     from verticality.estimators import tilt_batch, tilt_core, tilt_kernels
-    from verticality.estimators.tilt_layout import CHUNK_SAMPLE, HEAD
+    from verticality.estimators.tilt_layout import HEAD
 
-    chunk = tilt_batch.CHUNK_BLOCKS * tilt.BLOCK
-    n = gyr.shape[0]
-    nch = -(-n // chunk)
-    data = np.zeros((nch * chunk, CHUNK_SAMPLE.size))
-    data[:n, CHUNK_SAMPLE.gyr], data[:n, CHUNK_SAMPLE.acc] = gyr, acc
-    data[:n, CHUNK_SAMPLE.dt] = dt
-    data[n:, CHUNK_SAMPLE.dt] = np.nan
     nb = tilt_batch.CHUNK_BLOCKS
-    parts = [jax.device_put(np.ascontiguousarray(
-        data[i * chunk:(i + 1) * chunk].reshape(nb, tilt.BLOCK, -1).transpose(2, 1, 0)))
-        for i in range(nch)]
+    chunk = nb * tilt.BLOCK
+    n = gyr.shape[0]
+    dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+    parts = [jax.device_put(tilt_batch.chunk_data(nb, tilt.BLOCK, 0, gyr[a:a + chunk],
+                                                  acc[a:a + chunk], dts[a:a + chunk]))
+             for a in range(0, n, chunk)]
     p = tilt.DEFAULT_PARAMS
     x0 = jax.device_put(tilt_core.initialize(tilt.TiltFilter().init().x, acc[0], p, xp=np))
     head = jax.device_put(HEAD.pack(xp=np, sums0=np.asarray(tilt_core.empty_sums(xp=np)),
@@ -94,7 +90,7 @@ def _device_time(gyr, acc, dt, reps):
         jax.block_until_ready((x, outs))
 
     chunks()
-    return _best(chunks, reps), nch
+    return _best(chunks, reps), len(parts)
 
 
 def main() -> int:

@@ -98,7 +98,7 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     x0 = x = np.array(state.x, dtype=np.float64)
     sums = np.array(state.sums, dtype=np.float64)
     count, initialized = int(state.count), bool(state.initialized)
-    k = 0
+    k = j = 0
     if not initialized:  # the samples up to the first usable accelerometer sample, which
         j = first_usable(acc, dts)  # initializes the filter (their outputs: below)
         k, initialized = min(n, j + 1), j < n
@@ -108,9 +108,10 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     # that does not need their outputs runs meanwhile, then their outputs are collected
     run_ = _dispatch(params, block, x, sums, count, gyr, acc, dts, k, transitions, tv, vv) \
         if k < n else None
-    res = empty_output(n, np.empty)  # every sample is written below (by the samples before the
-    if k > 0 and not bool(state.initialized):  # initialization and by the chunks)
-        _before_initialization(res, params, x0, sums, gyr, acc, dts)
+    # every sample is written below: by the samples up to the initialization and by the chunks
+    res = empty_output(n, np.empty)
+    if k > 0 and not bool(state.initialized):
+        _before_initialization(res, params, x0, x, j, sums, gyr, acc, dts)
     in_range = _within(gyr, MAX_RATE_RAD_S) and _within(acc, MAX_ACC_M_S2)
     trans = Transitions(n, np.zeros((0, TRANS.size)))
     if run_ is not None:
@@ -167,13 +168,12 @@ def first_usable(acc, dts, k0: int = 0) -> int:
     return n
 
 
-def _before_initialization(res, p, x, sums, gyr, acc, dts):
-    """The outputs of the samples up to the one that initializes the filter (the first usable
-    accelerometer sample), as ``step`` gives them: the filter does not change before it, and that
-    sample sets the tilt (``tilt_core.initialize``). Returns the number of samples done and the
-    filter after them."""
+def _before_initialization(res, p, x, x_init, j, sums, gyr, acc, dts):
+    """The outputs of the samples up to ``j``, the one that initializes the filter (the first
+    usable accelerometer sample, ``len(acc)`` if none), as ``step`` gives them: the filter ``x``
+    does not change before it, and that sample sets the tilt (``x_init``,
+    ``tilt_core.initialize``)."""
     n = acc.shape[0]
-    j = first_usable(acc, dts)
     k = min(n, j + 1)
     dt_ok, gyr_ok, acc_ok, _ = core.masks(gyr[:k].T, acc[:k].T, dts[:k], xp=np)
     pending = (x[X.reacquire] > 0.5) | (sums[S.gap] > 0)
@@ -183,7 +183,7 @@ def _before_initialization(res, p, x, sums, gyr, acc, dts):
     quat = np.tile(x[X.q], (k, 1))
     variances = np.tile(var, (k, 1))
     if j < n:  # the initialization
-        x = core.initialize(x, acc[j], p, xp=np)
+        x = x_init
         quat[j] = x[X.q]
         variances[j] = core.output_var(x[X.P].reshape(NE, NE), True, 0.0, p, xp=np)
         flags[j] |= INIT | REACQUIRING
@@ -194,7 +194,6 @@ def _before_initialization(res, p, x, sums, gyr, acc, dts):
     res.bias_S_rad_s[:k] = x[X.b]
     res.var[:k] = variances
     res.flags[:k] = flags
-    return k, x
 
 
 _HEADS: dict = {}
@@ -227,7 +226,7 @@ class _Dispatched(NamedTuple):
     nv: int
     block: int
     sums0: np.ndarray
-    dropout: np.ndarray | None  # what _add_dropout_variance adds (None: nothing)
+    dropout: np.ndarray | None  # what _dropout_variance gives (None: nothing to add)
 
 
 def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv=None, vv=None):
@@ -340,8 +339,8 @@ def _dropout_variance(gyr, acc, dts, k, pad, qmiss0, block, p, tv=None):
     sums; None when there is nothing to add (a recording without dropouts)."""
     g = gyr[k:]
     extra = tv is not None and bool(np.any(tv[k:] > 0))
-    if (qmiss0 == 0.0 and not extra and np.max(g, initial=0.0) < MAX_RATE_RAD_S
-            and np.min(g, initial=0.0) > -MAX_RATE_RAD_S and not np.any(dts[k:] > p.gap_flag_s)):
+    if (qmiss0 == 0.0 and not extra and _within(g, MAX_RATE_RAD_S)
+            and not np.any(dts[k:] > p.gap_flag_s)):
         return None  # every gyro sample valid (a NaN fails the test), no gap, no clipping
     t = core.sample_terms(gyr[k:].T, acc[k:].T, dts[k:], p, xp=np,
                           tilt_var=tv[k:] if extra else 0.0)

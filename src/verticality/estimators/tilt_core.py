@@ -261,7 +261,7 @@ def add_fix_variance(P, fix):
     """Covariance ``P`` (10, 10) with the corrections ``fix`` (5,: tilt (2,) rad, bias (3,) rad/s)
     that may not be real added as variance: ``|fix_tilt|²`` to both tilt variances, ``fix_b²`` to
     each bias variance."""
-    t2 = fix[0] * fix[0] + fix[1] * fix[1]
+    t2 = sum_sq(fix[:2])
     z = jnp.zeros_like(t2)
     # (a diagonal added element-wise: no scatter, so that it fuses in the batch kernel's scan)
     return P + jnp.diag(jnp.stack([t2, t2, z, z, fix[2] * fix[2], fix[3] * fix[3],
@@ -404,6 +404,12 @@ def sum_sq(v):
     return out
 
 
+def unit(q):
+    """``q`` (4,) divided by its norm: ``so3.quat_normalize`` with the norm from :func:`sum_sq`
+    (no reduction: it fuses in the batch kernel's scan over blocks)."""
+    return q / jnp.sqrt(sum_sq(q))
+
+
 def disturbed_velocity_scale(acc_dev_var, p):
     """How much the velocity pseudo-measurement's variance grows under a disturbance: the speed
     prior becomes the larger of ``vel_m_s`` and the speed an inertial acceleration of mean square
@@ -478,7 +484,7 @@ def block_prediction(x, c):
     q_end = so3.quat_multiply(so3.quat_multiply(q0, c[C.dquat]),
                               jnp.stack(so3.quat_exp_components(
                                   *(-(x[X.b] * c[C.tau] + x[X.s] * c[C.gsum])))))
-    q_end = q_end / jnp.sqrt(sum_sq(q_end))  # (so3.quat_normalize without a reduction)
+    q_end = unit(q_end)
     f_E = jnp.stack(so3.quat_rotate_components(tuple(q0), tuple(c[C.f])))
     return q_end, f_E, x[X.v] + f_E[:2]
 
@@ -635,7 +641,7 @@ def block_update(x, c, p, gaps: bool = True):
                                                    jnp.array(False))
 
     q_new = so3.quat_multiply(jnp.stack(so3.quat_exp_components(dx[0], dx[1], 0.0)), q_end)
-    q_new = q_new / jnp.sqrt(sum_sq(q_new))
+    q_new = unit(q_new)
     x_new = X.pack(summed=True, q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel,
                    P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
