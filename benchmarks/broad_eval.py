@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     paths = broad.list_trials(args.broad_dir)
     filters = ["verticality"] + (["vqf"] if peer_status().get("vqf") is None else [])
     res = evaluate_trials(paths, filters)
-    print(f"{'trial':42s} {'ours':>7s} {'vqf':>7s} {'ratio':>6s} {'σ / 2σ (%)':>12s} "
+    print(f"{'trial':46s} {'ours':>7s} {'vqf':>7s} {'ratio':>6s} {'σ / 2σ (%)':>12s} "
           f"{'clipped':>8s} {'held':>5s}")
     failed = []
     for path in paths:
@@ -40,7 +40,7 @@ def main(argv=None) -> int:
         rmse = res["trials"][trial.name]
         cal = res["sigma"][trial.name]
         vqf = rmse.get("vqf", np.nan)
-        print(f"{trial.name:42s} {rmse['verticality']:7.3f} {vqf:7.3f} "
+        print(f"{trial.name:46s} {rmse['verticality']:7.3f} {vqf:7.3f} "
               f"{rmse['verticality'] / vqf:6.2f} "
               f"{100 * cal['within_1sigma']:5.1f} / {100 * cal['within_2sigma']:5.1f} "
               f"{clipped:8d} {int(lim.held.sum()):5d}", flush=True)
@@ -49,7 +49,7 @@ def main(argv=None) -> int:
         if cal["within_2sigma"] < 0.99:
             failed.append(f"{trial.name}: {100 * cal['within_2sigma']:.2f} % within 2σ")
     mean = res["mean"]
-    print(f"{'mean':42s} {mean['verticality']:7.3f} {mean.get('vqf', np.nan):7.3f} "
+    print(f"{'mean':46s} {mean['verticality']:7.3f} {mean.get('vqf', np.nan):7.3f} "
           f"{mean['verticality'] / mean.get('vqf', np.nan):6.2f}")
     for line in failed:
         print(f"FAILED {line}")
