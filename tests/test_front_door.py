@@ -28,6 +28,9 @@ def test_ci_runs_the_readmes_test_command_verbatim():
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
     assert command in ci  # a line of its own, character for character
     assert "export CI=true MPLBACKEND=Agg" in ci  # there the browser tests must run
+    # the getting-started page gives the same command
+    start = (ROOT / "docs" / "getting-started.md").read_text(encoding="utf-8").splitlines()
+    assert command in start
 
 
 def _requirements_of_the_test_extra() -> list[Requirement]:
