@@ -1,7 +1,7 @@
 """Throughput of the tilt filter (verticality.estimators.tilt) and its offline smoother against
 vqf in the same run.
 
-- batch: ``tilt.estimate`` (``TiltFilter.run`` from the start) on one BROAD trial (or a synthetic recording if the data are absent) vs
+- batch: ``tilt.estimate`` (``TiltFilter.run`` from the start) on BROAD trial 01 (``--broad BROAD_DIR``) or a synthetic recording vs
   ``vqf.VQF(Ts).updateBatch`` (C++), samples per second, best of several repetitions (the two
   alternate), compile excluded (one compiled shape serves every recording); also the time of the
   compiled chunks alone, the rest of the run's time being the host side;
@@ -13,7 +13,7 @@ vqf in the same run.
   real-time path) and the jitted packed JAX step ``tilt.make_step()`` (bounded by JAX's per-call
   cost).
 
-Run: ``python benchmarks/bench_tilt.py [--reps 5]``.
+Run: ``python benchmarks/bench_tilt.py [--broad BROAD_DIR] [--reps 5]``.
 """
 
 from __future__ import annotations
@@ -27,12 +27,12 @@ import numpy as np
 
 from verticality.estimators import tilt
 
-BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 
-
-def _data():
-    trial = BROAD / "01_undisturbed_slow_rotation_A.hdf5"
-    if trial.is_file():
+def _data(broad_dir: Path | None):
+    """BROAD trial 01 from ``broad_dir`` (the folder of the dataset's trials) when given, else a
+    synthetic recording of the same length."""
+    if broad_dir is not None:
+        trial = broad_dir / "01_undisturbed_slow_rotation_A.hdf5"
         from verticality.io import broad
 
         t = broad.load_trial(trial)
@@ -95,12 +95,14 @@ def _device_time(gyr, acc, dt, reps):
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--broad", type=Path, default=None, metavar="BROAD_DIR",
+                    help="folder of the BROAD trials: time trial 01 (default: synthetic data)")
     ap.add_argument("--reps", type=int, default=15)
     ap.add_argument("--stream-samples", type=int, default=2000)
     ap.add_argument("--offline-samples", type=int, default=1_000_000)
     ap.add_argument("--offline-reps", type=int, default=5)
     args = ap.parse_args()
-    gyr, acc, dt, name = _data()
+    gyr, acc, dt, name = _data(args.broad)
     gyr = np.ascontiguousarray(gyr)
     acc = np.ascontiguousarray(acc)
     n = gyr.shape[0]

@@ -7,7 +7,7 @@ trial, against the optical reference (BROAD's inclination error, movement sample
 without gaps on the same samples, then with gaps: over 0–3 s after each gap (includes the
 ``reacquire_s`` wait), over 1.5–5 s after each gap (after re-acquisition), and over the trial.
 
-Run: ``python benchmarks/gaps_broad.py [--gap 0.5] [--reacquire-s 1.0]``.
+Run: ``python benchmarks/gaps_broad.py BROAD_DIR [--gap 0.5] [--reacquire-s 1.0]``.
 """
 
 from __future__ import annotations
@@ -20,8 +20,6 @@ import numpy as np
 from verticality.estimators import tilt
 from verticality.io import broad
 
-BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
-
 
 def _rms(e, sel):
     return float(np.sqrt(np.mean(e[sel] ** 2)))
@@ -29,6 +27,8 @@ def _rms(e, sel):
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("broad_dir", type=Path, metavar="BROAD_DIR",
+                    help="folder of the BROAD trials (.hdf5)")
     ap.add_argument("--gap", type=float, default=0.5, help="length of each gap (s)")
     ap.add_argument("--reacquire-s", type=float, default=tilt.DEFAULT_PARAMS.reacquire_s)
     args = ap.parse_args()
@@ -36,7 +36,7 @@ def main() -> None:
     print(f"gaps of {args.gap:g} s, reacquire_s = {args.reacquire_s:g} s; RMS error (deg)")
     print(f"{'trial':40s} {'no gap':>7s} {'0-3 s':>7s} {'1.5-5 s':>8s} {'trial':>7s}")
     rows = []
-    for path in broad.list_trials(BROAD):
+    for path in broad.list_trials(args.broad_dir):
         tr = broad.load_trial(path)
         n, fs = tr.gyr_rad_s.shape[0], tr.sampling_rate_hz
         mv = np.flatnonzero(tr.movement)

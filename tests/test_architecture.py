@@ -197,3 +197,16 @@ def test_nothing_points_outside_the_repository():
     hits = [f"{f.relative_to(ROOT)}: {m.group(0)}" for f in files
             for m in pattern.finditer(f.read_text(encoding="utf-8"))]
     assert hits == []
+
+
+def test_no_test_benchmark_or_default_reads_beside_the_clone():
+    """The tests read their data from the repository (tests/data/broad) or make it; benchmarks and
+    commands read a dataset where the user says. Nothing reaches for a folder beside the clone
+    (a shared data folder named in a path or a string, or a climb above the repository)."""
+    pattern = re.compile(r"\.\./shared|shared/dat[a]|[\"']shared[\"']|parents\[[2-9]\]")
+    files = [*SRC.rglob("*.py"), *(ROOT / "tests").rglob("*.py"),
+             *(ROOT / "benchmarks").rglob("*.py"), *(ROOT / ".ci").iterdir(),
+             ROOT / "pyproject.toml"]
+    hits = [f"{f.relative_to(ROOT)}: {m.group(0)}" for f in files
+            for m in pattern.finditer(f.read_text(encoding="utf-8"))]
+    assert hits == []

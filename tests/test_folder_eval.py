@@ -165,7 +165,8 @@ def test_without_the_extra_the_distributed_path_says_what_to_install(tmp_path, m
     _broad_trial(tmp_path / "b" / "t.hdf5", 200, 0)
     monkeypatch.setitem(sys.modules, "distributed", None)  # `import distributed` fails
     for argv in (["estimate", str(d), "--out", str(tmp_path / "o"), "--workers", "2"],
-                 ["evaluate", "broad", str(tmp_path / "b"), "--workers", "2"]):
+                 ["evaluate", "broad", str(tmp_path / "b"), "--workers", "2",
+                  "--filters", "verticality"]):
         assert cli.main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "pip install 'verticality[sweep]'" in err[0], err

@@ -6,6 +6,7 @@ import h5py
 import numpy as np
 import pytest
 
+from broad_slices import SLOW_ROTATION
 from verticality import cli
 from verticality.errors import InputError
 from verticality.io import broad, imu, imu_layout
@@ -14,8 +15,6 @@ G = 9.81
 EUROC_HEADER = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
                 "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]")
 T0_NS = 1403636579758555392  # first stamp of EuRoC MH_01_easy
-BROAD_FILE = (Path(__file__).parents[2] / "shared" / "data" / "broad"
-              / "01_undisturbed_slow_rotation_A.hdf5")
 MAPPING = "t=time_ms,gyr_x=wx,gyr_y=wy,gyr_z=wz,acc_x=ax,acc_y=ay,acc_z=az"
 
 
@@ -66,9 +65,7 @@ def test_euroc_header_variants_read_back_with_exact_ns_steps(tmp_path, swinging_
 
 
 def test_estimate_on_euroc_slice_of_broad_equals_own_layout(tmp_path, capsys):
-    if not BROAD_FILE.is_file():
-        pytest.fail(f"BROAD data not found: expected {BROAD_FILE}")
-    trial = broad.load_trial(BROAD_FILE)
+    trial = broad.load_trial(SLOW_ROTATION)
     sl = slice(12000, 14000)  # 7 s of slow rotation, up to 3 rad/s
     gyr, acc = trial.gyr_rad_s[sl], trial.acc_m_s2[sl]
     step_ns = 3_500_000  # BROAD's 285.714 Hz

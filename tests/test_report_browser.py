@@ -24,11 +24,20 @@ ROOT = Path(__file__).resolve().parents[1]
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
+def in_ci() -> bool:
+    """True under a CI runner (``CI=true``, as .ci/run and the usual CI services set it)."""
+    return os.environ.get("CI", "").strip().lower() in ("true", "1", "yes")
+
+
 def _require(ok: bool, what: str) -> None:
-    """A missing tool fails the test: the page is checked in a real browser or not at all
-    (.ci/run and the README's test command install it)."""
+    """A missing tool skips the test with a one-line reason on a user's machine (the README's test
+    command installs chromium where it can: .ci/install-chromium); under CI it fails, so that CI
+    never passes without the pages having been opened."""
     if not ok:
-        pytest.fail(f"{what} is not installed; on Debian/Ubuntu: sudo apt-get install chromium")
+        message = f"{what} is not installed (.ci/install-chromium, or CHROMIUM=/path/to/it)"
+        if in_ci():
+            pytest.fail(message)
+        pytest.skip(message)
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +104,7 @@ _SECTIONS_JS = """
 """
 
 
-def test_report_of_a_quick_run_in_chromium(quick_results, browser, tmp_path):
+def test_report_of_a_quick_run_in_chromium(browser, quick_results, tmp_path):
     page_file = quick_results / "report.html"
     assert 100_000 < page_file.stat().st_size < 10_000_000
     page = browser.open(page_file.as_uri())

@@ -153,13 +153,9 @@ def test_motion_window_selects_rows_on_the_file_clock_and_refuses_empty_ones():
 def test_stabilize_reads_a_broad_recording_window(tmp_path, capsys):
     """A BROAD file is converted as `verticality motion` converts it (same rows), and a window past
     its end is refused in one line before anything is compiled."""
-    from pathlib import Path
-
+    from broad_slices import FAST_TRANSLATION as path
     from verticality.io import broad
 
-    path = Path(__file__).parents[2] / "shared" / "data" / "broad" / "15_undisturbed_fast_translation_A.hdf5"
-    if not path.is_file():
-        pytest.fail(f"BROAD data not found: expected {path}")
     rec = io.load_motion(path, 38.0, 2.0)
     ref = io.from_broad_trial(broad.load_trial(path), 38.0, 2.0)
     for a, b in zip(rec, ref, strict=True):

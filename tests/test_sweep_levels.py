@@ -3,6 +3,7 @@ run's seed) and the divergence curve along a knob (``sweep-plot --curve``)."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -197,5 +198,18 @@ def test_sweep_plot_curve_command(tmp_path, capsys, monkeypatch):
     png = out / "curve-error_level.png"
     assert lines[-1] == str(png) and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert lines[:-1] == curves.table(curves.compute(NEWTON_LISSAJOUS, cols, "error_level"))
+    # the same numbers as JSON (whole, for a script), and the figure's path
+    assert main(["sweep-plot", str(out), "--curve", "error_level", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    curve = curves.compute(NEWTON_LISSAJOUS, cols, "error_level")
+    assert got["figure"] == str(png) and got["knob"] == "error_level"
+    np.testing.assert_array_equal(got["values"], curve.values)
+    for g in curve.groups:
+        np.testing.assert_array_equal(got["groups"][g]["diverged"], curve.diverged[g])
+        np.testing.assert_array_equal(got["groups"][g]["runs"], curve.runs[g])
+        np.testing.assert_allclose(np.array(got["groups"][g]["median"], dtype=float),
+                                   curve.median[g], rtol=0, atol=0, equal_nan=True)
+    assert main(["sweep-plot", str(out), "--json"]) == 2
+    assert "--json" in capsys.readouterr().err
     assert main(["sweep-plot", str(out), "--curve", "error_level", "--x", "K_rel_error"]) == 2
     assert "--curve draws one knob" in capsys.readouterr().err

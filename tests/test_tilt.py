@@ -203,14 +203,10 @@ def test_start_in_motion_on_broad():
     51° off; from 1.5 to 10 s the RMS error is 2.8° (9.5° when the first sample is trusted; 1.6°
     before the velocity pseudo-measurement was widened under disturbance, which slows the
     convergence during this fast translation while σ keeps covering the error)."""
-    from pathlib import Path
-
+    from broad_slices import FAST_TRANSLATION
     from verticality.io import broad
 
-    path = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad" / \
-        "15_undisturbed_fast_translation_A.hdf5"
-    assert path.is_file(), f"BROAD data missing: {path}"
-    trial = broad.load_trial(path)
+    trial = broad.load_trial(FAST_TRANSLATION)
     k0, n = 15_000, int(10 / trial.dt_s)
     out = tilt.estimate(trial.gyr_rad_s[k0:k0 + n], trial.acc_m_s2[k0:k0 + n], trial.dt_s)
     err = broad.inclination_error_deg(out.quat_E_S, trial.quat_E_S_opt[k0:k0 + n])

@@ -6,12 +6,11 @@ readings beyond any IMU, irregular Δt, gaps (two while one is pending), dropout
 sensor, a start in motion, rest, rotations beyond the batch kernel's Taylor range, a given initial
 state, no usable accelerometer at all; the σ of every path."""
 
-from pathlib import Path
-
 import jax
 import numpy as np
 import pytest
 
+from broad_slices import FAST_ROTATION
 from imu_cases import G, tumbling
 from verticality.estimators import tilt, tilt_core
 from verticality.estimators.base import scan_steps
@@ -27,7 +26,6 @@ from verticality.estimators.tilt_flags import (
 from verticality.estimators.tilt_stream import Stream
 
 N = 1600  # every case has this many samples: the sequential reference compiles once
-BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 
 
 
@@ -39,12 +37,9 @@ def _tumbling(bias, n=N, dt=0.01, rate=0.4, seed=1):
 def _broad_slice():
     from verticality.io import broad
 
-    path = BROAD / "06_undisturbed_fast_rotation_A.hdf5"
-    assert path.is_file(), f"BROAD data missing: {path}"
-    trial = broad.load_trial(path)
-    k0 = 20_000  # a fast-rotation stretch
-    return (trial.gyr_rad_s[k0:k0 + N], trial.acc_m_s2[k0:k0 + N],
-            np.full(N, trial.dt_s)), None
+    trial = broad.load_trial(FAST_ROTATION)  # a fast-rotation stretch of N samples
+    assert trial.gyr_rad_s.shape[0] == N
+    return (trial.gyr_rad_s, trial.acc_m_s2, np.full(N, trial.dt_s)), None
 
 
 def _nans_irregular_gap():

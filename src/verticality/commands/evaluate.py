@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from verticality.commands import add_engine_arguments
+from verticality.commands import add_engine_arguments, print_table
 
 
 def register(sub):
@@ -56,12 +56,12 @@ def run_broad(args) -> int:
         sys.stdout.write("\n")
         return 0
     table = Table(title=f"BROAD inclination RMSE (deg), {len(res['trials'])} trials")
-    table.add_column("trial")
+    table.add_column("trial", no_wrap=True)
     for f in filters:
-        table.add_column(f, justify="right")
+        table.add_column(f, justify="right", no_wrap=True)
     for f in sigmas:
-        table.add_column(f"{f}: RMS σ", justify="right")
-        table.add_column("within σ / 2σ", justify="right")
+        table.add_column(f"{f}: RMS σ", justify="right", no_wrap=True)
+        table.add_column("within σ / 2σ", justify="right", no_wrap=True)
     best = {name: min(v.values()) for name, v in res["trials"].items()}
     for name, v in res["trials"].items():
         cells = [(f"[bold]{v[f]:.3f}[/bold]" if v[f] == best[name] else f"{v[f]:.3f}")
@@ -73,7 +73,7 @@ def run_broad(args) -> int:
         table.add_row(name, *cells)
     table.add_row("mean", *[f"{res['mean'][f]:.3f}" for f in filters], end_section=True)
     table.add_row("runtime (s)", *[f"{res['runtime_s'][f]:.2f}" for f in filters])
-    Console().print(table)
+    print_table(table)
     if sigmas:
         Console().print("within σ / 2σ: the share of scored samples whose error is at most the "
                         "reported σ / 2σ (0.632 / 0.982 if σ were exact for a 2-D Gaussian error)")

@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from verticality.analysis.otolith_observability import CONTROLS, MODELS, MOTIONS, OUTPUTS
+from verticality.commands import print_table
 
 
 def register(sub):
@@ -52,7 +53,7 @@ def run(args) -> int:
     table = Table(title=f"Observability of the head's tilt from the otoliths ({args.chart} chart, "
                         f"{args.output} outputs, {args.params} parameters)")
     for col in ("model", "motion", "control", "published tilt/acc", "ours tilt/acc", "", "why"):
-        table.add_column(col, overflow="fold")
+        table.add_column(col, no_wrap=col in ("model", "motion", "control"))
     rows = report["rows"]
     for r in rows:
         table.add_row(r["model"], r["motion"], r["control"],
@@ -61,8 +62,7 @@ def run(args) -> int:
                       f"{_yn(r['orientation_observable'])} / {_yn(r['acceleration_identifiable'])}",
                       "=" if r["agrees"] else "≠", r["why"])
     console = Console()
-    console.width = max(console.width, 120)
-    console.print(table)
+    print_table(table, console)
     if any("[1]" in r["why"] for r in rows):
         console.print(oo.FREE_ENTRY_NOTE)
     console.print(f"agreement with F Tables 3.1/3.2: {report['agreement']}/{report['cases']}"

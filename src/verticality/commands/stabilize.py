@@ -111,10 +111,12 @@ def _print_table(report: dict) -> None:
     from rich.console import Console
     from rich.table import Table
 
+    from verticality.commands import print_table
+
     table = Table(title=f"{report['input']}: {report['duration_s']:g} s, {report['seeds']} seed(s), "
                         f"EKF model {report['filter_model']}")
     after = f"t ≥ {report['settle_s']:g} s"
-    table.add_column("head")
+    table.add_column("head", no_wrap=True)
     table.add_column(f"max tilt error, {after} (deg)", justify="right")
     table.add_column(f"RMS tilt error, {after} (deg)", justify="right")
     for cond in ("fixed", "stabilized"):
@@ -125,6 +127,6 @@ def _print_table(report: dict) -> None:
             table.add_row(cond, f"{report['max_tilt_error_deg'][cond]:.3f}",
                           f"{report['rms_tilt_error_deg'][cond]:.3f}")
     console = Console()
-    console.print(table)
+    print_table(table, console)
     if report["rms_ratio_stabilized_over_fixed"] is not None:
         console.print(f"RMS ratio stabilized / fixed: {report['rms_ratio_stabilized_over_fixed']:.3f}")

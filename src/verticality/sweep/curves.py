@@ -129,6 +129,14 @@ def table(curve: Curve) -> list[str]:
     return lines
 
 
+def as_dict(curve: Curve) -> dict:
+    """The numbers of :func:`table` as data: per group, arrays over ``values``."""
+    keys = ("runs", "diverged", "p_low", "p_high", "median")
+    return {"knob": curve.knob, "group": curve.group, "metric": curve.metric,
+            "values": curve.values,
+            "groups": {g: {k: getattr(curve, k)[g] for k in keys} for g in curve.groups}}
+
+
 def write(out_dir: Path, knob: str, path: Path | None = None) -> tuple[Path, Curve]:
     """Read the sweep in ``out_dir``, compute its curve along ``knob`` and draw it (default
     ``out_dir/curve-KNOB.png``)."""
