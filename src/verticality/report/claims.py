@@ -322,7 +322,7 @@ CLAIMS: dict[str, Claim] = {
                              unit="°"),
                    Published("fixed / stabilized, exact model, our RK4 model", "P11 abstract",
                              "“almost two orders of magnitude”",
-                             ("ratio_fixed_over_stabilized", "exact"), "context"),
+                             ("ratio_fixed_over_stabilized", "exact"), "at_least", 10.0),
                    Published("max error, fixed, perturbed, our RK4 model", "P11 §VI, Fig. 6",
                              "≈ 6°", ("max_tilt_error_deg", "fixed", "perturbed"),
                              "approx_error", 6.0, unit="°", headline=True),
