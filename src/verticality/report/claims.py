@@ -929,4 +929,24 @@ DIFFERENCES: tuple[Difference, ...] = (
                            none_text="none")),
         pages=("ambiguity.md",),
     ),
+    Difference(
+        anchor="differ-p13-inclinometer-outputs",
+        title="The otolith outputs are F 2.8–2.9, not P13 eq. 3",
+        seeds="P13 eq. 3: the inclinometer reads y1 = arcsin‖j_H × j_S‖ and y2 = arcsin‖i_H × i_S‖ "
+              "(the angles between the head's and the pendulum's y and x axes).",
+        ours="Every model, filter and reproduction of P13 here uses F 2.8–2.9 (signed angles of the "
+             "head's axis in the pendulum frame). P13 eq. 3 is implemented beside it "
+             "(models/pendulum.py): with no turn of the pendulum about its own arm relative to the "
+             "head it equals |φ| of F 2.8–2.9 to third order in the tilt (2.4e-7 rad at 0.01 rad); "
+             "a relative turn about the arm enters it at first order. Under P13's impact motion "
+             "the pendulum turns so, and the two differ by up to 0.89 rad.",
+        why="P13 eq. 3 is unsigned and not differentiable at upright, where a stabilized head "
+            "keeps the filter linearized; F 2.8–2.9 is signed and smooth there, and sees the "
+            "pendulum's turn about its arm only at second order.",
+        evidence=(Evidence("model-checks", ("p13_eq3_minus_abs_f28_max_rad",),
+                           "max |P13 eq. 3 − |F 2.8–2.9||, impact motion, 10 s", " rad"),
+                  Evidence("model-checks", ("p13_eq3_phi_max_rad",),
+                           "max |φ| of F 2.8–2.9 on the same run", " rad")),
+        pages=("models.md",),
+    ),
 )
