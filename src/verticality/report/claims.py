@@ -364,7 +364,8 @@ CLAIMS: dict[str, Claim] = {
                   "(β/(m l²) = 125.6 s⁻¹, g/l = 3943.8 s⁻²)",
                   "pivot acceleration 3 sin(10 t) m/s² along the platform; PD k_p = 1, "
                   "k_d = 0.1; initial tilt 0.4 rad; references 1 rad and 0 rad; 1 ms step"),
-        readings=("Luenberger poles −100…−130 s⁻¹ (F gives none)",
+        readings=("Luenberger poles −100…−130 s⁻¹ (F gives none); lateral model: two "
+                  "inclinometers at ±r on the platform's horizontal axis, poles −100…−150 s⁻¹",
                   "“noisy”: the estimators' model 10 % high, σ_y = 5e-3 rad, σ_τ = 2e-3 N·m",
                   "unstable: error beyond 1 rad or growing envelope after 1 s, at both "
                   "references"),
@@ -404,7 +405,19 @@ CLAIMS: dict[str, Claim] = {
                    Published("platform swing about the reference, Kalman, ref 1 rad",
                              "F §4.4.3", "no oscillation",
                              ("max_tilt_deviation_rad", "nominal", "kalman", "ref1"),
-                             unit=" rad"),),
+                             unit=" rad"),
+                   Published("lateral model (F 2.18), Luenberger max error, ref 0, pivots on the "
+                             "axis (r = 0)", "F §4.4.2 (applied, no result shown)", "—",
+                             ("lateral", "max_error_rad_by_r_mm", "f219", "0", "ref0"),
+                             unit=" rad"),
+                   Published("lateral model (F 2.19), largest pivot offset whose Luenberger-fed "
+                             "loop stays stable (r = 0, 1, 2, 5, 10, 50 mm)",
+                             "F §4.4.2 (applied, no result shown)", "—",
+                             ("lateral", "largest_stable_r_mm", "f219"), unit=" mm"),
+                   Published("observability rank at upright with a steady unknown acceleration, "
+                             "lateral [rank, n]", "F Table 3.2 (nonlinear: observable)",
+                             "observable", ("lateral", "unknown_acceleration_observability_rank",
+                                            "lateral")),),
         note="Our swing is the largest deviation from the reference after 1 s (offset and "
              "oscillation together); F reads the oscillation's magnitude off Fig. 4.10, so the "
              "two are shown side by side without a verdict.",
