@@ -195,13 +195,24 @@ CLAIMS: dict[str, Claim] = {
                   "(θ2, θ3, θ̇2, θ̇3, ω, a_x) (T eq. 23), gain by pole placement (T eq. 19)",),
         readings=("poles −30…−31.5 s⁻¹ (body) and −10, −15, −20 s⁻¹ (disturbance), placed with "
                   "the five kinematic outputs (placing with all six gives 2.0°)",
-                  "the linearization's D·u term kept (T eq. 19 has none)"),
+                  "the linearization's D·u term kept (T eq. 19 has none)",
+                  "T eq. 24 prints 14 rows of 3 numbers: read as the 7×6 gain in two halves "
+                  "(rows 1–7: columns 1–3; rows 8–14: columns 4–6)"),
         published=(Published("RMS error of θ1, observer / filter", "T §IV",
                              "observer better when self-motion and ground motion superimpose "
                              "(ratio < 1)", ("better_than_kf",), "at_most", 1.0,
                              headline=True),
                    Published("RMS error of θ1", "T Fig. 11–13", "no number",
-                             ("rms_error_deg",), unit="°"),),
+                             ("rms_error_deg",), unit="°"),
+                   Published("T's printed gain on our linearized body: observer stable",
+                             "T eq. 24", "T's observer (its body)",
+                             ("t_eq24_gain", "stable"), "context"),
+                   Published("T's printed gain on our linearized body: slowest pole (real part)",
+                             "T eq. 24", "—", ("t_eq24_gain", "observer_poles_real", -1),
+                             unit=" s⁻¹"),
+                   Published("largest gain entry, T eq. 24 / ours (all six outputs placed)",
+                             "T eq. 24", "1.3e3", ("t_eq24_gain", "gain_max_abs"),
+                             ratio_to=("t_eq24_gain", "ours_gain_max_abs")),),
         pages=("linear-tahboub.md",),
     ),
     "ekf-impact": Claim(
