@@ -41,7 +41,10 @@ The checks and the readings they fix:
   head angles.
 * lateral r = 0 vs medial (:func:`lateral_vs_medial`): the lateral pendula with r = 0 against the
   medial pendulum under 10 s of the impact motion: max entry-wise difference of R_IS; and the
-  otolith angles of the lateral model (r = 0.05 m) against the medial ones (information).
+  otolith angles of the lateral model (r = 0.05 m) against the medial ones (information). On the
+  same run, P13 eq. 3's inclinometer outputs (arcsin of the cross products' norms,
+  :func:`~verticality.models.pendulum.p13_inclinometer_angles`) against |φ| of F 2.8–2.9
+  (:func:`p13_outputs_minus_abs_f_max_rad`, information).
 * still head tilted (:func:`still_tilt_errors_rad`): still head tilted by 0.3 rad about x, about y,
   and by R_x(0.2) R_y(0.3); the pendulum starts aligned with the head (0.3 rad off its rest); after
   10 s the otolith angles against ``φ = −Θ`` (single-axis; docs/conventions.md), the pendulum axis
@@ -77,7 +80,12 @@ from verticality.integrate import rk4_step
 from verticality.models import otolith_head, planar
 from verticality.models.head import FreeHead, HeadInput, HeadState
 from verticality.models.kinematics import RigidMotion, tabulate
-from verticality.models.pendulum import Pendulum, PendulumState
+from verticality.models.pendulum import (
+    R_H_S,
+    Pendulum,
+    PendulumState,
+    p13_inclinometer_angles,
+)
 from verticality.params import G_M_S2, LATERAL_R_M, P13_HEAD, P13_PENDULUM, lateral_pendulums
 
 DT_S = 1e-3
@@ -439,7 +447,9 @@ def _lateral_vs_medial(table, n):
     head0 = table.motion(0.0)
     _, med = run_model(medial, medial.rest_state(head0), lambda t, x: table.motion(t), DT_S, n,
                        every=EVERY_LM,
-                       output=lambda t, x: (x.R_I_S, medial.output(x, table.motion(t))))
+                       output=lambda t, x: (x.R_I_S, medial.output(x, table.motion(t)),
+                                            p13_inclinometer_angles(
+                                                R_H_S(x, table.motion(t).R_I_B))))
 
     def lateral(r):
         model = otolith_head.Otoliths(tuple(Pendulum(p) for p in lateral_pendulums(P13_PENDULUM, r)))
@@ -457,15 +467,16 @@ class LateralVsMedial(NamedTuple):
     phi_medial: np.ndarray  # (n, 2)
     R_I_S_lateral_r0: tuple[np.ndarray, np.ndarray]  # left, right with r = 0
     phi_lateral: np.ndarray  # (n, 4): left (φx, φy), right (φx, φy) with r = 0.05 m
+    p13_medial: np.ndarray  # (n, 2): P13 eq. 3's (y1, y2) of the medial pendulum
 
 
 @functools.lru_cache(maxsize=1)
 def lateral_vs_medial() -> LateralVsMedial:
     """10 s of the impact motion: the medial pendulum and the lateral pendula (r = 0, 0.05 m)."""
     out = _lateral_vs_medial(impact_table(), _steps(T_SHORT_S))
-    (R_med, phi_med), (R_L, R_R, phi_lat) = jax.tree_util.tree_map(np.asarray, out)
+    (R_med, phi_med, p13), (R_L, R_R, phi_lat) = jax.tree_util.tree_map(np.asarray, out)
     t = np.arange(phi_med.shape[0]) * DT_S * EVERY_LM
-    return LateralVsMedial(t, R_med, phi_med, (R_L[0], R_R[0]), phi_lat[1])
+    return LateralVsMedial(t, R_med, phi_med, (R_L[0], R_R[0]), phi_lat[1], p13)
 
 
 def lateral_r0_vs_medial_max_error() -> float:
@@ -478,6 +489,14 @@ def lateral_minus_medial_max_rad() -> float:
     """max |φ(lateral, r = 0.05 m) − φ(medial)| (information: what the pivots' offset does)."""
     run = lateral_vs_medial()
     return float(np.max(np.abs(run.phi_lateral - np.tile(run.phi_medial, 2))))
+
+
+def p13_outputs_minus_abs_f_max_rad() -> tuple[float, float]:
+    """``(max ‖(y1, y2) − (|φ_x|, |φ_y|)‖∞, max |φ|)`` over the medial pendulum's 10 s of the impact
+    motion: P13 eq. 3 against F 2.8–2.9 where P13's own motion drives them."""
+    run = lateral_vs_medial()
+    return (float(np.max(np.abs(run.p13_medial - np.abs(run.phi_medial)))),
+            float(np.max(np.abs(run.phi_medial))))
 
 
 # ------------------------------------------------------------------------------- stabilizers

@@ -97,6 +97,9 @@ def lateral_medial_metrics() -> tuple[dict, dict]:
     m = {"lateral_r0_vs_medial_max_error": _check(mc.lateral_r0_vs_medial_max_error(),
                                                   "lateral_r0"),
          "lateral_minus_medial_max_rad": mc.lateral_minus_medial_max_rad()}
+    diff, phi_max = mc.p13_outputs_minus_abs_f_max_rad()
+    m["p13_eq3_minus_abs_f28_max_rad"] = diff
+    m["p13_eq3_phi_max_rad"] = phi_max
     return m, {"lm_t": run.t_s, "lm_medial": run.phi_medial, "lm_lateral": run.phi_lateral}
 
 

@@ -40,7 +40,8 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
-from verticality.integrate import rk4_step
+from verticality.errors import InputError
+from verticality.integrate import euler_step, rk4_step
 
 
 @runtime_checkable
@@ -113,6 +114,16 @@ def step_rk4(model: Model, x, u, h):
     return rk4_step(lambda t, xx: model.dynamics(xx, u), 0.0, x, h, project=model.project)
 
 
+def step_euler(model: Model, x, u, h):
+    """One forward-Euler step ``x + h·f(x, u)`` of ``model.dynamics`` with ``u`` held, then
+    ``model.project`` (the discretization P11 §V.C gives its observer's model)."""
+    return euler_step(lambda t, xx: model.dynamics(xx, u), 0.0, x, h, project=model.project)
+
+
+#: the one-step schemes a :class:`Discretized` model may use
+STEPS = {"rk4": step_rk4, "euler": step_euler}
+
+
 class OnModel:
     """For a value that wraps another model value ``self.model`` — a discretization, another kind
     of input, another integration — and keeps its state: the output and the state's manifold
@@ -139,11 +150,19 @@ class Discretized(OnModel):
     ``i`` with input ``u[i]`` held (``u`` a pytree whose leaves have a leading axis ``n``: the input
     averaged over each sub-interval), under ``lax.scan``. ``output``, ``retract`` and
     ``difference`` are the model's. ``single_input=True``: ``u`` is one input held over the whole
-    sample with ``substeps`` sub-steps."""
+    sample with ``substeps`` sub-steps. ``scheme="euler"``: forward-Euler sub-steps
+    ``x + h·f(x, u)`` instead of RK4 (P11 §V.C's discretization, first order: the same model
+    value, a coarser internal model of it)."""
 
     model: Any
     substeps: int = static_field(1)
     single_input: bool = static_field(False)
+    scheme: str = static_field("rk4")
+
+    def __post_init__(self):
+        if self.scheme not in STEPS:
+            raise InputError(f"Discretized: scheme must be one of {sorted(STEPS)}, "
+                             f"got {self.scheme!r}")
 
     def transition(self, x, u, dt):
         if self.single_input:
@@ -151,9 +170,10 @@ class Discretized(OnModel):
                                        u)
         n = jax.tree_util.tree_leaves(u)[0].shape[0]
         h = dt / n
+        step = STEPS[self.scheme]
 
         def body(xx, uu):
-            return step_rk4(self.model, xx, uu, h), None
+            return step(self.model, xx, uu, h), None
 
         return jax.lax.scan(body, x, u)[0]
 

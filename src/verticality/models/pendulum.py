@@ -104,6 +104,23 @@ def otolith_angles(R_H_S_):
     )
 
 
+def p13_inclinometer_angles(R_H_S_):
+    """P13 eq. 3's inclinometer outputs: ``y1 = arcsin‖j_H × j_S‖``, ``y2 = arcsin‖i_H × i_S‖`` (the
+    angles between the head's and the pendulum's y axes and x axes; the norm is the same in every
+    frame, so it is taken in H). Unsigned, and not differentiable where the axes align (upright).
+    With no turn of the pendulum about its arm relative to the head these are |φ_x|, |φ_y| of
+    F 2.8–2.9 to third order in the tilt; a relative turn ψ about the arm enters both at first
+    order (y ≈ √(φ² + ψ²)). The package's otolith output is :func:`otolith_angles` (F 2.8–2.9)."""
+    R = jnp.asarray(R_H_S_)
+    e = jnp.eye(3)
+
+    def angle(k):
+        c = jnp.cross(e[k], R[..., :, k])
+        return jnp.arcsin(jnp.clip(jnp.linalg.norm(c, axis=-1), 0.0, 1.0))
+
+    return jnp.stack([angle(1), angle(0)], -1)
+
+
 def energy_J(x: PendulumState, p: PendulumParams):
     """Mechanical energy in a still frame (pivot at rest): kinetic plus gravitational potential."""
     w = x.omega_S_rad_s
