@@ -913,8 +913,8 @@ DIFFERENCES: tuple[Difference, ...] = (
              "fails from every tilt under walking; linearized at upright it is unstable in "
              "continuous time even with the head only rotating (a 39 Hz pair growing at 29 s⁻¹ "
              "with the 10 rad/s PD) — sampled at 10 kHz the one-sample delay of the sampled loop "
-             "stabilizes that pair, so our earlier “converges with the head only rotating” was "
-             "the step's artefact. An EKF with a Gauss–Markov (zero-mean) acceleration "
+             "stabilizes that pair, so the sampled loop's convergence with the head only "
+             "rotating (rotation_only) is the step's artefact. An EKF with a Gauss–Markov (zero-mean) acceleration "
              "converges over both sweeps (ours).",
         why="Read as an accelerometer on an upright head, the otolith explains a still tilt as "
             "acceleration: linearized, the loop has an eigenvalue at 0 (the head stays where it "
