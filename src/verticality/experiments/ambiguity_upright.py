@@ -248,6 +248,27 @@ def sweeps(swept: str, duration_s: float, grid: dict | None = None) -> tuple[dic
     return entry, LoopSummary(*(v[:len(values)] for v in s))
 
 
+def _loop_map(z, feed: str, sampled: bool, kp, kd, dt_s, disc, obs, truth):
+    """The loop of ``feed`` linearized in :func:`loop_eigenvalues`: ``ż`` (continuous) or the state
+    one sample later (``sampled``), ``z`` = (plant state, observer state), head only rotating."""
+    zero = jnp.asarray(0.0)
+    x, xh = PlanarState(*z[:4]), z[4:]
+    y = truth.output(x)
+    tau = -kp * xh[2] - kd * xh[3]
+    u = jnp.stack([tau, fed_acceleration(feed, y[0], zero, xh[2], zero)])
+    if not sampled:
+        dx = truth.dynamics(x, HeadInput(tau, zero, zero))
+        dxh = obs.A @ xh + obs.B @ u + obs.L @ (y - obs.C @ xh - obs.D @ u)
+        return jnp.concatenate([jnp.stack(list(dx)), dxh])
+    xh_new = obs.step_discrete(obs.init(xh), u, y, disc)[0].x
+    stages = HeadInput(jnp.broadcast_to(tau, (3,)), jnp.zeros(3), jnp.zeros(3))
+    x_new = rk4_step_staged(lambda w, xx: (truth.dynamics(xx, w), None), stages, x, dt_s)[0]
+    return jnp.concatenate([jnp.stack(list(x_new)), xh_new])
+
+
+_loop_jacobian = jax.jit(jax.jacfwd(_loop_map), static_argnums=(1, 2))
+
+
 def loop_eigenvalues(feed: str, pd_loop_rad_s: float, dt_s: float | None = None) -> np.ndarray:
     """Eigenvalues (1/s) of the loop of ``feed`` linearized at upright, head only rotating: the
     continuous-time Jacobian (``dt_s`` None) or the sampled loop of
@@ -256,37 +277,14 @@ def loop_eigenvalues(feed: str, pd_loop_rad_s: float, dt_s: float | None = None)
     sorted by decreasing real part."""
     from verticality.experiments import ambiguity as sib
 
-    truth = sib.plant()
     obs = lu.design(sib.linear_model(), sib.LUENBERGER_POLES)
     kp, kd = sib.pd_gains(loop_rad_s=pd_loop_rad_s)
-    A, B, C, D, L = (jnp.asarray(m) for m in (obs.A, obs.B, obs.C, obs.D, obs.L))
-    zero = jnp.asarray(0.0)
-
-    def parts(z):
-        x, xh = PlanarState(*z[:4]), z[4:]
-        y = truth.output(x)
-        tau = -kp * xh[2] - kd * xh[3]
-        u = jnp.stack([tau, fed_acceleration(feed, y[0], zero, xh[2], zero)])
-        return x, xh, y, tau, u
-
-    if dt_s is None:
-        def fn(z):
-            x, xh, y, tau, u = parts(z)
-            dx = truth.dynamics(x, HeadInput(tau, zero, zero))
-            return jnp.concatenate([jnp.stack(list(dx)), A @ xh + B @ u + L @ (y - C @ xh - D @ u)])
-    else:
-        disc = obs.discretize(dt_s)
-
-        def fn(z):
-            x, xh, y, tau, u = parts(z)
-            xh_new = obs.step_discrete(obs.init(xh), u, y, disc)[0].x
-            stages = HeadInput(jnp.broadcast_to(tau, (3,)), jnp.zeros(3), jnp.zeros(3))
-            x_new = rk4_step_staged(lambda w, xx: (truth.dynamics(xx, w), None), stages, x, dt_s)[0]
-            return jnp.concatenate([jnp.stack(list(x_new)), xh_new])
-
-    J = np.asarray(jax.jacfwd(fn)(jnp.zeros(8)))
+    sampled = dt_s is not None
+    dt = jnp.asarray(dt_s if sampled else 1.0)
+    disc = obs.discretize(dt)
+    J = np.asarray(_loop_jacobian(jnp.zeros(8), feed, sampled, kp, kd, dt, disc, obs, sib.plant()))
     lam = np.linalg.eigvals(J).astype(complex)
-    if dt_s is not None:
+    if sampled:
         lam = np.log(lam) / dt_s
     return lam[np.argsort(-lam.real)]
 
