@@ -80,3 +80,10 @@ def test_walking_head_acceleration_is_a_steady_gait():
     np.testing.assert_allclose(a_h[period:], a_h[:-period], atol=1e-9)
     assert abs(a_h.mean()) < 0.05 and abs(a_z.mean()) < 0.05
     assert 2.5 < np.max(np.abs(a_z)) < 4.5 and 1.0 < np.max(np.abs(a_h)) < 3.5
+
+
+def test_printed_relations_hold_only_under_fs_unstated_conventions():
+    r = ex.printed_relations()
+    assert r["f314_with_conventions_max_error_m_s2"] < 1e-9
+    assert r["f316_with_conventions_max_error_m_s2"] < 1e-9
+    assert r["f314_as_printed_a_z_up_max_error_m_s2"] > 1.0  # g − a_z with a_z up is wrong

@@ -1,11 +1,13 @@
 """F ch. 5 gimbal model and the `platform` experiment's linear design."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from verticality.experiments import platform as exp
 from verticality.models import platform as pf
+from verticality.params import G_M_S2
 
 
 def _axis_state(v):
@@ -63,3 +65,17 @@ def test_instability_criterion():
     t = np.arange(0, 10, 3e-3)
     assert exp.is_unstable(t, 0.01 * np.exp(t), 5.0)
     assert not exp.is_unstable(t, 0.05 * np.sin(3 * t), 5.0)
+
+
+def test_the_platform_accelerometer_reads_the_specific_force_along_the_platform():
+    """F §5.2's accelerometer (sensors.accelerometer on the tilted platform): a_h cos θ + g sin θ,
+    the tilt entering with the inclinometer's sign (ψ = θ + atan2(a_h, g))."""
+    key = jax.random.PRNGKey(0)
+    for theta, a in ((0.0, 2.0), (0.3, 0.0), (-0.2, 1.5)):
+        f = float(exp.accelerometer_reading(key, theta, 0.7, a))
+        expected = a * np.cos(theta) + G_M_S2 * np.sin(theta)
+        assert abs(f - expected) < 5 * exp.SIGMA_ACC_M_S2
+    # a still platform tilted by θ: the accelerometer's tilt and the inclinometer's agree
+    f0 = np.mean([float(exp.accelerometer_reading(k, 0.2, 0.0, 0.0))
+                  for k in jax.random.split(key, 200)])
+    assert abs(np.arcsin(f0 / G_M_S2) - 0.2) < 2e-3

@@ -200,6 +200,57 @@ def test_lookup_reduce_ratio_and_missing():
     assert compare.overall(["meets"], ran=False) == "not run"
 
 
+def _row(kind, value, ours, setting="seed"):
+    pub = _pub(kind, value, setting=setting)
+    return compare.Row(pub, ours, compare.verdict(ours, pub))
+
+
+def test_a_finding_is_judged_under_the_seeds_reading():
+    """A region reproduced under the seed's reading meets, whatever another reading gives; not
+    reproduced, it differs, whatever our setting gives."""
+    region = [_row("at_least", 12.0, 12.0), _row("at_most", 25.0, 16.0)]
+    other = [_row("at_least", 12.0, None, "alt"), _row("at_most", 25.0, 0.0, "ours")]
+    assert [r.status for r in region] == ["meets", "meets"] and other[0].status == "differs"
+    assert compare.overall_rows(region + other) == "meets"
+    assert compare.overall([r.status for r in region + other]) == "differs"  # unweighted
+    lost = [_row("at_least", 12.0, 8.0), _row("at_least", 10.0, 13.0, "ours")]
+    assert compare.overall_rows(lost) == "differs"
+    # a ratio (a finding) is judged under our setting too; the experiment rests on neither
+    # when the seed's reading has no judged figure
+    ratio = [_row("at_least", 10.0, 13.0, "ours"), _row("context", None, 1.0)]
+    assert ratio[0].status == "meets" and compare.overall_rows(ratio) == "meets"
+
+
+def test_better_only_under_the_seeds_own_setting():
+    """A magnitude far below the published one under our setting is another experiment: shown as
+    ours, not as better."""
+    seed, ours = _row("approx_error", 3.0, 0.37), _row("approx_error", 3.0, 2.9e-6, "ours")
+    assert seed.status == "better" and ours.status == "our setting"
+    assert _row("approx_error", 3.0, 9.0, "alt").status == "our setting"
+    assert compare.overall_rows([ours]) == "our setting"
+    assert compare.overall_rows([seed, ours]) == "better"
+    assert compare.overall_rows([_row("approx_error", 3.0, 9.0), ours]) == "differs"
+
+
+def test_the_page_marks_the_setting_of_every_figure(tmp_path, monkeypatch):
+    from verticality.report import html
+    from verticality.report.claims import Claim
+
+    claim = Claim(source="P11", claim="c", published=(
+        Published("fixed, P11's reading", "P11 Fig. 4", "≈ 3°", ("a",), "approx_error", 3.0,
+                  unit="°", headline=True),
+        Published("fixed, ours", "P11 Fig. 4", "≈ 3°", ("b",), "approx_error", 3.0, unit="°",
+                  setting="ours", headline=True)))
+    rows = compare.rows(claim, {"a": 0.4, "b": 3e-6})
+    table = html.comparison_table(rows)
+    assert "<th>setting</th>" in table
+    assert "seed&#x27;s reading" in table and "setting-ours" in table and "our setting" in table
+    monkeypatch.setitem(html.CLAIMS, "x-exp", claim)
+    summary, status = html.summary_row("x-exp", {"x-exp": {"title": "t"}},
+                                       {"x-exp": {"metrics": {"a": 0.4, "b": 3e-6}}})
+    assert status == "better" and "setting-ours" in summary and "setting-seed" in summary
+
+
 # ---------------------------------------------------------------------------------------------
 # the page
 

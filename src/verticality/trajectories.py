@@ -365,6 +365,7 @@ def walking(
     fore_aft_amplitude_m: float = 0.01,
     pitch_amplitude_rad: float = 0.03,
     ramp_in_s: float = 1.0,
+    harmonics: float = 1.0,
 ) -> Trajectory:
     """A walking-like head motion in the sagittal (x–z) plane, after F Fig. 4.13 (head linear
     acceleration during locomotion), whose source is Menz, Lord & Fitzpatrick 2003 (F ref. 135:
@@ -379,6 +380,8 @@ def walking(
     fore–aft oscillation at the step frequency (1 cm ⇒ ≈ 1.6 m/s²) with a 2nd harmonic, and a
     small pitch oscillation at the stride frequency (1 Hz). Amplitudes are documented choices, not
     digitized data. The one walking stimulus of the project (`ambiguity-*`, the CLI's `walking`).
+    ``harmonics`` scales the two 2nd harmonics (0: the step frequency alone, the bounce a quarter
+    step behind the sway).
     """
     w = 2.0 * jnp.pi * step_hz
 
@@ -388,8 +391,9 @@ def walking(
         u = jnp.clip(t / ramp_in_s, 0.0, 1.0)
         integral = ramp_in_s * (7.0 * u**5 - 14.0 * u**6 + 10.0 * u**7 - 2.5 * u**8)
         x_prog = speed_m_s * (integral + jnp.maximum(t - ramp_in_s, 0.0))
-        x_osc = fore_aft_amplitude_m * (jnp.sin(w * t) + 0.3 * jnp.sin(2.0 * w * t + 0.7))
-        z_osc = vertical_amplitude_m * (jnp.sin(w * t - 0.5 * jnp.pi) + 0.15 * jnp.sin(2.0 * w * t))
+        x_osc = fore_aft_amplitude_m * (jnp.sin(w * t) + harmonics * 0.3 * jnp.sin(2.0 * w * t + 0.7))
+        z_osc = vertical_amplitude_m * (jnp.sin(w * t - 0.5 * jnp.pi)
+                                        + harmonics * 0.15 * jnp.sin(2.0 * w * t))
         return jnp.stack([x_prog + e * x_osc, 0.0 * t, e * z_osc])
 
     def rpy(t):

@@ -75,6 +75,7 @@ from verticality.errors import InputError
 from verticality.estimators import luenberger as lu
 from verticality.estimators.ekf import ExtendedKalmanFilter
 from verticality.experiments import Result, check, register
+from verticality.experiments import ambiguity_upright as au
 from verticality.integrate import rk4_step_staged
 from verticality.models.base import Discretized
 from verticality.models.linearize import LinearModel, linearize, select_inputs
@@ -91,6 +92,7 @@ from verticality.params import (
     F452_HEAD_INERTIA_KG_M2,
     F452_OTOLITH_DAMPING_RATIO,
     F452_OTOLITH_NATURAL_HZ,
+    G_M_S2,
 )
 
 DT_S = 1e-4
@@ -350,12 +352,31 @@ def run_known(quick: bool = False) -> Result:
         "desired_tilt_deg": refs,
         "luenberger": rows,
         "all_converge": n_conv == len(rows),
+        "printed_relations": printed_relations(),
         "checks": {"all_converge": check(n_conv, len(rows), n_conv == len(rows))},
     }
     series = {"t": np.arange(s.theta_H.shape[1])[::10] * DT_S, "sweep": refs,
               **_series_for_figure(s, [0, len(refs) // 2, len(refs) - 1])}
     return Result(metrics=metrics, paper={"all_converge": True}, series=series,
                   simulated_s=duration * len(refs))
+
+
+def printed_relations() -> dict:
+    """F 3.14 and 3.16 as printed, against the model's steady state (the otolith angle of
+    :func:`verticality.analysis.ambiguity.otolith_angles`) over a grid of ``a_x`` (±5 m/s²),
+    ``a_z`` (±3 m/s²) and ``Θ_y`` (±20°): the largest error with F's unstated conventions
+    (``φ_F = −φ_y``, ``Θ_F = −Θ_y``, ``a_z`` positive down) and, for F 3.14, read with ``a_z`` up as
+    the head frame has it (m/s²)."""
+    g = G_M_S2
+    ax, az, ty = np.meshgrid(np.linspace(-5, 5, 11), np.linspace(-3, 3, 7),
+                             np.radians(np.linspace(-20, 20, 9)), indexing="ij")
+    a = np.stack([ax, 0.0 * ax, az], -1)
+    phi_F = -np.asarray(am.otolith_angles(a, 0.0, ty))[..., 1]
+    phi0_F = -np.asarray(am.otolith_angles(a))[..., 1]
+    f316 = -az * np.sin(phi_F) + ax * np.cos(phi_F) - g * np.sin(phi_F - ty)
+    return {"f314_with_conventions_max_error_m_s2": float(np.abs(ax - (g + az) * np.tan(phi0_F)).max()),
+            "f314_as_printed_a_z_up_max_error_m_s2": float(np.abs(ax - (g - az) * np.tan(phi0_F)).max()),
+            "f316_with_conventions_max_error_m_s2": float(np.abs(f316).max())}
 
 
 def _unknown(values, th0, refs, duration, swept: str):
@@ -390,14 +411,19 @@ def run_initial(quick: bool = False) -> Result:
     duration = _duration(quick)
     values = [0.0, 12.0, 25.0] if quick else [0.0, 5.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0]
     feeds, series = _unknown(values, values, [0.0] * len(values), duration, "initial_tilt")
-    metrics = {"initial_tilt_deg": values, **feeds,
+    upright, up_series, up_s = _upright("initial_tilt", quick)
+    upright["loop_stability"] = au.stability_report()
+    metrics = {"initial_tilt_deg": values, **feeds, "upright_assumption": upright,
                "checks": {"sweep_complete": check(len(values), 0, all(
                    len(feeds[k]["per_value"]) == len(values) for k in UNKNOWN_FEEDS))}}
     series["sweep"] = values
+    series.update(up_series)
     paper = {"luenberger": {"largest_converging_initial_tilt_deg": 12.0,
-                            "smallest_failing_initial_tilt_deg": 25.0}}
+                            "smallest_failing_initial_tilt_deg": 25.0},
+             "upright_assumption": {"largest_converging_initial_tilt_deg": 12.0,
+                                    "smallest_failing_initial_tilt_deg": 25.0}}
     return Result(metrics=metrics, paper=paper, series=series,
-                  simulated_s=duration * len(values) * (len(UNKNOWN_FEEDS) + 2))
+                  simulated_s=duration * len(values) * (len(UNKNOWN_FEEDS) + 2) + up_s)
 
 
 @register("ambiguity-desired-tilt",
@@ -407,14 +433,31 @@ def run_desired(quick: bool = False) -> Result:
     duration = _duration(quick)
     values = [0.0, 6.0] if quick else [0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 15.0]
     feeds, series = _unknown(values, [THETA0_DEG] * len(values), values, duration, "desired_tilt")
-    metrics = {"desired_tilt_deg": values, **feeds,
+    upright, up_series, up_s = _upright("desired_tilt", quick)
+    metrics = {"desired_tilt_deg": values, **feeds, "upright_assumption": upright,
                "checks": {"sweep_complete": check(len(values), 0, all(
                    len(feeds[k]["per_value"]) == len(values) for k in UNKNOWN_FEEDS))}}
     series["sweep"] = values
+    series.update(up_series)
     paper = {"luenberger": {"largest_converging_desired_tilt_deg": 0.0,
-                            "smallest_failing_desired_tilt_deg": 6.0}}
+                            "smallest_failing_desired_tilt_deg": 6.0},
+             "upright_assumption": {"largest_converging_desired_tilt_deg": 0.0,
+                                    "smallest_failing_desired_tilt_deg": 6.0}}
     return Result(metrics=metrics, paper=paper, series=series,
-                  simulated_s=duration * len(values) * (len(UNKNOWN_FEEDS) + 2))
+                  simulated_s=duration * len(values) * (len(UNKNOWN_FEEDS) + 2) + up_s)
+
+
+def _upright(swept: str, quick: bool):
+    """The Fig. 4.12 caption's reading (:mod:`verticality.experiments.ambiguity_upright`): the
+    sweep at the nominal setting, the boundary over the grid, series for the figure, simulated s."""
+    duration = au.QUICK_DURATION_S if quick else au.DURATION_S
+    grid = au.QUICK_GRID if quick else au.GRID
+    entry, s = au.sweeps(swept, duration, grid)
+    entry["setting"] = {**au.NOMINAL, "duration_s": duration}
+    t = np.arange(s.theta_H.shape[1]) * au.OUT_EVERY * au.DT_S
+    series = {"upright/t": t, **{f"upright/{name}": v for name, v in s._asdict().items()}}
+    n_runs = len(entry["per_value"]) * (1 + sum(len(v) for v in grid.values()))
+    return entry, series, duration * n_runs
 
 
 def _at(values, rows, v) -> bool:
@@ -515,4 +558,56 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
     if len(feeds) == 1:
         _relation_maps(fig, axes[:, 2], feeds[0][1], sweep_values)
     paths.append(save(fig, out_dir / f"{name.replace('-', '_')}.png"))
+    if "upright_assumption" in m:
+        paths.append(_upright_figure(result, out_dir, name))
     return paths
+
+
+_GRID_LABELS = {"pd_loop_rad_s": "PD bandwidth [rad/s]", "walking_scale": "walking amplitude (×)",
+                "vertical_lag_deg": "bounce lag behind the sway [deg]",
+                "harmonics": "2nd harmonics (× the built-in walking's)"}
+
+
+def _upright_figure(result: Result, out_dir: Path, name: str) -> Path:
+    """The Fig. 4.12 caption's reading: time courses at the nominal setting and how the boundary
+    (largest converging, smallest failing value) moves with each parameter of the grid."""
+    from verticality.plots import new_figure, save
+
+    swept = "initial_tilt" if name == "ambiguity-initial-tilt" else "desired_tilt"
+    m, s = result.metrics["upright_assumption"], result.series
+    values = m[f"{swept}_deg"]
+    published = result.paper["upright_assumption"]
+    fig, axes = new_figure(2, 3, width=13, sharex=False)
+    ax = axes[0, 0]
+    for i, v in enumerate(values):
+        th = np.degrees(s["upright/theta_H"][i])
+        ax.plot(s["upright/t"], np.clip(th, -60, 60), lw=0.8, label=f"{v:g}°")
+    ax.set_ylim(-60, 60)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("head tilt [deg] (clipped at ±60)")
+    ax.set_title(f"{name}: F 3.14 upright reading, nominal setting", fontsize=9)
+    ax.legend(fontsize=6, ncol=2)
+    ax = axes[0, 1]
+    err = [r["final_tilt_error_deg"] if r["final_tilt_error_deg"] is not None else np.nan
+           for r in m["per_value"]]
+    ax.semilogy(values, np.maximum(err, 1e-3), "o-", label="final |θ̂ − θ|")
+    ax.axhline(CONVERGED_DEG, color="0.3", ls="--", lw=0.8, label="convergence bound")
+    ax.set_xlabel(f"{swept.replace('_', ' ')} [deg]")
+    ax.set_ylabel("deg")
+    ax.legend(fontsize=7)
+    panels = [axes[0, 2], axes[1, 0], axes[1, 1], axes[1, 2]]
+    for ax, (param, entry) in zip(panels, m["boundary"].items(), strict=False):
+        x = entry["values"]
+        lo = [np.nan if v is None else v for v in entry[f"largest_converging_{swept}_deg"]]
+        hi = [np.nan if v is None else v for v in entry[f"smallest_failing_{swept}_deg"]]
+        ax.plot(x, lo, "o-", label="largest converging")
+        ax.plot(x, hi, "s--", label="smallest failing")
+        ax.axhline(published[f"largest_converging_{swept}_deg"], color="C2", lw=0.8,
+                   label="F: converges")
+        ax.axhline(published[f"smallest_failing_{swept}_deg"], color="C3", lw=0.8,
+                   label="F: fails")
+        ax.axvline(m["setting"][param], color="0.5", ls=":", lw=0.8)
+        ax.set_xlabel(_GRID_LABELS.get(param, param))
+        ax.set_ylabel(f"{swept.replace('_', ' ')} [deg]")
+        ax.legend(fontsize=6)
+    return save(fig, out_dir / f"{name.replace('-', '_')}_upright.png")

@@ -1,5 +1,6 @@
-"""Vestibular perception paradigms: the Merfeld & Zupan 2002 observer and the Laurens & Angelaki
-2017 Kalman filter (F §1.4.3) driven by the classic head motions of
+"""Vestibular perception paradigms: the Merfeld & Zupan 2002 observer (F §1.4.3 reviews Merfeld's
+observer) and the Laurens & Angelaki 2017 Kalman filter (not in F, which reviews the same group's
+earlier particle filter) driven by the classic head motions of
 :mod:`verticality.perception_paradigms`, with the papers' sensors (high-pass canals, unity-gain
 otolith; :func:`verticality.perception.perceive`).
 

@@ -9,7 +9,15 @@ The controller runs every 3 ms (F §5.1.4) with the command held; the plant is i
 
 - ``sensor_feedback``: θ̃ the inclinometer reading, ω̃ its backward difference over 3 ms (F §5.2);
 - ``observer_feedback``: θ̃, ω̃ from :mod:`verticality.estimators.luenberger` on the same model value
-  linearized at upright by autodiff (states θ, ω, y, ẏ; inputs u and a_h; output y).
+  linearized at upright by autodiff (states θ, ω, y, ẏ; inputs u and a_h; output y), fed the true
+  acceleration a_h (ours: the ideal input);
+- ``accelerometer_fed`` (F §5.2's own setting: "reference inputs to the motor amplifiers and
+  accelerometer measurements were used as known inputs for the observer"): the same observer fed
+  the platform accelerometer's reading instead (:func:`accelerometer_reading`, the project's
+  accelerometer model: the specific force along the platform's axis, ``a_h cos θ + g sin θ``, plus
+  white noise σ = 0.02 m/s², our reading; F gives none). Its tilt term is what F means by "the
+  accelerometer measurements were less influenced by the head's actual tilt when head was close to
+  be horizontal": the observer's model reads it as acceleration, so the estimate loses ``g sin θ``.
 
 Readings the thesis leaves open, fixed here:
 - Scenario: phase 1 (``SWING_S``): the base link is swung by hand, modelled as a smooth sine of
@@ -18,9 +26,9 @@ Readings the thesis leaves open, fixed here:
   m/s² (roll), ramped in over 1 s.
 - The base motion enters the platform only through the joint damping (motor back-EMF and friction
   act on the joint velocity); it is unknown to the observer, which knows u and the linear
-  acceleration a_h (an ideal linear-acceleration input, as in F §4.4's simulations: an accelerometer
-  on the platform measures the same gravito-inertial combination θ + a/g as the inclinometer, so it
-  cannot be used to separate them without the tilt it is meant to help estimate).
+  acceleration a_h: ideal in ``observer_feedback`` (as in F §4.4's simulations), measured in
+  ``accelerometer_fed`` (an accelerometer on the platform measures the same gravito-inertial
+  combination as the inclinometer, so it separates them only while the platform stays near level).
 - PD gains (not printed in F): pitch k_p = 300, k_d = 1.0; roll k_p = 40, k_d = 0.05 (state-fed
   closed loops well damped, crossover above the inclinometer's slow pole at 15.9 rad/s).
 - Observer poles −150, −170, −190, −210 s⁻¹ for both axes (≈ 10× the inclinometer's slow pole;
@@ -41,11 +49,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from verticality import sensors
 from verticality.estimators import luenberger as lu
 from verticality.estimators.kalman import ContinuousObserver
 from verticality.experiments import Result, check, register
 from verticality.integrate import rk4_step
 from verticality.models import platform as pf
+from verticality.models.kinematics import RigidMotion
 from verticality.models.linearize import linearize, select_inputs
 
 LOOP_DT_S = 3e-3
@@ -60,6 +70,7 @@ ACC_FREQ_HZ = {"pitch": 0.8, "roll": 1.1}
 ACC_PHASE = {"pitch": 0.0, "roll": np.pi / 2}
 OBSERVER_POLES = (-150.0, -170.0, -190.0, -210.0)
 SIGMA_Y_RAD = 1e-3
+SIGMA_ACC_M_S2 = 0.02
 SETTLE_S = 1.0
 
 
@@ -83,6 +94,7 @@ class AxisCfg(NamedTuple):
     obs: ContinuousObserver
     use_observer: jnp.ndarray  # 0.0 sensor, 1.0 observer
     key: jnp.ndarray
+    use_accelerometer: jnp.ndarray = 0.0  # the observer's a_h: 0.0 the true one, 1.0 the accelerometer's
 
 
 def _ramp(t, t0):
@@ -100,9 +112,23 @@ def _drive(cfg: AxisCfg, t, swing_s):
     return omega_base, a
 
 
+def accelerometer_reading(key, theta_rad, omega_rad_s, a_h_I_m_s2):
+    """The platform accelerometer's reading along the axis' horizontal (F §5.1.1: tri-axial, at the
+    platform's centre, axes aligned with the platform's): :func:`verticality.sensors.accelerometer`
+    for the platform tilted by θ about its axis and accelerated by ``a_h`` — the specific force
+    ``a_h cos θ + g sin θ`` plus white noise of σ :data:`SIGMA_ACC_M_S2` (signs of the
+    inclinometer's apparent tilt ``θ + atan2(a_h, g)``: the tilt about y is ``−θ``)."""
+    c, s_ = jnp.cos(theta_rad), jnp.sin(theta_rad)
+    R_I_B = jnp.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # R_y(−θ)
+    w = jnp.stack([0.0 * omega_rad_s, -omega_rad_s, 0.0 * omega_rad_s])
+    motion = RigidMotion(R_I_B, w, jnp.zeros(3), jnp.stack([a_h_I_m_s2, 0.0, 0.0]))
+    return sensors.accelerometer(key, motion, sensors.AccelParams(SIGMA_ACC_M_S2))[0]
+
+
 def _simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
     h = LOOP_DT_S / SUBSTEPS
     noise = jax.random.normal(cfg.key, (n_loops,)) * SIGMA_Y_RAD
+    acc_keys = jax.random.split(jax.random.fold_in(cfg.key, 1), n_loops)
 
     def f_plant(t, x, u):
         omega_base, a = _drive(cfg, t, swing_s)
@@ -117,7 +143,9 @@ def _simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
         th = jnp.where(cfg.use_observer > 0, ls.x[0], y)
         om = jnp.where(cfg.use_observer > 0, ls.x[1], rate)
         u = jnp.clip(-cfg.kp * th - cfg.kd * om, -cfg.u_max, cfg.u_max)
-        ls_new, _ = cfg.obs.step(ls, jnp.array([u, a_now]), jnp.atleast_1d(y), LOOP_DT_S)
+        a_acc = accelerometer_reading(acc_keys[k], x.theta_rad, x.omega_rad_s, a_now)
+        a_fed = jnp.where(cfg.use_accelerometer > 0, a_acc, a_now)
+        ls_new, _ = cfg.obs.step(ls, jnp.array([u, a_fed]), jnp.atleast_1d(y), LOOP_DT_S)
 
         def sub(i, xb):
             xx, bb = xb
@@ -126,7 +154,7 @@ def _simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
             return rk4_step(f_plant, ts, xx, h, u), bb + h * om_b
 
         x_new, base_new = jax.lax.fori_loop(0, SUBSTEPS, sub, (x, base))
-        out = (x.theta_rad, y, ls.x[0], base, u, a_now)
+        out = (x.theta_rad, y, ls.x[0], base, u, a_now, a_acc)
         return (x_new, base_new, ls_new, y), out
 
     z = jnp.asarray(0.0)
@@ -138,11 +166,16 @@ def _simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
 _simulate_batch = jax.jit(jax.vmap(_simulate, in_axes=(0, None, None)), static_argnums=(1, 2))
 
 
+FEEDS = ("sensor_feedback", "observer_feedback", "accelerometer_fed")
+
+
 def _configs():
     rows, cfgs = [], []
-    keys = jax.random.split(jax.random.PRNGKey(5), 4)
+    keys = jnp.concatenate([jax.random.split(jax.random.PRNGKey(5), 4),
+                            jax.random.split(jax.random.PRNGKey(6), 2)])
     i = 0
-    for feed, use in (("sensor_feedback", 0.0), ("observer_feedback", 1.0)):
+    for feed in FEEDS:
+        use = 0.0 if feed == "sensor_feedback" else 1.0
         for axis, p in AXES.items():
             kp, kd = GAINS[axis]
             cfgs.append(AxisCfg(p, jnp.asarray(kp), jnp.asarray(kd), jnp.asarray(U_MAX[axis]),
@@ -150,7 +183,7 @@ def _configs():
                                 jnp.asarray(2 * np.pi * BASE_FREQ_HZ[axis]),
                                 jnp.asarray(2 * np.pi * ACC_FREQ_HZ[axis]),
                                 jnp.asarray(ACC_PHASE[axis]), observer_for(p), jnp.asarray(use),
-                                keys[i]))
+                                keys[i], jnp.asarray(float(feed == "accelerometer_fed"))))
             rows.append((feed, axis))
             i += 1
     cfg = jax.tree_util.tree_map(lambda *a: jnp.stack([jnp.asarray(v) for v in a]), *cfgs)
@@ -181,32 +214,69 @@ def run(quick: bool = False) -> Result:
     duration = swing_s + accel_s
     n = int(round(duration / LOOP_DT_S))
     rows, cfg = _configs()
-    th, y, th_hat, base, u, a = (np.asarray(v) for v in _simulate_batch(cfg, n, swing_s))
+    th, y, th_hat, base, u, a, a_acc = (np.asarray(v) for v in _simulate_batch(cfg, n, swing_s))
     t = np.arange(n) * LOOP_DT_S
-    unstable: dict = {"sensor_feedback": False, "observer_feedback": False}
+    unstable: dict = dict.fromkeys(FEEDS, False)
     by_axis: dict = {}
     max_tilt: dict = {}
     series: dict = {"t": t[::3], "swing_s": swing_s}
+    swing, transl = (t >= SETTLE_S) & (t < swing_s), t >= swing_s + SETTLE_S
+    reading_deg: dict = {}
+    transl_tilt: dict = {}
     for i, (feed, axis) in enumerate(rows):
         uns = is_unstable(t, th[i], swing_s)
         unstable[feed] = unstable[feed] or uns
         by_axis.setdefault(feed, {})[axis] = uns
         m = np.abs(th[i][t >= SETTLE_S])
         max_tilt.setdefault(feed, {})[axis] = float(m.max()) if np.all(np.isfinite(m)) else float("nan")
+        reading_deg.setdefault(feed, {})[axis] = float(np.degrees(np.abs(y[i][swing]).max()))
+        transl_tilt.setdefault(feed, {})[axis] = float(np.abs(th[i][transl]).max())
         for name, arr in (("tilt", th[i]), ("reading", y[i]), ("estimate", th_hat[i]),
-                          ("base", base[i]), ("u", u[i]), ("a", a[i])):
+                          ("base", base[i]), ("u", u[i]), ("a", a[i]), ("a_acc", a_acc[i])):
             series[f"{feed}/{axis}/{name}"] = arr[::3]
     obs_max = max(max_tilt["observer_feedback"].values())
+    acc_max = max(max_tilt["accelerometer_fed"].values())
     base_swing = {ax: float(np.abs(base[rows.index(("observer_feedback", ax))]).max()) for ax in AXES}
-    est_err = {ax: float(np.abs(th_hat[i] - th[i])[t >= SETTLE_S].max())
-               for i, (feed, ax) in enumerate(rows) if feed == "observer_feedback"}
+
+    def est_err(feed):
+        return {ax: float(np.abs(th_hat[i] - th[i])[t >= SETTLE_S].max())
+                for i, (f, ax) in enumerate(rows) if f == feed}
+
+    acc_err = {ax: float(np.sqrt(np.mean((a_acc[i] - a[i])[transl] ** 2)))
+               for i, (f, ax) in enumerate(rows) if f == "accelerometer_fed"}
+    # F Fig. 5.9 is its own test (the platform translated, the base still): the same loops from
+    # rest under the translation alone
+    n_t = int(round(accel_s / LOOP_DT_S))
+    th_t = np.asarray(_simulate_batch(cfg, n_t, 0.0)[0])
+    t_t = np.arange(n_t) * LOOP_DT_S
+    transl_only: dict = {}
+    for i, (feed, axis) in enumerate(rows):
+        m = np.abs(th_t[i][t_t >= SETTLE_S])
+        transl_only.setdefault(feed, {})[axis] = (float(m.max()) if np.all(np.isfinite(m))
+                                                  else None)
     metrics = {
-        "unstable": unstable,
+        "unstable": {k: unstable[k] for k in ("sensor_feedback", "observer_feedback")},
         "max_platform_tilt_rad": {"observer_feedback": obs_max,
-                                  "by_axis": max_tilt},
-        "unstable_by_axis": by_axis,
+                                  "by_axis": {k: max_tilt[k] for k in ("sensor_feedback",
+                                                                       "observer_feedback")}},
+        "unstable_by_axis": {k: by_axis[k] for k in ("sensor_feedback", "observer_feedback")},
         "base_swing_rad": base_swing,
-        "max_estimation_error_rad": est_err,
+        "max_estimation_error_rad": est_err("observer_feedback"),
+        "accelerometer_fed": {
+            "unstable": unstable["accelerometer_fed"],
+            "unstable_by_axis": by_axis["accelerometer_fed"],
+            "max_platform_tilt_rad": acc_max,
+            "max_platform_tilt_rad_by_axis": max_tilt["accelerometer_fed"],
+            "max_estimation_error_rad": est_err("accelerometer_fed"),
+            "rms_accelerometer_minus_acceleration_m_s2": acc_err,
+        },
+        "fig_5_8": {"max_inclinometer_reading_deg": {
+            k: max(reading_deg[k].values()) for k in ("observer_feedback", "accelerometer_fed")}},
+        "fig_5_9": {"max_tilt_translation_rad": {k: max(v.values()) for k, v in transl_tilt.items()},
+                    "translation_only_max_tilt_rad": {
+                        k: None if None in v.values() else max(v.values())
+                        for k, v in transl_only.items()},
+                    "translation_only_max_tilt_rad_by_axis": transl_only},
         "checks": {
             "sensor_unstable": check(float(unstable["sensor_feedback"]), 0.0, unstable["sensor_feedback"]),
             "observer_stable": check(float(unstable["observer_feedback"]), 0.0,
@@ -215,29 +285,37 @@ def run(quick: bool = False) -> Result:
         },
     }
     paper = {"unstable": {"sensor_feedback": True, "observer_feedback": False},
-             "max_platform_tilt_rad": {"observer_feedback": 0.1}}
-    return Result(metrics=metrics, paper=paper, series=series, simulated_s=duration * len(rows))
+             "max_platform_tilt_rad": {"observer_feedback": 0.1},
+             "accelerometer_fed": {"unstable": False, "max_platform_tilt_rad": 0.1},
+             "fig_5_8": {"max_inclinometer_reading_deg": 20.0},
+             "fig_5_9": {"translation_only_max_tilt_rad": {"sensor_feedback": 0.5,
+                                                           "accelerometer_fed": 0.1}}}
+    return Result(metrics=metrics, paper=paper, series=series,
+                  simulated_s=(duration + accel_s) * len(rows))
 
 
 def figures(result: Result, out_dir: Path) -> list[Path]:
-    """F Fig. 5.7/5.8 (base swing) and 5.9 (translation): tilt, reading, estimate, base, command."""
+    """F Fig. 5.7/5.8 (base swing) and 5.9 (translation): tilt, reading, estimate, base, command,
+    for the three feeds (inclinometer; observer given the true acceleration; observer given the
+    platform accelerometer's reading)."""
     from verticality.plots import new_figure, published_line, save
 
     s = result.series
     t = s["t"]
-    fig, axes = new_figure(3, 4, width=15)
-    for j, (feed, axis) in enumerate([(f, a) for f in ("sensor_feedback", "observer_feedback")
-                                      for a in AXES]):
+    fig, axes = new_figure(3, 6, width=21)
+    unstable = {**result.metrics["unstable_by_axis"],
+                "accelerometer_fed": result.metrics["accelerometer_fed"]["unstable_by_axis"]}
+    for j, (feed, axis) in enumerate([(f, a) for f in FEEDS for a in AXES]):
         k = f"{feed}/{axis}"
         ax = axes[0, j]
         ax.plot(t, s[f"{k}/base"], color="0.6", lw=0.8, label="base link")
         ax.plot(t, s[f"{k}/reading"], lw=0.8, label="inclinometer")
         ax.plot(t, s[f"{k}/tilt"], label="platform tilt")
-        if feed == "observer_feedback":
+        if feed != "sensor_feedback":
             ax.plot(t, s[f"{k}/estimate"], lw=0.8, ls="--", label="estimate")
         ax.axvline(s["swing_s"], color="k", lw=0.6, ls=":")
         ax.set_ylim(-1.5, 1.5)
-        uns = result.metrics["unstable_by_axis"][feed][axis]
+        uns = unstable[feed][axis]
         ax.set_title(f"{axis}, {feed.replace('_', ' ')}: {'UNSTABLE' if uns else 'stable'}", fontsize=9)
         ax.set_ylabel("rad")
         ax = axes[1, j]
@@ -249,6 +327,8 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
         ax.plot(t, s[f"{k}/u"], lw=0.7, label="command u")
         ax2 = ax.twinx()
         ax2.plot(t, s[f"{k}/a"], color="C2", lw=0.7, label="a [m/s²]")
+        if feed == "accelerometer_fed":
+            ax2.plot(t, s[f"{k}/a_acc"], color="C4", lw=0.5, label="accelerometer [m/s²]")
         ax2.set_ylim(-3, 3)
         ax.set_ylabel("motor torque u [N·m]")
         ax2.set_ylabel("base acceleration a [m/s²]")

@@ -1,9 +1,17 @@
 """Ours against the published figures: metric lookup, one verdict per figure, one per experiment.
 
-Verdicts (:data:`STATUSES`): ``better`` (ours beats the published figure), ``meets`` (ours is at
-or within it), ``differs`` (ours is outside it), ``no published number`` (nothing to judge
-against), ``not measured`` (the results have no such metric), ``not run`` (the experiment is not
-in the results).
+Verdicts (:data:`STATUSES`): ``better`` (ours beats the published figure, under the seed's own
+reading of its setting), ``meets`` (ours is at or within it), ``differs`` (ours is outside it),
+``our setting`` (a magnitude measured under our improved setting, shown beside the published one
+and not judged: it is another experiment), ``no published number`` (nothing to judge against),
+``not measured`` (the results have no such metric), ``not run`` (the experiment is not in the
+results).
+
+What is judged is the seed's *finding* — a ratio, a region, a sign, a bound — each published figure
+marked with the setting ours is measured under (:data:`verticality.report.claims.Setting`): a bound,
+a ratio or a region is judged under any setting (does the finding hold there too?), an
+approximate magnitude only under the seed's reading. An experiment's verdict (:func:`overall`)
+rests on its figures under the seed's reading when it has any that are judged.
 """
 
 from __future__ import annotations
@@ -14,9 +22,10 @@ from typing import Any
 
 from verticality.report.claims import Claim, MetricPath, Published
 
-BETTER, MEETS, DIFFERS = "better", "meets", "differs"
+BETTER, MEETS, DIFFERS, OUR_SETTING = "better", "meets", "differs", "our setting"
 NO_NUMBER, NOT_MEASURED, NOT_RUN = "no published number", "not measured", "not run"
-STATUSES = (BETTER, MEETS, DIFFERS, NO_NUMBER, NOT_MEASURED, NOT_RUN)
+STATUSES = (BETTER, MEETS, DIFFERS, OUR_SETTING, NO_NUMBER, NOT_MEASURED, NOT_RUN)
+JUDGED = (BETTER, MEETS, DIFFERS)
 _MISSING = object()
 
 
@@ -117,6 +126,8 @@ def verdict(value: Any, pub: Published) -> str:
     if pub.kind == "at_least":
         return MEETS if v >= target else DIFFERS
     if pub.kind == "approx_error":
+        if pub.setting != "seed":
+            return OUR_SETTING  # a magnitude of another experiment: shown, not judged
         if v < (1.0 - pub.rel) * target:
             return BETTER
         return MEETS if v <= (1.0 + pub.rel) * target else DIFFERS
@@ -132,6 +143,11 @@ class Row:
     status: str
 
 
+    @property
+    def setting(self) -> str:
+        return self.published.setting
+
+
 def rows(claim: Claim | None, metrics: dict) -> list[Row]:
     if claim is None:
         return []
@@ -142,12 +158,23 @@ def rows(claim: Claim | None, metrics: dict) -> list[Row]:
     return out
 
 
-def overall(statuses: list[str], ran: bool = True) -> str:
+def overall(statuses: list[str], ran: bool = True, settings: list[str] | None = None) -> str:
     """One experiment's status from its rows: any ``differs`` wins, then ``better``, ``meets``;
-    ``not measured`` when a published figure has no metric; else ``no published number``."""
+    ``not measured`` when a published figure has no metric; ``our setting`` when only magnitudes
+    under our setting are shown; else ``no published number``. With ``settings`` (one per status),
+    the rows under the seed's reading decide when any of them is judged (:data:`JUDGED`)."""
     if not ran:
         return NOT_RUN
-    for status in (DIFFERS, BETTER, MEETS, NOT_MEASURED):
+    if settings is not None:
+        seed = [s for s, where in zip(statuses, settings, strict=True) if where == "seed"]
+        if any(s in JUDGED for s in seed):
+            statuses = seed
+    for status in (DIFFERS, BETTER, MEETS, NOT_MEASURED, OUR_SETTING):
         if status in statuses:
             return status
     return NO_NUMBER
+
+
+def overall_rows(rows_: list[Row], ran: bool = True) -> str:
+    """:func:`overall` of judged rows, the seed's reading deciding."""
+    return overall([r.status for r in rows_], ran, [r.setting for r in rows_])

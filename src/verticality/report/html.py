@@ -10,7 +10,15 @@ from pathlib import Path
 from typing import Any
 
 from verticality.report import compare
-from verticality.report.claims import CLAIMS, DIFFERENCES, PENDING, Claim, Difference, Evidence
+from verticality.report.claims import (
+    CLAIMS,
+    DIFFERENCES,
+    PENDING,
+    SETTING_TEXT,
+    Claim,
+    Difference,
+    Evidence,
+)
 
 #: Reading order of the experiments: T, then the thesis and the papers; others follow by name.
 ORDER = ("tahboub-gains", "tahboub-step", "tahboub-sine", "tahboub-prts", "ground-kf",
@@ -49,7 +57,10 @@ table.summary tr td { background: #fff; }
 .s-better { background: #cdeccd; color: #14521b; }
 .s-meets { background: #e1f2e1; color: #1f5d26; }
 .s-differs { background: #fde2c8; color: #8a3b00; }
+.s-our-setting { background: #e3ecf8; color: #1b3f6b; }
 .s-no-published-number { background: #eceff1; color: #455a64; }
+.setting { font-size: 0.8rem; color: var(--muted); white-space: nowrap; }
+.setting-ours, .setting-alt { color: #1b3f6b; font-weight: 600; }
 .s-not-measured { background: #fff3c4; color: #6b5500; }
 .s-not-run { background: #eceff1; color: #78848c; }
 .pass { color: #1f5d26; font-weight: 600; } .fail { color: #a4000f; font-weight: 700; }
@@ -111,6 +122,13 @@ def badge(status: str) -> str:
 
 def anchor(name: str) -> str:
     return "exp-" + "".join(c if c.isalnum() or c in "-_" else "-" for c in name)
+
+
+def setting_marker(row: compare.Row) -> str:
+    """The setting ours is measured under, as a small marker: seed's reading / ours / another
+    reading."""
+    return (f'<span class="setting setting-{row.setting}">'
+            f'{escape(SETTING_TEXT.get(row.setting, row.setting))}</span>')
 
 
 def _ours_text(row: compare.Row) -> str:
@@ -194,13 +212,14 @@ def summary_row(name: str, registry: dict, experiments: dict) -> tuple[str, str]
                 f"folder</td><td>{badge(status)}</td><td>—</td></tr>", status)
     metrics = entry.get("metrics", {})
     rows = compare.rows(claim, metrics)
-    status = compare.overall([r.status for r in rows])
+    status = compare.overall_rows(rows)
     head = [r for r in rows if r.published.headline] or rows[:1]
     passed, total = _check_summary(metrics)
     checks = f"{passed} of {total} pass" if total else "—"
     checks_cls = " fail" if passed < total else ""
-    cells = [(escape(r.published.label), escape(r.published.text), escape(_ours_text(r)))
-             for r in head] or [("—", "no published number", "—")]
+    cells = [(escape(r.published.label), escape(r.published.text),
+              f"{escape(_ours_text(r))} {setting_marker(r)}") for r in head] or [
+        ("—", "no published number", "—")]
     span = f" rowspan='{len(cells)}'" if len(cells) > 1 else ""
     out = []
     for i, (what, published, ours) in enumerate(cells):
@@ -225,9 +244,9 @@ def comparison_table(rows: list[compare.Row]) -> str:
     body = "".join(
         f"<tr><td>{escape(r.published.label)}</td><td>{escape(r.published.source)}</td>"
         f"<td>{escape(r.published.text)}</td><td class='num'>{escape(_ours_text(r))}</td>"
-        f"<td>{badge(r.status)}</td></tr>" for r in rows)
+        f"<td>{setting_marker(r)}</td><td>{badge(r.status)}</td></tr>" for r in rows)
     return ("<table><thead><tr><th>what</th><th>where</th><th>published</th><th>ours</th>"
-            f"<th>status</th></tr></thead><tbody>{body}</tbody></table>")
+            f"<th>setting</th><th>status</th></tr></thead><tbody>{body}</tbody></table>")
 
 
 def checks_table(metrics: dict) -> str:
@@ -296,7 +315,7 @@ def experiment_section(name: str, registry: dict, experiments: dict, results_dir
     metrics, paper = entry.get("metrics", {}), entry.get("paper", {})
     rows = compare.rows(claim, metrics)
     runtime = entry.get("runtime", {})
-    parts.append(f"<p>{badge(compare.overall([r.status for r in rows]))} "
+    parts.append(f"<p>{badge(compare.overall_rows(rows))} "
                  f"<span class='muted'>runtime {escape(fmt(runtime.get('wall_s')))} s wall, "
                  f"{escape(fmt(runtime.get('simulated_s')))} s simulated</span></p>")
     if claim is not None:
@@ -422,10 +441,16 @@ def render(results: dict, results_dir: Path, built: dict) -> str:
               for p, c in compare.checks(experiments[n].get("metrics", {})) if not c.get("pass")]
     failed_note = (f"<p class='callout'>Failed checks: {escape('; '.join(failed))}.</p>"
                    if failed else "")
-    legend = ("<p class='muted'>Status: " + " ".join(badge(s) for s in compare.STATUSES[:4]) +
-              " — <em>better</em>: ours beats an approximate published figure by more than a "
-              "quarter; <em>meets</em>: at or within the published figure or bound; "
-              "<em>differs</em>: outside it (see “Where we differ”); <em>not measured</em>: "
+    legend = ("<p class='muted'>Status: " + " ".join(badge(s) for s in compare.STATUSES[:5]) +
+              " — a verdict judges the seed's finding (a ratio, a region, a sign, a bound) "
+              "under the setting marked beside ours: <em>seed's reading</em> (the seed's own "
+              "setting, as we read it), <em>ours</em> (our improved setting, shown beside it) or "
+              "<em>another reading</em> of the seed's words; an experiment's verdict rests on "
+              "the seed's reading. <em>better</em>: under the seed's reading, ours beats an "
+              "approximate published figure by more than a quarter; <em>meets</em>: at or "
+              "within the published figure or bound; <em>differs</em>: outside it (see “Where "
+              "we differ”); <em>our setting</em>: a magnitude under our setting, another "
+              "experiment, not judged; <em>not measured</em>: "
               "this run lacks the metric (a quick run skips some); <em>not run</em>: the "
               "experiment is not in this results folder. Checks are the project's own pass/fail "
               "tests.</p>")
