@@ -25,7 +25,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from verticality.estimators import tilt
+from verticality.tilt import estimator as tilt
 
 BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 
@@ -67,8 +67,10 @@ def _device_time(gyr, acc, dt, reps):
     """Time of the compiled chunks alone (``tilt_kernels.run_chunk`` chained on the device, as
     in the batch run, inputs already packed): the run's time minus this is the host side
     (packing, transfers, writing the result arrays)."""
-    from verticality.estimators import tilt_batch, tilt_core, tilt_kernels
-    from verticality.estimators.tilt_layout import HEAD
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt import core as tilt_core
+    from verticality.tilt import kernels as tilt_kernels
+    from verticality.tilt.layout import HEAD
 
     nb = tilt_batch.CHUNK_BLOCKS
     chunk = nb * tilt.BLOCK
@@ -158,7 +160,7 @@ def main() -> int:
     t_jit = _best(stream, max(1, args.reps // 2))
     rows.append(("verticality make_step (jitted JAX, per call)", m / t_jit))
 
-    from verticality.estimators.tilt_stream import Stream
+    from verticality.tilt.stream import Stream
 
     m_py = 4 * m
 

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.estimators import tilt
 from verticality.io import broad
+from verticality.tilt import estimator as tilt
 
 BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 

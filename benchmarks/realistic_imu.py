@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 
-from verticality.analysis import realistic_recordings as rr
+from verticality.tilt.evaluation import realistic as rr
 
 FILTERS = ("verticality", "vqf", "verticality-offline", "vqf-offline")
 

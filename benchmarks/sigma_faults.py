@@ -4,7 +4,7 @@ unflagged samples, and of those within σ and 2σ of the true tilt (pooled, and 
 recording). ``python benchmarks/sigma_faults.py`` prints the table of docs/tilt.md, "The
 uncertainty under faults"."""
 
-from verticality.analysis.fault_recordings import FAULTS, sigma_honesty_over_seeds
+from verticality.tilt.evaluation.faults import FAULTS, sigma_honesty_over_seeds
 
 
 def main() -> None:

@@ -9,8 +9,8 @@ import pytest
 
 from verticality import cli, so3
 from verticality.errors import InputError
-from verticality.estimators import tilt
 from verticality.io import broad
+from verticality.tilt import estimator as tilt
 
 BROAD_DIR = Path(__file__).parents[2] / "shared" / "data" / "broad"
 TRIAL = "01_undisturbed_slow_rotation_A.hdf5"
@@ -107,7 +107,7 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
     assert res["mean"]["verticality"] == pytest.approx(rmse, rel=1e-9)
     # the reported σ against the same errors: it covers them, conservatively in motion (the RMS
     # σ is 3.5× the RMSE on this slice: 0.91° against 0.26°), and the table and the JSON show it
-    from verticality.analysis.broad_eval import evaluate_trials
+    from verticality.tilt.evaluation.broad import evaluate_trials
 
     cal = evaluate_trials([tmp_path / "slice.hdf5"], ["verticality"])["sigma"]["slice"]
     assert res["sigma"] == {"verticality": {"slice": cal}}
@@ -127,7 +127,7 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
 def test_sigma_calibration_counts_errors_within_sigma(tmp_path):
     """The fractions within σ and 2σ over the scored samples (movement, valid reference), on a
     hand-made case: 100 movement samples 1° off with σ 0.8°, 100 with σ 2°."""
-    from verticality.analysis.broad_eval import sigma_calibration
+    from verticality.tilt.evaluation.broad import sigma_calibration
 
     p = tmp_path / "t.hdf5"
     _write_trial(p)

@@ -5,8 +5,8 @@ import pytest
 
 from verticality import cli
 from verticality.errors import InputError
-from verticality.estimators import tilt
 from verticality.io import imu
+from verticality.tilt import estimator as tilt
 
 G = 9.81
 
@@ -102,8 +102,8 @@ def test_estimate_cli_round_trips_through_io(tmp_path, capsys, swinging_imu):
 def test_estimate_plot_has_one_labelled_row_per_flag_that_occurs():
     import matplotlib.pyplot as plt
 
-    from verticality.analysis.tilt_plot import plot_flags
-    from verticality.estimators import tilt
+    from verticality.tilt import estimator as tilt
+    from verticality.tilt.plots import plot_flags
 
     t = np.arange(100) * 0.01
     flags = np.zeros(100, dtype=np.int32)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from verticality import so3
-from verticality.analysis import realistic_recordings as rr
+from verticality.tilt.evaluation import realistic as rr
 
 
 @pytest.fixture(scope="module")

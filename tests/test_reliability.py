@@ -308,8 +308,8 @@ def api_violations(seed: int) -> list[str]:
     with an InputError; ``tilt.smooth`` gives the filter's rows and flags, finite wherever the
     filter's estimate is."""
     from verticality.errors import InputError
-    from verticality.estimators import tilt
-    from verticality.estimators.tilt_stream import Stream
+    from verticality.tilt import estimator as tilt
+    from verticality.tilt.stream import Stream
 
     rng = np.random.default_rng(seed)
     n = int(rng.choice([0, 1, 2, 40, 300]))

@@ -11,7 +11,7 @@ from imu_cases import G, tumbling
 from imu_cases import up_S as _up_S
 from verticality import so3
 from verticality.errors import InputError
-from verticality.estimators import tilt
+from verticality.tilt import estimator as tilt
 
 
 def _tilt_err_deg(up_true, up_est):
@@ -228,7 +228,7 @@ def test_taylor_exponential_matches_the_exact_one():
     exponential to rounding over its whole range (beyond it the kernel falls back to the exact
     one: the large_rotations case of tests/test_tilt_reference.py); and so3's component form
     equals its array form."""
-    from verticality.estimators import tilt_kernels as tk
+    from verticality.tilt import kernels as tk
 
     v = np.random.default_rng(6).normal(size=(1000, 3))
     v *= (np.sqrt(tk.SMALL_TH2) * np.random.default_rng(7).uniform(0, 1, 1000)
@@ -287,7 +287,8 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     initialization, which is re-acquired too, and the gaps); on a recording with a gap near its
     start and one near its end, that equals the kernel with gap handling everywhere, to
     rounding."""
-    from verticality.estimators import tilt_batch, tilt_kernels
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt import kernels as tilt_kernels
 
     n = 2 * tilt_batch.CHUNK_BLOCKS * tilt.BLOCK + 3000
     gyr, acc, dt, _ = _tumbling(np.array([0.01, -0.005, 0.002]), n=n)
@@ -323,7 +324,8 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
     """``tilt_batch.blocks_needing_gaps`` tells from the data alone which blocks need the kernel's gap
     handling. Against the kernel's own flag (the kernel with gap handling everywhere): every block
     that starts pending or holds a gap is marked, plus at most one block per re-acquisition."""
-    from verticality.estimators import tilt_batch, tilt_kernels
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt import kernels as tilt_kernels
 
     gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=3000)
     dts = np.full(3000, dt)
@@ -356,8 +358,8 @@ def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
     error at the block's end. Also returns the nominal block end and the block's inputs."""
     import jax
 
-    from verticality.estimators import tilt_core as core
-    from verticality.estimators.tilt_layout import NE, E, X
+    from verticality.tilt import core
+    from verticality.tilt.layout import NE, E, X
 
     p = tilt.DEFAULT_PARAMS
     q_true = so3.quat_multiply(so3.quat_exp(jnp.concatenate([e[E.tilt], jnp.zeros(1)])), q_hat0)
@@ -394,8 +396,8 @@ def test_error_transition_is_the_jacobian_of_the_block_prediction(omega, b_hat):
     differ at first order in |ω|T: by less than |ω|T / 2 of F's largest entry."""
     import jax
 
-    from verticality.estimators import tilt_core as core
-    from verticality.estimators.tilt_layout import NE, C, E
+    from verticality.tilt import core
+    from verticality.tilt.layout import NE, C, E
 
     n, dt = 32, 0.0035
     omega, b_hat = jnp.asarray(omega, dtype=float), jnp.asarray(b_hat, dtype=float)
@@ -425,7 +427,7 @@ def test_structured_covariance_propagation_is_the_dense_product():
     """``tilt_core.propagate_covariance`` (the block update's ``F P Fᵀ`` from the structure of
     ``F``, element-wise) equals the dense product with ``error_transition``'s ``F`` to rounding,
     on random covariances, orientations and gyro sums, and is symmetric when ``P`` is."""
-    from verticality.estimators import tilt_core as core
+    from verticality.tilt import core
 
     rng = np.random.default_rng(3)
     for _ in range(20):
@@ -446,7 +448,7 @@ def test_the_filter_is_an_estimator_value_with_named_state():
     """TiltFilter follows the project's estimator interface; its state reads by name the flat
     vectors the kernels use, through one layout per vector."""
     from verticality.estimators.base import Estimator
-    from verticality.estimators.tilt_layout import NE, Packed, S, X
+    from verticality.tilt.layout import NE, Packed, S, X
 
     filt = tilt.TiltFilter()
     assert isinstance(filt, Estimator)
@@ -486,7 +488,7 @@ def test_one_corrupt_sample_is_flagged_and_skipped_on_every_path(where, value):
     """A component beyond the sensor's physical range is a missing sample flagged OUT_OF_RANGE:
     the batch run, the per-sample step, the stepper and the reference Stream give what they give
     with that component missing (NaN), and everything after it is finite and unflagged by it."""
-    from verticality.estimators.tilt_stream import Stream
+    from verticality.tilt.stream import Stream
 
     gyr, acc = _tumbling(np.array([0.01, -0.02, 0.005]), n=700)[:2]
     k = 400
@@ -555,9 +557,9 @@ def test_a_long_recording_read_and_written_in_pieces_equals_the_one_pass(tmp_pat
     with pieces of 700 rows, a recording of 5000 rows with NaNs, a gap and an initialization late
     in the first piece gives tilt.estimate's result in the same pieces bit for bit, and the
     one-pass run's to rounding."""
-    from verticality.analysis.imu_estimate import estimate_file
-    from verticality.estimators import tilt_batch
     from verticality.io import imu
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt.files import estimate_file
 
     rec = swinging_imu(n=5000, dt_s=0.01, seed=7)
     rec.acc_m_s2[:650] = np.nan  # initialized at row 650, late in the first piece
@@ -587,7 +589,7 @@ def test_sigma_stays_honest_on_the_fault_recordings(fault):
     """On the synthetic fault recordings with known truth (a gyro bias twice the prior, a shake
     clipped by a ±2 g accelerometer, taps that bounce back) at least 95 % of the unflagged samples
     are within 2σ (docs/tilt.md, "The uncertainty under faults")."""
-    from verticality.analysis.fault_recordings import sigma_honesty
+    from verticality.tilt.evaluation.faults import sigma_honesty
 
     h = sigma_honesty(fault)
     assert h["unflagged"] > 0.75
@@ -598,7 +600,7 @@ def test_sigma_stays_honest_over_the_kick_recordings():
     """Kicks that leave the sensor moving (the benchmark's 20 recordings, pooled): at least 95 %
     of the unflagged samples within 2σ, and no recording below 70 % (before the persistence test
     widened the bias too, a bias the kicks had made wrong drifted the tilt unseen: 68 %)."""
-    from verticality.analysis.fault_recordings import sigma_honesty_over_seeds
+    from verticality.tilt.evaluation.faults import sigma_honesty_over_seeds
 
     h = sigma_honesty_over_seeds("kicks", range(20))
     assert h["unflagged"] > 0.9
@@ -635,7 +637,7 @@ def test_sigma_stays_honest_under_shaking_and_clipping_and_kicks_are_not_read_as
     faults"): shaking, clipped or not, taps and kicks keep ≥ 95 % of the unflagged samples within
     2σ (five recordings of each, pooled); forgetting a kick's velocity keeps the error of the kick
     recording below what reading it as tilt gives."""
-    from verticality.analysis.fault_recordings import fault_recording, sigma_honesty_over_seeds
+    from verticality.tilt.evaluation.faults import fault_recording, sigma_honesty_over_seeds
 
     for fault in ("shake", "clipped_2g", "taps", "kicks"):
         # measured 100.0, 100.0, 100.0 and 99.5 %; kicks 80.0 % without the persistence test

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from verticality import cli
-from verticality.analysis.fault_recordings import turning
-from verticality.estimators import tilt
-from verticality.estimators.tilt_flags import BAD_DT, INIT
 from verticality.io import imu
+from verticality.tilt import estimator as tilt
+from verticality.tilt.evaluation.faults import turning
+from verticality.tilt.flags import BAD_DT, INIT
 
 G = 9.81
 FINE_S = 0.001  # the truth's grid

@@ -9,8 +9,9 @@ import pytest
 
 from imu_cases import G, fast_roll
 from verticality.errors import InputError
-from verticality.estimators import tilt, tilt_limits
-from verticality.estimators.tilt_flags import ACC_MISSING, CLIPPED, HELD
+from verticality.tilt import estimator as tilt
+from verticality.tilt import limits as tilt_limits
+from verticality.tilt.flags import ACC_MISSING, CLIPPED, HELD
 
 BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 CLIP_RAD_S = 7.0
@@ -121,7 +122,7 @@ def test_keeping_clipped_accelerometer_samples_beats_dropping_them():
     without the clipped side's impulse and the tilt follows (2.16° RMS when measured); keeping
     them with the excess's velocity variance stays near the filter without detection (0.60° and
     0.57°)."""
-    from verticality.analysis import realistic_recordings as rr
+    from verticality.tilt.evaluation import realistic as rr
 
     rec = rr.recording("fast_translation", 2)
     lim = tilt_limits.find_limits(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s)
@@ -191,7 +192,7 @@ def test_a_logger_faster_than_its_sensor_costs_nothing():
     HELD, the output keeps one row per input row, the tilt error is that of the 100 Hz recording
     within a small factor (measured 0.207° against 0.224° RMS) and σ stays honest (all samples
     within 2σ in both)."""
-    from verticality.analysis.fault_recordings import fault_recording
+    from verticality.tilt.evaluation.faults import fault_recording
 
     n = 24000
     gyr, acc, _, up = fault_recording("clean", n=n, dt=0.0025, seed=0)
@@ -218,8 +219,8 @@ def test_estimate_command_finds_the_limits_of_a_csv_read_in_pieces(tmp_path):
     inferred) and the held rows (one straddling a piece boundary) are flagged as ``tilt.estimate``
     flags them on the whole recording; a range is refused for a peer filter."""
     from verticality import cli
-    from verticality.analysis.imu_estimate import check_ranges, estimate_file
     from verticality.io import imu
+    from verticality.tilt.files import check_ranges, estimate_file
 
     gyr, acc, _ = fast_roll(n=1500, peak=12.0, centers_s=(5.0,), seed=4)
     gyr = np.clip(gyr, -CLIP_RAD_S, CLIP_RAD_S)

@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from imu_cases import G, tumbling
-from verticality.estimators import tilt, tilt_core
 from verticality.estimators.base import scan_steps
-from verticality.estimators.tilt_flags import (
+from verticality.tilt import core as tilt_core
+from verticality.tilt import estimator as tilt
+from verticality.tilt.flags import (
     ACC_MISSING,
     BAD_DT,
     DT_GAP,
@@ -24,7 +25,7 @@ from verticality.estimators.tilt_flags import (
     REACQUIRED,
     REACQUIRING,
 )
-from verticality.estimators.tilt_stream import Stream
+from verticality.tilt.stream import Stream
 
 N = 1600  # every case has this many samples: the sequential reference compiles once
 BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
@@ -129,7 +130,7 @@ def _kicks_and_shaking():
     """One-sided kicks, then hard shaking: the kick gates forget the velocity (the one-block test,
     and the persistence test at sample 512) and the prior widens under the disturbance (every
     branch of the velocity update)."""
-    from verticality.analysis.fault_recordings import fault_recording
+    from verticality.tilt.evaluation.faults import fault_recording
 
     gyr_k, acc_k, dt, _ = fault_recording("kicks", seed=3)
     gyr_k, acc_k = gyr_k[:N // 2], acc_k[:N // 2]
@@ -284,7 +285,7 @@ def test_the_cases_exercise_what_they_claim(case):
             assert np.max(np.abs(other.up_S - out.up_S)) > 1e-3, change
     elif name == "large_rotations":
         rot2 = np.sum((gyr * dts[:, None]) ** 2, axis=1)
-        from verticality.estimators.tilt_kernels import SMALL_TH2
+        from verticality.tilt.kernels import SMALL_TH2
 
         assert np.all(rot2 > SMALL_TH2)
     elif name == "given_x0":
@@ -328,7 +329,7 @@ def test_reference_stream_clipping_and_held_rows_equal_core():
     """Clipped gyro and accelerometer samples and held rows: the plain-Python stream (detecting
     them sample by sample from the given ranges) gives the batch run's outputs and σ to 1e-9, and
     the batch run (``tilt.estimate``) equals the core's ``step`` given the same limits."""
-    from verticality.estimators.tilt_flags import CLIPPED, HELD
+    from verticality.tilt.flags import CLIPPED, HELD
 
     gyr, acc, dts, ranges = _clipped_and_held()
     out = tilt.estimate(gyr, acc, dts, **ranges)

@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 from verticality import cli
-from verticality.analysis.fault_recordings import fault_recording
 from verticality.errors import InputError
-from verticality.estimators import tilt, tilt_batch, tilt_smoother
-from verticality.estimators.tilt_layout import NE
+from verticality.tilt import batch as tilt_batch
+from verticality.tilt import estimator as tilt
+from verticality.tilt import smoother as tilt_smoother
+from verticality.tilt.evaluation.faults import fault_recording
+from verticality.tilt.layout import NE
 
 
 def _err_rad(up_true, up_est):

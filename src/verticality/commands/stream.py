@@ -28,10 +28,10 @@ def register(sub):
 
 
 def run(args) -> int:
-    from verticality.analysis.live_tilt import stream_estimates
     from verticality.io import imu_layout
     from verticality.io.paths import check_input_file
     from verticality.io.recording import parse_units
+    from verticality.tilt.live import stream_estimates
 
     gyr_u, acc_u = parse_units(args.units)
     mapping = imu_layout.parse_columns_spec(args.columns) if args.columns is not None else None

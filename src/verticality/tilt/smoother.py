@@ -38,10 +38,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import sizing, so3
-from verticality.estimators import tilt_core as core
-from verticality.estimators.tilt_batch import Transitions
-from verticality.estimators.tilt_kernels import atan2, quat_exp_batched
-from verticality.estimators.tilt_layout import NE, TRANS, E
+from verticality.tilt import core
+from verticality.tilt.batch import Transitions
+from verticality.tilt.kernels import atan2, quat_exp_batched
+from verticality.tilt.layout import NE, TRANS, E
 
 # memory per sample of a smoothing run (the inputs, the filter's outputs smoothed in place, the
 # per-block transitions, the device's copies): the peak resident size grew by ~490 bytes per

@@ -10,11 +10,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.analysis.broad_eval import OURS, run_filter
 from verticality.errors import InputError
-from verticality.estimators import tilt, tilt_batch
-from verticality.estimators.tilt_core import gaps_in, up_roll_pitch
-from verticality.estimators.tilt_flags import DT_GAP, INIT, REACQUIRED, REACQUIRING
+from verticality.tilt import batch as tilt_batch
+from verticality.tilt import estimator as tilt
+from verticality.tilt.core import gaps_in, up_roll_pitch
+from verticality.tilt.evaluation.broad import OURS, run_filter
+from verticality.tilt.flags import DT_GAP, INIT, REACQUIRED, REACQUIRING
 
 
 class ImuEstimate(NamedTuple):
@@ -169,9 +170,9 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     beyond what memory allows. ``ranges``: the sensor's full-scale readings
     (``gyr_range_rad_s``, ``acc_range_m_s2``, our filter only); without them clipping is inferred
     from flat tops (per piece of ``piece_rows`` rows when read in pieces)."""
-    from verticality.estimators import tilt_smoother
     from verticality.io import broad, imu, imu_layout
     from verticality.io.recording import load_imu, parse_units
+    from verticality.tilt import smoother as tilt_smoother
 
     check_offline(filter_name, offline)
     ranges = check_ranges(filter_name, ranges)

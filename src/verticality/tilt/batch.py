@@ -16,17 +16,17 @@ import jax
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators import tilt_core as core
-from verticality.estimators import tilt_kernels
-from verticality.estimators.tilt_flags import (
+from verticality.tilt import core
+from verticality.tilt import kernels as tilt_kernels
+from verticality.tilt.flags import (
     DT_GAP,
     INIT,
     OUT_OF_RANGE,
     REACQUIRING,
     accelerometer_used,
 )
-from verticality.estimators.tilt_layout import CHUNK_SAMPLE, HEAD, NE, ROW, SOA, TRANS, E, S, X
-from verticality.estimators.tilt_params import MAX_ACC_M_S2, MAX_RATE_RAD_S
+from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, NE, ROW, SOA, TRANS, E, S, X
+from verticality.tilt.params import MAX_ACC_M_S2, MAX_RATE_RAD_S
 
 CHUNK_BLOCKS = 256
 PIECE_SAMPLES = 2**18  # a long recording is filtered piece by piece (tilt.estimate, estimate's

@@ -27,8 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import so3
-from verticality.estimators import tilt_core as core
-from verticality.estimators.tilt_layout import CHUNK_SAMPLE, HEAD, P_DIAG, ROW, SOA, TRANS, S, X
+from verticality.tilt import core
+from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, P_DIAG, ROW, SOA, TRANS, S, X
 
 SMALL_TH2 = 0.04  # |rotation|² (rad²) below which the Taylor exponential is used (error < 1e-27)
 

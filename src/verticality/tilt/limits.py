@@ -60,8 +60,8 @@ from typing import NamedTuple
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators.tilt_flags import CLIPPED, HELD
-from verticality.estimators.tilt_params import G_M_S2
+from verticality.tilt.flags import CLIPPED, HELD
+from verticality.tilt.params import G_M_S2
 
 MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make it a clip level
 GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s

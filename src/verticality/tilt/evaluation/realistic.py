@@ -192,7 +192,7 @@ def clipped_share(rec: Recording) -> tuple[float, float]:
 def compare(kinds=MOTIONS, seeds=range(5), filters=("verticality", "vqf"), progress=None):
     """Each filter's RMSE (deg) on each recording: ``{(kind, seed): {filter: rmse}}``.
     ``progress(done, total)`` is called after each recording."""
-    from verticality.analysis.broad_eval import run_filter
+    from verticality.tilt.evaluation.broad import run_filter
 
     kinds, seeds = list(kinds), list(seeds)
     out = {}

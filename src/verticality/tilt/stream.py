@@ -19,7 +19,7 @@ import struct
 
 import numpy as np
 
-from verticality.estimators.tilt_flags import (
+from verticality.tilt.flags import (
     ACC_DISTURBED,
     ACC_MISSING,
     BAD_DT,
@@ -32,8 +32,8 @@ from verticality.estimators.tilt_flags import (
     REACQUIRED,
     REACQUIRING,
 )
-from verticality.estimators.tilt_limits import EXCESS_FRACTION
-from verticality.estimators.tilt_params import (
+from verticality.tilt.limits import EXCESS_FRACTION
+from verticality.tilt.params import (
     BLOCK,
     DEFAULT_P0,
     DEFAULT_PARAMS,

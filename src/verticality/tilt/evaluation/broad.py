@@ -65,14 +65,14 @@ def choose_filters(requested=None) -> tuple[list[str], list[str]]:
 
 
 def _ours(gyr, acc, dt_s):
-    from verticality.estimators import tilt
+    from verticality.tilt import estimator as tilt
 
     out = tilt.estimate(gyr, acc, dt_s)
     return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
 
 
 def _ours_offline(gyr, acc, dt_s):
-    from verticality.estimators import tilt
+    from verticality.tilt import estimator as tilt
 
     out = tilt.smooth(gyr, acc, dt_s)
     return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from verticality import so3
-from verticality.estimators import tilt
+from verticality.tilt import estimator as tilt
 
 FAULTS = ("clean", "bias_0.1", "bias_0.2", "shake", "clipped_2g", "taps", "kicks")
 

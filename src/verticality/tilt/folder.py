@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators import tilt_flags as F
+from verticality.tilt import flags as F
 
 RECORDING_SUFFIXES = (".csv", ".hdf5", ".h5")
 SUMMARY_NAMES = ("summary.csv", "summary.json", "folder.json")  # in OUT beside the outputs
@@ -107,7 +107,7 @@ def run_summary(run) -> dict:
     """The summary row's numbers of one :class:`~verticality.analysis.imu_estimate.EstimateRun`
     (``mean_sigma_deg``: the mean σ of the tilt over the settled samples, None for a peer or
     when no sample settled)."""
-    from verticality.analysis.imu_estimate import settled_samples
+    from verticality.tilt.files import settled_samples
 
     flags = np.asarray(run.flags).astype(np.int64)
     row = {"rows": int(run.n), "duration_s": float(run.duration_s),
@@ -140,8 +140,8 @@ def estimate_one(path: str, out_path: str, row_path: str, options: dict,
     (:func:`~verticality.analysis.imu_estimate.estimate_file`'s keywords), then its summary row
     into ``row_path`` (atomically). A failure is the row's ``error``; the task never raises for a
     bad recording."""
-    from verticality.analysis.imu_estimate import estimate_file
     from verticality.sweep.engine import use_compile_cache, write_atomic
+    from verticality.tilt.files import estimate_file
 
     use_compile_cache(compile_cache)
     row = dict.fromkeys(SUMMARY_COLUMNS)
@@ -164,9 +164,9 @@ def estimate_options(units=(), columns=None, time_unit=None, filter_name: str | 
                      sigma: bool = False, offline: bool = False, ranges: dict | None = None) -> dict:
     """The options of every recording's ``estimate`` (checked once, before any task), as a
     JSON-able dict."""
-    from verticality.analysis.broad_eval import OURS
-    from verticality.analysis.imu_estimate import check_offline, check_ranges, check_sigma
     from verticality.io.recording import parse_units
+    from verticality.tilt.evaluation.broad import OURS
+    from verticality.tilt.files import check_offline, check_ranges, check_sigma
 
     filter_name = filter_name or OURS
     check_offline(filter_name, offline)

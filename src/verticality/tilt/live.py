@@ -16,10 +16,10 @@ from __future__ import annotations
 import math
 from typing import TextIO
 
-from verticality.estimators.tilt_params import MAX_DT_S
-from verticality.estimators.tilt_stream import Stream
 from verticality.io import imu, imu_layout
 from verticality.io.imu_rows import RowReader
+from verticality.tilt.params import MAX_DT_S
+from verticality.tilt.stream import Stream
 
 
 def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin",

@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import so3
-from verticality.estimators.tilt_flags import (
+from verticality.tilt.flags import (
     ACC_DISTURBED,
     ACC_MISSING,
     BAD_DT,
@@ -45,8 +45,8 @@ from verticality.estimators.tilt_flags import (
     REACQUIRED,
     REACQUIRING,
 )
-from verticality.estimators.tilt_layout import NE, C, E, S, X
-from verticality.estimators.tilt_params import (
+from verticality.tilt.layout import NE, C, E, S, X
+from verticality.tilt.params import (
     GAP_TOLERANCE_S,
     MAX_ACC_M_S2,
     MAX_DT_S,

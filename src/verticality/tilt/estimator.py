@@ -65,9 +65,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators import tilt_batch, tilt_core, tilt_limits, tilt_smoother
-from verticality.estimators.tilt_core import TiltOutput, TiltState, quat_from_acc
-from verticality.estimators.tilt_flags import (  # noqa: F401  (the flags, for users of tilt)
+from verticality.models.base import model_dataclass, static_field
+from verticality.tilt import batch as tilt_batch
+from verticality.tilt import core as tilt_core
+from verticality.tilt import limits as tilt_limits
+from verticality.tilt import smoother as tilt_smoother
+from verticality.tilt.core import TiltOutput, TiltState, quat_from_acc
+from verticality.tilt.flags import (  # noqa: F401  (the flags, for users of tilt)
     ACC_DISTURBED,
     ACC_MISSING,
     BAD_DT,
@@ -81,15 +85,14 @@ from verticality.estimators.tilt_flags import (  # noqa: F401  (the flags, for u
     REACQUIRED,
     REACQUIRING,
 )
-from verticality.estimators.tilt_layout import NE, OUT, SAMPLE, E, X, Z
-from verticality.estimators.tilt_params import (  # noqa: F401  (re-exported for users of tilt)
+from verticality.tilt.layout import NE, OUT, SAMPLE, E, X, Z
+from verticality.tilt.params import (  # noqa: F401  (re-exported for users of tilt)
     BLOCK,
     DEFAULT_P0,
     DEFAULT_PARAMS,
     G_M_S2,
     TiltParams,
 )
-from verticality.models.base import model_dataclass, static_field
 
 __all__ = ["TiltFilter", "TiltState", "TiltOutput", "TiltParams", "Stepper", "estimate", "smooth",
            "recording_limits", "make_step", "tilt_sigma_rad", "quat_from_acc", "DEFAULT_PARAMS",
@@ -184,7 +187,7 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
 
     Example::
 
-        from verticality.estimators import tilt
+        from verticality.tilt import estimator as tilt
         out = tilt.estimate(gyr, acc, 1 / 285.7)
         out.roll_rad, out.pitch_rad, out.up_S, out.bias_S_rad_s, out.flags
     """
