@@ -7,10 +7,9 @@ import h5py
 import numpy as np
 import pytest
 
-from verticality import cli, so3
+from verticality import cli, so3, tilt
 from verticality.errors import InputError
 from verticality.io import broad
-from verticality.tilt import estimator as tilt
 
 BROAD_DIR = Path(__file__).parents[2] / "shared" / "data" / "broad"
 TRIAL = "01_undisturbed_slow_rotation_A.hdf5"
@@ -97,7 +96,7 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
         g.attrs["sampling_rate"] = f.attrs["sampling_rate"]
     trial = broad.load_trial(tmp_path / "slice.hdf5")
     assert trial.movement.sum() > 2000
-    out = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+    out = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, period_s=trial.dt_s)
     rmse = broad.inclination_rmse_deg(out.quat_E_S, trial)
     assert rmse < 1.0
     assert cli.main(["evaluate", "broad", str(tmp_path), "--json", "--filters", "verticality"]) == 0
@@ -117,7 +116,7 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
     assert "within σ / 2σ" in capsys.readouterr().out
     # the smoother beside the filter in the same run: its own σ calibration, and better here
     res = evaluate_trials([tmp_path / "slice.hdf5"], ["verticality", "verticality-offline"])
-    smooth = tilt.smooth(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+    smooth = tilt.smooth(trial.gyr_rad_s, trial.acc_m_s2, period_s=trial.dt_s)
     assert res["trials"]["slice"]["verticality-offline"] == pytest.approx(
         broad.inclination_rmse_deg(smooth.quat_E_S, trial), rel=1e-12)
     assert res["trials"]["slice"]["verticality-offline"] < rmse

@@ -30,7 +30,7 @@ from verticality.models.pendulum import PendulumState
 from verticality.models.planar import HeadInput, PlanarState
 from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM
 from verticality.perception_params import LAURENS_PRESETS, MERFELD_PRESETS
-from verticality.tilt.estimator import TiltFilter
+from verticality.tilt import TiltFilter
 
 DT = 0.01
 N = 30

@@ -4,9 +4,8 @@ import io
 
 import numpy as np
 
-from verticality import cli
+from verticality import cli, tilt
 from verticality.io import imu
-from verticality.tilt import estimator as tilt
 
 EUROC_HEADER = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
                 "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]")

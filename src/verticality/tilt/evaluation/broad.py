@@ -18,6 +18,8 @@ import numpy as np
 
 from verticality.errors import InputError
 from verticality.io import broad
+from verticality.tilt.output import tilt_sigma_rad
+from verticality.tilt.params import DEFAULT_PARAMS
 
 OURS = "verticality"
 PEERS = ("vqf", "madgwick", "mahony")
@@ -65,17 +67,17 @@ def choose_filters(requested=None) -> tuple[list[str], list[str]]:
 
 
 def _ours(gyr, acc, dt_s):
-    from verticality.tilt import estimator as tilt
+    from verticality.tilt import estimator
 
-    out = tilt.estimate(gyr, acc, dt_s)
-    return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
+    out = estimator.estimate_steps(gyr, acc, dt_s)
+    return out.quat_E_S, out.bias_S_rad_s, tilt_sigma_rad(out.var, DEFAULT_PARAMS)
 
 
 def _ours_offline(gyr, acc, dt_s):
-    from verticality.tilt import estimator as tilt
+    from verticality.tilt import estimator
 
-    out = tilt.smooth(gyr, acc, dt_s)
-    return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
+    out = estimator.smooth_steps(gyr, acc, dt_s)
+    return out.quat_E_S, out.bias_S_rad_s, tilt_sigma_rad(out.var, DEFAULT_PARAMS)
 
 
 def _vqf_offline(gyr, acc, dt_s):

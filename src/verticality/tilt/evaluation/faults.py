@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from verticality import so3
-from verticality.tilt import estimator as tilt
+from verticality import so3, tilt
+from verticality.tilt.params import G_M_S2
 
 FAULTS = ("clean", "bias_0.1", "bias_0.2", "shake", "clipped_2g", "taps", "kicks")
 
@@ -53,7 +53,7 @@ def _motion(n: int, dt: float, rng, shake: bool):
         seg = (t % 20.0) > 12.0
         a_lin[seg, 0] = 25.0 * np.sin(2 * np.pi * 3.0 * t[seg])
         a_lin[seg, 1] = 15.0 * np.cos(2 * np.pi * 3.0 * t[seg])
-    acc = np.einsum("nji,nj->ni", R, a_lin + [0.0, 0.0, tilt.G_M_S2])
+    acc = np.einsum("nji,nj->ni", R, a_lin + [0.0, 0.0, G_M_S2])
     gyr = w + rng.normal(0, 0.002, w.shape)
     return gyr, acc + rng.normal(0, 0.03, acc.shape), R[:, 2, :]
 
@@ -68,7 +68,7 @@ def fault_recording(fault: str, n: int = 6000, dt: float = 0.01, seed: int = 0):
     elif fault == "bias_0.2":
         gyr = gyr + np.array([0.12, -0.12, 0.1])
     elif fault == "clipped_2g":
-        acc = np.clip(acc, -2 * tilt.G_M_S2, 2 * tilt.G_M_S2)
+        acc = np.clip(acc, -2 * G_M_S2, 2 * G_M_S2)
     elif fault in ("taps", "kicks"):
         for k in rng.integers(200, n - 100, 30):
             shock = rng.normal(0, 80.0, 3)
@@ -83,9 +83,9 @@ def fault_recording(fault: str, n: int = 6000, dt: float = 0.01, seed: int = 0):
 def _errors(fault: str, seed: int):
     """Our filter on :func:`fault_recording`: (tilt error rad, σ rad, unflagged) per sample."""
     gyr, acc, dt, up = fault_recording(fault, seed=seed)
-    out = tilt.estimate(gyr, acc, dt)
-    err = np.arccos(np.clip(np.sum(np.asarray(out.up_S) * up, axis=1), -1.0, 1.0))
-    return err, tilt.tilt_sigma_rad(out.var), np.asarray(out.flags) == 0
+    out = tilt.estimate(gyr, acc, period_s=dt)
+    err = np.arccos(np.clip(np.sum(out.up_S * up, axis=1), -1.0, 1.0))
+    return err, out.sigma_rad, out.flags == 0
 
 
 def sigma_honesty(fault: str, seed: int = 0) -> dict[str, float]:
