@@ -1,4 +1,4 @@
-"""The realistic synthetic recordings (verticality.analysis.realistic_recordings): the truth is
+"""The realistic synthetic recordings (verticality.tilt.evaluation.realistic): the truth is
 consistent with what a perfect sensor reads, the drawn errors are applied as documented, the
 readings clip at the range, and a recording is a pure function of its seed."""
 

@@ -1,4 +1,4 @@
-"""3-D otolith–canal tilt filter (verticality.estimators.tilt) on synthetic recordings with known
+"""3-D otolith–canal tilt filter (verticality.tilt) on synthetic recordings with known
 truth: static tilts, constant rotation with a known gyro bias, linear acceleration, NaN, gaps,
 irregular time steps; the error-state Jacobian against autodiff; the two batch kernels. The paths
 of the filter against each other: tests/test_tilt_reference.py."""

@@ -1,5 +1,5 @@
 """Sensors at their limits, found in a recording before the tilt filter runs
-(:func:`verticality.estimators.tilt.estimate`, :func:`~verticality.estimators.tilt.smooth`):
+(:func:`verticality.tilt.estimate`, :func:`~verticality.tilt.smooth`):
 clipped (saturated) gyro and accelerometer axes, and held rows (a logger faster than its sensor
 repeats the sensor's last reading). NumPy, on the host; the filter receives the result as per-sample
 inputs (:class:`Limits`).

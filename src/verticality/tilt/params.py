@@ -1,7 +1,7 @@
-"""Parameters of the 3-D tilt filter (:mod:`verticality.estimators.tilt`): one set for every
+"""Parameters of the 3-D tilt filter (:mod:`verticality.tilt`): one set for every
 recording, physically motivated (docs/tilt.md, "The filter"), and the default prior covariance and
 block length. Constants only, so that the plain-Python reference
-(:mod:`verticality.estimators.tilt_stream`) can share them without sharing any arithmetic.
+(:mod:`verticality.tilt.stream`) can share them without sharing any arithmetic.
 """
 
 from __future__ import annotations

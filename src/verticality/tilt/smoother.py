@@ -2,8 +2,8 @@
 pass over the block filter's error state.
 
 The forward pass is the filter itself (``tilt_batch.run`` with ``transitions``: the same block
-update, :func:`verticality.estimators.tilt_core.block_update`, which also reports each block as a
-linear-Gaussian step, :class:`~verticality.estimators.tilt_core.BlockTransition`). Per block
+update, :func:`verticality.tilt.core.block_update`, which also reports each block as a
+linear-Gaussian step, :class:`~verticality.tilt.core.BlockTransition`). Per block
 ``j`` it gives the covariance at its start ``P0_j`` (the filtered ``P⁺`` of the block before), the
 error transition ``F_j``, the covariance before its measurement updates ``P⁻_j`` and the
 correction ``dx_j`` the updates applied. Backward, with ``e_j`` the smoothed error at the start of

@@ -2,7 +2,7 @@
 
 A jitted JAX step costs ~90 µs per call on a CPU (dispatch plus ~50 small XLA kernels), too slow
 for a 1 kHz robot loop within 5 % of a core. This module runs the filter of
-:mod:`verticality.estimators.tilt` (the equations of ``tilt_core.step``; the every-``block``-samples
+:mod:`verticality.tilt` (the equations of ``tilt_core.step``; the every-``block``-samples
 Kalman update is ``tilt_core.block_update``) with scalar ``math`` for the per-sample
 pre-integration and NumPy for the block update. It is deliberately written apart from the JAX
 core, sharing nothing with it but the constants (flag bits, default parameters), as PyVQF stands

@@ -10,8 +10,7 @@ variant adds 3 Hz translations of 25 and 15 m/s² for 8 s out of every 20. The f
   offsets), from the start;
 * ``shake``: the shaking, clean (the reference for the next one);
 * ``clipped_2g``: the shaking read by an accelerometer of range ±2 g (components clipped at
-  19.62 m/s²; the filter infers the range from the flat tops, :mod:`~verticality.estimators.
-  tilt_limits`);
+  19.62 m/s²; the filter infers the range from the flat tops, :mod:`~verticality.tilt.limits`);
 * ``taps``: 30 taps of ~140 m/s² that bounce back (2 samples out, 2 back: the velocity returns);
 * ``kicks``: 30 one-sided impulses of ~140 m/s² (the sensor is set moving at ~1.6 m/s each time
   and keeps that speed: outside the filter's model, in which accelerations are short and periodic).
