@@ -188,7 +188,7 @@ def test_tilt_sigma_spans_the_start_and_rests_on_the_calibration_floor():
     calibration error raises the floor, the estimate is unchanged."""
     gyr, acc, dt, up = _static(np.radians(20.0), np.radians(-35.0), n=1000)
     out = tilt.estimate(gyr, acc, period_s=dt)
-    sigma = np.degrees(tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS))
+    sigma = np.degrees(out.sigma_rad)
     floor = np.degrees(tilt.DEFAULT_PARAMS.acc_calib_m_s2 / tilt.DEFAULT_PARAMS.g_m_s2)
     assert sigma[0] > 45.0
     k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
@@ -197,7 +197,7 @@ def test_tilt_sigma_spans_the_start_and_rests_on_the_calibration_floor():
     wide = tilt.DEFAULT_PARAMS._replace(acc_calib_m_s2=0.5)
     out_wide = tilt.estimate(gyr, acc, period_s=dt, params=wide)
     np.testing.assert_array_equal(out_wide.quat_E_S, out.quat_E_S)
-    assert np.degrees(tilt.tilt_sigma_rad(out_wide.var[-1], wide, tilt.DEFAULT_PARAMS)) > 2.5
+    assert np.degrees(out_wide.sigma_rad[-1]) > 2.5
 
 
 def test_start_in_motion_on_broad():
@@ -221,7 +221,7 @@ def test_start_in_motion_on_broad():
     sel = slice(int(1.5 / trial.dt_s), n)
     assert np.sqrt(np.nanmean(err[sel] ** 2)) < 3.2
     # the reported σ covers the error throughout, the first wrong second included
-    sigma = np.degrees(tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS))
+    sigma = np.degrees(out.sigma_rad)
     fin = np.isfinite(err)
     assert np.all(err[fin] <= 2 * sigma[fin])
 
@@ -271,7 +271,7 @@ def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path,
     assert 1.0 <= t[k_re] - t[k] <= 1.0 + 2 * BLOCK * 0.01  # the averaging time, whole blocks
     assert err[k] > 25.0 and np.all(err[k:k_re] > 25.0)  # what the flags warn of
     # an honest variance from the gap on (mid-block too: the gap's variance is added at once)
-    sigma = np.degrees(tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS))
+    sigma = np.degrees(out.sigma_rad)
     assert np.all(sigma[k:k_re] > 30.0) and np.all(err[k:] < 2 * sigma[k:])
     assert err[k_re] < 1.0 and np.max(err[k_re + 100:]) < 0.3  # re-acquired, then converged
     assert np.sqrt(np.mean(err[200:k] ** 2)) < 0.05  # before the gap: unaffected
@@ -547,7 +547,7 @@ def test_sigma_stays_honest_under_a_turn_on_bias_of_0_1_rad_s():
     gyr, acc, dt, up = _tumbling(bias, n=4000)
     out = tilt.estimate(gyr, acc, period_s=dt)
     err = np.radians(_tilt_err_deg(up, out.up_S))
-    sigma = tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS)
+    sigma = out.sigma_rad
     ok = out.flags == 0
     assert ok.mean() > 0.9
     assert np.mean(err[ok] <= 2 * sigma[ok]) >= 0.95
