@@ -10,7 +10,7 @@ vqf in the same run.
   of ``--offline-reps``;
 - streaming, one call per sample as a 1 kHz robot loop would, samples per second:
   ``tilt_stream.Stream.step`` (the plain Python/NumPy reference implementation of the filter, the
-  real-time path) and the jitted packed JAX step ``tilt.make_step()`` (bounded by JAX's per-call
+  real-time path) and the jitted packed JAX step ``tilt.make_step(period_s=dt)`` (bounded by JAX's per-call
   cost).
 
 Run: ``python benchmarks/bench_tilt.py [--reps 5]``.
@@ -142,7 +142,7 @@ def main() -> int:
         rows.append((f"vqf offlineVQF (C++, {m_off:.0e})", m_off / best_off["offlineVQF"]))
 
     # streaming: jitted step, params and block baked in, one call per sample
-    stepper = tilt.make_step()
+    stepper = tilt.make_step(period_s=dt)
     step = stepper.step
     state = stepper.init()
     m = args.stream_samples
@@ -163,7 +163,7 @@ def main() -> int:
     m_py = 4 * m
 
     def stream_py():
-        s = Stream()
+        s = Stream(period_s=dt)
         for k in range(m_py):
             s.step(gyr[k], acc[k], dt)
 

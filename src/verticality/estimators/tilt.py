@@ -88,6 +88,7 @@ from verticality.estimators.tilt_params import (  # noqa: F401  (re-exported for
     DEFAULT_PARAMS,
     G_M_S2,
     TiltParams,
+    block_samples,
 )
 from verticality.models.base import model_dataclass, static_field
 
@@ -169,7 +170,7 @@ def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
 
 
 def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
-             block: int = BLOCK, gyr_range_rad_s=None, acc_range_m_s2=None,
+             block: int | None = None, gyr_range_rad_s=None, acc_range_m_s2=None,
              detect_clipping: bool = True) -> TiltOutput:
     """Filter a whole recording from the start (no prior state): gyro (N, 3) rad/s,
     accelerometer (N, 3) m/s², ``dt_s`` a scalar sampling period or (N,) per-sample steps
@@ -180,7 +181,9 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     or beyond them is clipped (flag ``CLIPPED``): a clipped gyro axis widens the tilt variance for
     its unknown excess, a clipped accelerometer axis the velocity variance. Without them the clip levels
     are inferred from the recording's flat tops; ``detect_clipping=False`` turns clipping off.
-    Rows that repeat the previous row bit for bit are flagged ``HELD``.
+    Rows that repeat the previous row bit for bit are flagged ``HELD``. ``block``: samples per
+    Kalman update; default ``params.update_s`` over the sampling period
+    (:func:`~verticality.estimators.tilt_params.block_samples`).
 
     Example::
 
@@ -188,11 +191,12 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
         out = tilt.estimate(gyr, acc, 1 / 285.7)
         out.roll_rad, out.pitch_rad, out.up_S, out.bias_S_rad_s, out.flags
     """
-    filt = TiltFilter(params, block)
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     n = gyr.shape[0] if gyr.ndim == 2 else 0
     dt = np.asarray(dt_s, dtype=np.float64)
+    block = block_samples(params, dt) if block is None else block
+    filt = TiltFilter(params, block)
     lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping)
     if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
@@ -203,7 +207,7 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
 
 
 def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
-           block: int = BLOCK, gyr_range_rad_s=None, acc_range_m_s2=None,
+           block: int | None = None, gyr_range_rad_s=None, acc_range_m_s2=None,
            detect_clipping: bool = True) -> TiltOutput:
     """The offline estimate of a whole recording: the filter (:func:`estimate`, the same
     arguments, the sensors' limits included) followed by a Rauch–Tung–Striebel backward pass over
@@ -221,6 +225,7 @@ def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
     """
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     tilt_smoother.check_size(gyr.shape[0] if gyr.ndim else 0)
+    block = block_samples(params, dt_s) if block is None else block
     filt = TiltFilter(params, block)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     lim = recording_limits(gyr, acc, np.asarray(dt_s, dtype=np.float64), gyr_range_rad_s,
@@ -321,10 +326,15 @@ class Stepper:
         return jax.tree_util.tree_map(np.asarray, _state_of(np.asarray(z)))
 
 
-def make_step(params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK, x0=None, P0=None
-              ) -> Stepper:
-    """The real-time stepper of the filter with ``params`` and ``block``, started from
-    ``TiltFilter.init(x0, P0)``."""
+def make_step(params: TiltParams = DEFAULT_PARAMS, block: int | None = None, x0=None, P0=None,
+              period_s: float | None = None) -> Stepper:
+    """The real-time stepper of the filter with ``params``, started from
+    ``TiltFilter.init(x0, P0)``, updating every ``block`` samples or, by default, every
+    ``params.update_s`` at the sampling period ``period_s`` (one of them is needed)."""
+    if block is None:
+        if period_s is None:
+            raise InputError("make_step needs the sampling period (period_s=…) or block=…")
+        block = block_samples(params, period_s)
     filt = TiltFilter(params, block)
     s = filt.init(x0, P0)
     return Stepper(filt, Z.pack(xp=np, x=s.x, sums=s.sums, count=s.count,
