@@ -45,21 +45,17 @@ class Case(NamedTuple):
     scored: np.ndarray
 
 
-def resample(x: np.ndarray, rate_in_hz: float, rate_out_hz: float, n_out: int,
-             interval_mean: bool = False) -> np.ndarray:
+def resample(x: np.ndarray, rate_in_hz: float, rate_out_hz: float, n_out: int) -> np.ndarray:
     """``x`` (N, k) sampled at ``rate_in_hz`` read at ``rate_out_hz`` (``n_out`` samples from the
     same start): low-passed below the lower Nyquist frequency (a zero-phase FIR at 0.4 × the new
     rate, as an IMU's anti-alias filter would pass the band) and interpolated linearly at the new
-    instants; ``interval_mean``: at the middle of the interval each new sample ends, i.e. about the
-    mean over it, as an integrating gyro reads and as the filters integrate a gyro sample (the rate
-    over the step that ends at it)."""
+    instants (both sensors alike: no assumption on how an IMU times its gyro samples, to which
+    BROAD's scores are sensitive, docs/tilt.md)."""
     cutoff_hz = min(0.4 * rate_out_hz, 0.45 * rate_in_hz)  # (reading at a higher rate: none)
     taps = signal.firwin(int(8 * rate_in_hz / cutoff_hz) | 1, cutoff_hz, fs=rate_in_hz)
     y = signal.filtfilt(taps, [1.0], x, axis=0, padtype="even")
     t_in = np.arange(x.shape[0]) / rate_in_hz
     t_out = np.arange(n_out) / rate_out_hz
-    if interval_mean:
-        t_out = np.maximum(t_out - 0.5 / rate_out_hz, 0.0)
     return np.stack([np.interp(t_out, t_in, y[:, i]) for i in range(x.shape[1])], axis=1)
 
 
@@ -77,15 +73,14 @@ def slerp_at(quat: np.ndarray, rate_in_hz: float, t_out: np.ndarray) -> np.ndarr
 
 
 def resample_trial(trial: broad.BroadTrial, rate_hz: float) -> Case:
-    """A BROAD trial as an IMU sampled at ``rate_hz`` would have read it (:func:`resample`: the
-    gyro as the mean rate over each sample's interval, the accelerometer at its instant); the
+    """A BROAD trial as an IMU sampled at ``rate_hz`` would have read it (:func:`resample`); the
     optical reference interpolated (:func:`slerp_at`), the movement mask by the nearest sample."""
     rate_in = trial.sampling_rate_hz
     n = int(np.floor((trial.gyr_rad_s.shape[0] - 1) * rate_hz / rate_in)) + 1
     t_out = np.arange(n) / rate_hz
     nearest = np.clip(np.round(t_out * rate_in).astype(int), 0, trial.movement.size - 1)
     return Case("BROAD", trial.name, rate_hz,
-                resample(trial.gyr_rad_s, rate_in, rate_hz, n, interval_mean=True),
+                resample(trial.gyr_rad_s, rate_in, rate_hz, n),
                 resample(trial.acc_m_s2, rate_in, rate_hz, n),
                 slerp_at(trial.quat_E_S_opt, rate_in, t_out), trial.movement[nearest])
 
