@@ -10,7 +10,7 @@ vqf in the same run.
   of ``--offline-reps``;
 - streaming, one call per sample as a 1 kHz robot loop would, samples per second:
   ``tilt.Stream.step`` (the plain Python/NumPy implementation of the filter with its output type,
-  the real-time path) and the jitted packed JAX step ``estimator.make_step()`` (bounded by JAX's per-call
+  the real-time path) and the jitted packed JAX step ``estimator.make_step(period_s=dt)`` (bounded by JAX's per-call
   cost).
 
 Run: ``python benchmarks/bench_tilt.py [--reps 5]``.
@@ -146,7 +146,7 @@ def main() -> int:
         rows.append((f"vqf offlineVQF (C++, {m_off:.0e})", m_off / best_off["offlineVQF"]))
 
     # streaming: jitted step, params and block baked in, one call per sample
-    stepper = estimator.make_step()
+    stepper = estimator.make_step(period_s=dt)
     step = stepper.step
     state = stepper.init()
     m = args.stream_samples

@@ -337,18 +337,19 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
     real = tilt_kernels.run_chunk
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
     out = estimator.estimate_steps(gyr, acc, dts)
+    block = tilt.block_samples(tilt.DEFAULT_PARAMS, dts)  # estimate's samples per update
     fl = out.flags[1:]  # blocks start after the sample that initializes
-    nb = -(-fl.size // BLOCK)
-    pad = np.zeros(nb * BLOCK, dtype=fl.dtype)
+    nb = -(-fl.size // block)
+    pad = np.zeros(nb * block, dtype=fl.dtype)
     pad[:fl.size] = fl
-    blocks = pad.reshape(nb, BLOCK)
+    blocks = pad.reshape(nb, block)
     truth = (blocks[:, 0] & tilt.REACQUIRING > 0) | np.any(blocks & tilt.DT_GAP > 0, axis=1)
     # pending from the start: the initializing sample is re-acquired too
-    need = tilt_batch.blocks_needing_gaps(dts, acc, 1, BLOCK, tilt.DEFAULT_PARAMS, True, 0.0)
+    need = tilt_batch.blocks_needing_gaps(dts, acc, 1, block, tilt.DEFAULT_PARAMS, True, 0.0)
     assert need.shape == truth.shape and np.all(need[truth]) and truth[0]
     n_reacq = int(np.count_nonzero(out.flags & tilt.REACQUIRED))
     assert n_reacq == 3 and np.count_nonzero(need & ~truth) <= n_reacq
-    assert truth[(1600 - 1) // BLOCK]  # still pending inside the accelerometer dropout
+    assert truth[(1600 - 1) // block]  # still pending inside the accelerometer dropout
 
 
 def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
@@ -506,11 +507,11 @@ def test_one_corrupt_sample_is_flagged_and_skipped_on_every_path(where, value):
     np.testing.assert_array_equal(out.flags & ~tilt.OUT_OF_RANGE, ref.flags)
     np.testing.assert_allclose(out.quat_E_S, ref.quat_E_S, rtol=0, atol=1e-12)
     assert np.all(np.isfinite(out.quat_E_S)) and np.all(np.isfinite(out.var))
-    filt = tilt.TiltFilter()
+    filt = tilt.TiltFilter(block=tilt.block_samples(tilt.DEFAULT_PARAMS, 0.01))  # as estimate's
     s = filt.init()
-    stepper = estimator.make_step()
+    stepper = estimator.make_step(period_s=0.01)
     z = stepper.init()
-    stream = Stream()
+    stream = Stream(period_s=0.01)
     for j in range(k - 40, k + 40):
         if j == k - 40:
             s = filt.run(s, bad_g[:j], bad_a[:j], 0.01)[0]

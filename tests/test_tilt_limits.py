@@ -1,4 +1,4 @@
-"""Sensors at their limits (estimators/tilt_limits.py): clipped gyro and accelerometer axes, given
+"""Sensors at their limits (tilt/limits.py): clipped gyro and accelerometer axes, given
 or inferred from flat tops, and held rows; what the filter makes of them against the unclipped
 truth."""
 

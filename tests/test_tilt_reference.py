@@ -157,7 +157,7 @@ def _scan(state, gyr, acc, dts):
 
 
 def _stream(gyr, acc, dts, x0):
-    s = Stream(x0=x0)
+    s = Stream(x0=x0, block=FILTER.block)
     rows, sigma = [], []
     for k in range(gyr.shape[0]):
         rows.append(s.step(gyr[k], acc[k], dts[k]))
@@ -228,7 +228,7 @@ def test_packed_stepper_equals_step(name):
     """The real-time JAX stepper (state and outputs as flat vectors) gives ``step``'s numbers."""
     (gyr, acc, dts), x0 = CASES[name]()
     n = 400 if name == "start_in_motion" else N  # past the re-acquisitions and the gaps
-    stepper = estimator.make_step(x0=x0)
+    stepper = estimator.make_step(x0=x0, block=FILTER.block)
     z = stepper.init()
     state = FILTER.init(x0)
     _, ref = _scan(state, gyr, acc, dts)

@@ -13,7 +13,6 @@ from verticality.tilt import estimator
 from verticality.tilt import smoother as tilt_smoother
 from verticality.tilt.evaluation.faults import fault_recording
 from verticality.tilt.layout import NE
-from verticality.tilt.params import BLOCK
 
 
 def _err_rad(up_true, up_est):
@@ -40,9 +39,9 @@ def test_smoother_beats_the_filter_with_an_honest_sigma(fault):
 
 def _block_ends(gyr, acc, dt):
     """The last sample of every updated block of the filter's run."""
-    f = tilt.TiltFilter()
+    f = tilt.TiltFilter(block=tilt.block_samples(tilt.DEFAULT_PARAMS, dt))  # as estimate's
     _, _, trans = tilt_batch.run(f.params, f.block, f.init(), gyr, acc, dt, transitions=True)
-    return trans.start + BLOCK * np.arange(1, trans.rows.shape[0] + 1) - 1
+    return trans.start + f.block * np.arange(1, trans.rows.shape[0] + 1) - 1
 
 
 def test_the_end_of_the_recording_is_the_filter_estimate():
@@ -53,7 +52,7 @@ def test_the_end_of_the_recording_is_the_filter_estimate():
     causal = tilt.estimate(gyr, acc, period_s=dt)
     smooth = tilt.smooth(gyr, acc, period_s=dt)
     end = _block_ends(gyr, acc, dt)[-1] + 1  # the unfinished block's first sample
-    assert 0 < gyr.shape[0] - end < BLOCK
+    assert 0 < gyr.shape[0] - end < tilt.block_samples(tilt.DEFAULT_PARAMS, dt)
     for name in ("quat_E_S", "roll_rad", "pitch_rad", "bias_S_rad_s", "var"):
         a, b = getattr(causal, name), getattr(smooth, name)
         np.testing.assert_array_equal(a[end:], b[end:], err_msg=name)
@@ -109,7 +108,8 @@ def test_flags_and_rows_are_the_filters():
     reacq = np.flatnonzero(causal.flags & tilt.REACQUIRING)
     reacq = reacq[reacq > 2500]
     inner = reacq[:-1][np.diff(reacq) == 1]
-    inner = inner[(inner + 1) % BLOCK != 0]  # not a block's last sample (the updated end)
+    block = tilt.block_samples(tilt.DEFAULT_PARAMS, dts)
+    inner = inner[(inner + 1) % block != 0]  # not a block's last sample (the updated end)
     np.testing.assert_allclose(smooth.quat_E_S[inner], causal.quat_E_S[inner], rtol=0,
                                atol=1e-15)
 

@@ -76,7 +76,7 @@ from verticality.tilt import smoother as tilt_smoother
 from verticality.tilt.core import TiltOutput, TiltState
 from verticality.tilt.layout import NE, OUT, SAMPLE, X, Z
 from verticality.tilt.output import TiltEstimate, estimate_of, time_axis
-from verticality.tilt.params import BLOCK, DEFAULT_P0, DEFAULT_PARAMS, TiltParams
+from verticality.tilt.params import BLOCK, DEFAULT_P0, DEFAULT_PARAMS, TiltParams, block_samples
 
 __all__ = ["TiltFilter", "Stepper", "estimate", "smooth", "estimate_steps", "smooth_steps",
            "recording_limits", "run_in_pieces", "concatenate_outputs", "make_step"]
@@ -155,7 +155,7 @@ def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
 
 
 def estimate(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
-             params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK, gyr_range_rad_s=None,
+             params: TiltParams = DEFAULT_PARAMS, block: int | None = None, gyr_range_rad_s=None,
              acc_range_m_s2=None, detect_clipping: bool = True) -> TiltEstimate:
     """Filter a whole recording from the start (no prior state): gyro (N, 3) rad/s,
     accelerometer (N, 3) m/s², and its time: the time stamps ``t_s`` (N,) s, or a fixed sampling
@@ -167,7 +167,8 @@ def estimate(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
     or beyond them is clipped (flag ``CLIPPED``): a clipped gyro axis widens the tilt variance for
     its unknown excess, a clipped accelerometer axis the velocity variance. Without them the clip
     levels are inferred from the recording's flat tops; ``detect_clipping=False`` turns clipping
-    off. Rows that repeat the previous row bit for bit are flagged ``HELD``.
+    off. Rows that repeat the previous row bit for bit are flagged ``HELD``. ``block``: samples
+    per Kalman update; default ``params.update_s`` at the recording's sampling period.
 
     Example::
 
@@ -183,7 +184,7 @@ def estimate(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
 
 
 def smooth(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
-           params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK, gyr_range_rad_s=None,
+           params: TiltParams = DEFAULT_PARAMS, block: int | None = None, gyr_range_rad_s=None,
            acc_range_m_s2=None, detect_clipping: bool = True) -> TiltEstimate:
     """The offline estimate of a whole recording: the filter (:func:`estimate`, the same
     arguments, the sensors' limits included) followed by a Rauch–Tung–Striebel backward pass over
@@ -217,17 +218,20 @@ def _arrays(gyr_rad_s, acc_m_s2):
     return gyr, acc
 
 
-def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK,
+def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int | None = None,
                    gyr_range_rad_s=None, acc_range_m_s2=None, detect_clipping: bool = True):
     """:func:`estimate` given the steps ``dt_s`` (a scalar, or (N,): ``dt_s[k]`` the time from
     sample k−1 to k, non-finite where a reader found no usable time stamp: that sample is skipped
     and flagged ``BAD_DT``), for readers of files that judge the time stamps themselves
-    (:mod:`verticality.tilt.files`). Returns the core's raw ``TiltOutput`` (NumPy arrays)."""
-    filt = TiltFilter(params, block)
+    (:mod:`verticality.tilt.files`). ``block``: samples per Kalman update; default
+    ``params.update_s`` over the sampling period (:func:`~verticality.tilt.params.block_samples`).
+    Returns the core's raw ``TiltOutput`` (NumPy arrays)."""
     gyr = np.asarray(gyr, dtype=np.float64)
     acc = np.asarray(acc, dtype=np.float64)
     n = gyr.shape[0] if gyr.ndim == 2 else 0
     dt = np.asarray(dt_s, dtype=np.float64)
+    block = block_samples(params, dt) if block is None else block
+    filt = TiltFilter(params, block)
     lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping)
     if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
@@ -237,12 +241,13 @@ def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: i
                                                   np.broadcast_to(dt, (n,)), limits=lim)))
 
 
-def smooth_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK,
+def smooth_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int | None = None,
                  gyr_range_rad_s=None, acc_range_m_s2=None, detect_clipping: bool = True):
     """:func:`smooth` given the steps ``dt_s`` (as :func:`estimate_steps`); the core's raw
     ``TiltOutput`` with the smoothed variances."""
     gyr = np.asarray(gyr, dtype=np.float64)
     tilt_smoother.check_size(gyr.shape[0] if gyr.ndim else 0)
+    block = block_samples(params, dt_s) if block is None else block
     filt = TiltFilter(params, block)
     acc = np.asarray(acc, dtype=np.float64)
     lim = recording_limits(gyr, acc, np.asarray(dt_s, dtype=np.float64), gyr_range_rad_s,
@@ -333,10 +338,15 @@ class Stepper:
         return jax.tree_util.tree_map(np.asarray, _state_of(np.asarray(z)))
 
 
-def make_step(params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK, x0=None, P0=None
-              ) -> Stepper:
-    """The real-time stepper of the filter with ``params`` and ``block``, started from
-    ``TiltFilter.init(x0, P0)``."""
+def make_step(params: TiltParams = DEFAULT_PARAMS, block: int | None = None, x0=None, P0=None,
+              period_s: float | None = None) -> Stepper:
+    """The real-time stepper of the filter with ``params``, started from
+    ``TiltFilter.init(x0, P0)``, updating every ``block`` samples or, by default, every
+    ``params.update_s`` at the sampling period ``period_s`` (one of them is needed)."""
+    if block is None:
+        if period_s is None:
+            raise InputError("make_step needs the sampling period (period_s=…) or block=…")
+        block = block_samples(params, period_s)
     filt = TiltFilter(params, block)
     s = filt.init(x0, P0)
     return Stepper(filt, Z.pack(xp=np, x=s.x, sums=s.sums, count=s.count,

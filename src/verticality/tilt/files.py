@@ -18,7 +18,7 @@ from verticality.tilt.evaluation.broad import OURS, run_filter
 from verticality.tilt.flags import DT_GAP, INIT, REACQUIRED, REACQUIRING
 from verticality.tilt.layout import NE
 from verticality.tilt.output import TiltEstimate, estimate_of, tilt_sigma_rad
-from verticality.tilt.params import DEFAULT_PARAMS
+from verticality.tilt.params import DEFAULT_PARAMS, block_samples
 
 
 class ImuEstimate(NamedTuple):
@@ -208,8 +208,8 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
         mapping = imu_layout.parse_columns_spec(columns) if isinstance(columns, str) else columns
         pieces = imu.iter_imu_csv(path, gyr_units=gyr_u, acc_units=acc_u, columns=mapping,
                                   time_unit=time_unit, piece_rows=piece_rows)
-        filt = estimator.TiltFilter()
-        state = filt.init()
+        filt = None  # its update interval in samples comes from the first piece's period
+        state = estimator.TiltFilter().init()
         # for the summary lines: every sample's flags and σ (6 bytes), the gaps' t and dt
         kept: dict[str, list] = {"t": [], "dt": [], "flags": [], "sigma": [], "out": [],
                                  "t_all": []}
@@ -222,7 +222,7 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
             fh.write(imu.estimate_header(sigma) + "\n")
 
             def filter_some(final: bool):
-                nonlocal buf, state
+                nonlocal buf, state, filt
                 # a window that may be the last is left until the input's end is known (as
                 # run_in_pieces cuts: the last window of a recording is taken whole)
                 while buf is not None and buf[0].size and (final or buf[0].size > piece_rows):
@@ -230,6 +230,8 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                     t, g, a_read, d = (v[:w] for v in buf)
                     last = final and w == buf[0].size
                     lim = estimator.recording_limits(g, a_read, d, prev=prev[0], **ranges)
+                    if filt is None:
+                        filt = estimator.TiltFilter(block=block_samples(DEFAULT_PARAMS, d))
                     m = tilt_batch.piece_cut(state, a_read, d, filt.block, final=last) or w
                     state, o = tilt_batch.run(filt.params, filt.block, state, g[:m], a_read[:m],
                                               d[:m], **lim.run_args(slice(m)))

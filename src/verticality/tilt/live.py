@@ -17,6 +17,8 @@ from __future__ import annotations
 import math
 from typing import TextIO
 
+import numpy as np
+
 from verticality.io import imu, imu_layout
 from verticality.io.imu_rows import RowReader
 from verticality.tilt.params import MAX_DT_S
@@ -44,7 +46,7 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
     if head.t0_stamp is not None:
         print(f"t is in seconds from the input's first time stamp, {head.t0_stamp} "
               f"{head.time_unit}", file=err)
-    s = Stream()
+    s = Stream(period_s=float(np.median(head.dt_s)) if head.dt_s.size else None)
     fmt = imu.estimate_row_format(sigma)
 
     def emit(t_s, g, a, dt):

@@ -18,7 +18,7 @@ from verticality.errors import InputError
 from verticality.tilt import stream
 from verticality.tilt.flags import accelerometer_used
 from verticality.tilt.output import TiltEstimate
-from verticality.tilt.params import BLOCK, DEFAULT_PARAMS, MAX_DT_S, TiltParams
+from verticality.tilt.params import DEFAULT_PARAMS, MAX_DT_S, TiltParams
 
 
 class Stream:
@@ -39,17 +39,19 @@ class Stream:
 
     ``params``, ``block``, ``gyr_range_rad_s``, ``acc_range_m_s2`` (full-scale readings: a stream
     cannot infer them from flat tops), ``x0`` and ``P0`` as :class:`~verticality.tilt.TiltFilter`
-    and :func:`~verticality.tilt.estimate` take them."""
+    and :func:`~verticality.tilt.estimate` take them; by default an update every
+    ``params.update_s`` at ``period_s``, or at the first step after the initialization."""
 
-    def __init__(self, period_s=None, *, params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK,
-                 gyr_range_rad_s=None, acc_range_m_s2=None, x0=None, P0=None):
+    def __init__(self, period_s=None, *, params: TiltParams = DEFAULT_PARAMS,
+                 block: int | None = None, gyr_range_rad_s=None, acc_range_m_s2=None, x0=None, P0=None):
         if period_s is not None and not (isinstance(period_s, (int, float, np.floating))
                                          and math.isfinite(period_s) and period_s > 0):
             raise InputError(f"period_s must be one positive, finite number of seconds; got "
                              f"{period_s!r}")
         self.period_s = None if period_s is None else float(period_s)
         self.params = params
-        self.filter = stream.Stream(params, block, P0, x0, gyr_range_rad_s, acc_range_m_s2)
+        self.filter = stream.Stream(params, block, P0, x0, gyr_range_rad_s, acc_range_m_s2,
+                                    period_s=self.period_s)
         self.t_s = None  # the time of the last sample
         # a period's clock counts samples from the last time stamp (t0 + k period, as the batch
         # run's k × period_s: no sum of rounded steps)
