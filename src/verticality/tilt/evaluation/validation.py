@@ -121,7 +121,7 @@ def score_case(case: Case, filters=FILTERS, run: Callable | None = None) -> dict
     for our filter and smoother only). ``run(name, gyr, acc, dt)`` → ``(quat, bias, σ or None)``
     (default: :mod:`verticality.tilt.evaluation.broad`'s runners)."""
     if run is None:
-        from verticality.tilt.evaluation.broad import _run_filter as run
+        from verticality.tilt.evaluation.broad import run_filter_sigma as run
     res = {"rmse": {}, "within_2sigma": {}}
     dt = 1.0 / case.rate_hz
     for name in filters:
