@@ -1,4 +1,4 @@
-"""Throughput of the tilt filter (verticality.estimators.tilt) and its offline smoother against
+"""Throughput of the tilt filter (verticality.tilt) and its offline smoother against
 vqf in the same run.
 
 - batch: ``tilt.estimate`` (``TiltFilter.run`` from the start) on BROAD trial 01 (``--broad BROAD_DIR``) or a synthetic recording vs
@@ -9,8 +9,8 @@ vqf in the same run.
   the same recording repeated to ``--offline-samples`` samples (10⁶ by default), alternating, best
   of ``--offline-reps``;
 - streaming, one call per sample as a 1 kHz robot loop would, samples per second:
-  ``tilt_stream.Stream.step`` (the plain Python/NumPy reference implementation of the filter, the
-  real-time path) and the jitted packed JAX step ``tilt.make_step()`` (bounded by JAX's per-call
+  ``tilt.Stream.step`` (the plain Python/NumPy implementation of the filter with its output type,
+  the real-time path) and the jitted packed JAX step ``estimator.make_step(period_s=dt)`` (bounded by JAX's per-call
   cost).
 
 Run: ``python benchmarks/bench_tilt.py [--broad BROAD_DIR] [--reps 5]``.
@@ -25,7 +25,9 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from verticality.estimators import tilt
+from verticality import tilt
+from verticality.tilt import estimator
+from verticality.tilt.params import BLOCK
 
 
 def _data(broad_dir: Path | None):
@@ -67,14 +69,16 @@ def _device_time(gyr, acc, dt, reps):
     """Time of the compiled chunks alone (``tilt_kernels.run_chunk`` chained on the device, as
     in the batch run, inputs already packed): the run's time minus this is the host side
     (packing, transfers, writing the result arrays)."""
-    from verticality.estimators import tilt_batch, tilt_core, tilt_kernels
-    from verticality.estimators.tilt_layout import HEAD
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt import core as tilt_core
+    from verticality.tilt import kernels as tilt_kernels
+    from verticality.tilt.layout import HEAD
 
     nb = tilt_batch.CHUNK_BLOCKS
-    chunk = nb * tilt.BLOCK
+    chunk = nb * BLOCK
     n = gyr.shape[0]
     dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
-    parts = [jax.device_put(tilt_batch.chunk_data(nb, tilt.BLOCK, 0, gyr[a:a + chunk],
+    parts = [jax.device_put(tilt_batch.chunk_data(nb, BLOCK, 0, gyr[a:a + chunk],
                                                   acc[a:a + chunk], dts[a:a + chunk]))
              for a in range(0, n, chunk)]
     p = tilt.DEFAULT_PARAMS
@@ -86,7 +90,7 @@ def _device_time(gyr, acc, dt, reps):
     def chunks():
         x = x0
         for part in parts:
-            x, _, outs = tilt_kernels.run_chunk(x, head, part, p_vec, tilt.BLOCK, p._fields)
+            x, _, outs = tilt_kernels.run_chunk(x, head, part, p_vec, BLOCK, p._fields)
         jax.block_until_ready((x, outs))
 
     chunks()
@@ -108,7 +112,7 @@ def main() -> int:
     n = gyr.shape[0]
     print(f"data: {name}, {n} samples")
 
-    tilt.estimate(gyr, acc, dt)  # compile
+    tilt.estimate(gyr, acc, period_s=dt)  # compile
     try:
         from vqf import VQF
     except ImportError:
@@ -116,7 +120,7 @@ def main() -> int:
         print("note: vqf not installed (pip install 'verticality[peers]'): no peer ratio")
     # ours and vqf alternate (best of reps each), so that a change of the machine's load during
     # the benchmark affects both alike
-    fns = {"ours": lambda: tilt.estimate(gyr, acc, dt)}
+    fns = {"ours": lambda: tilt.estimate(gyr, acc, period_s=dt)}
     if VQF is not None:
         fns["vqf"] = lambda: VQF(dt).updateBatch(gyr, acc)
     best = _best_interleaved(fns, args.reps)
@@ -131,8 +135,8 @@ def main() -> int:
     reps = -(-m_off // n)
     gyr_l = np.ascontiguousarray(np.tile(gyr, (reps, 1))[:m_off])
     acc_l = np.ascontiguousarray(np.tile(acc, (reps, 1))[:m_off])
-    tilt.smooth(gyr_l, acc_l, dt)  # compile
-    fns_off = {"smooth": lambda: tilt.smooth(gyr_l, acc_l, dt)}
+    tilt.smooth(gyr_l, acc_l, period_s=dt)  # compile
+    fns_off = {"smooth": lambda: tilt.smooth(gyr_l, acc_l, period_s=dt)}
     if VQF is not None:
         from vqf import offlineVQF
 
@@ -144,7 +148,7 @@ def main() -> int:
         rows.append((f"vqf offlineVQF (C++, {m_off:.0e})", m_off / best_off["offlineVQF"]))
 
     # streaming: jitted step, params and block baked in, one call per sample
-    stepper = tilt.make_step()
+    stepper = estimator.make_step(period_s=dt)
     step = stepper.step
     state = stepper.init()
     m = args.stream_samples
@@ -160,17 +164,15 @@ def main() -> int:
     t_jit = _best(stream, max(1, args.reps // 2))
     rows.append(("verticality make_step (jitted JAX, per call)", m / t_jit))
 
-    from verticality.estimators.tilt_stream import Stream
-
     m_py = 4 * m
 
     def stream_py():
-        s = Stream()
+        s = tilt.Stream(period_s=dt)
         for k in range(m_py):
-            s.step(gyr[k], acc[k], dt)
+            s.step(gyr[k], acc[k])
 
     t_stream = _best(stream_py, max(1, args.reps // 2)) * m / m_py
-    rows.append(("verticality tilt_stream.Stream.step (Python)", m / t_stream))
+    rows.append(("verticality tilt.Stream.step (Python)", m / t_stream))
 
     print(f"{'implementation':45s} {'samples/s':>14s}")
     for label, sps in rows:
@@ -183,7 +185,7 @@ def main() -> int:
     if "offlineVQF" in best_off:
         print(f"ratio offline ours/offlineVQF: {best_off['offlineVQF'] / best_off['smooth']:.2f}; "
               f"smoother {m_off / best_off['smooth'] / 1e6:.2f} M samples/s (required >= 1)")
-    print(f"streaming (tilt_stream.Stream): {m / t_stream:,.0f} samples/s (required >= 20,000); "
+    print(f"streaming (tilt.Stream): {m / t_stream:,.0f} samples/s (required >= 20,000); "
           f"a 1 kHz loop costs {100 * 1000 * t_stream / m:.1f} % of a core")
     return 0
 

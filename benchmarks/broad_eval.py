@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.analysis.broad_eval import evaluate_trials, peer_status
-from verticality.estimators import tilt_limits
 from verticality.io import broad
+from verticality.tilt import limits as tilt_limits
+from verticality.tilt.evaluation.broad import evaluate_trials, peer_status
 
 
 def main(argv=None) -> int:

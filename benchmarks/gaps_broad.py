@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.estimators import tilt
+from verticality import tilt
 from verticality.io import broad
 
 
@@ -45,10 +45,9 @@ def main() -> None:
         for s in starts:
             keep[s:s + int(args.gap * fs)] = False
         t = tr.t_s[keep]
-        dts = np.diff(t, prepend=t[0] - 1.0 / fs)
-        out = tilt.estimate(tr.gyr_rad_s[keep], tr.acc_m_s2[keep], dts, params=params)
+        out = tilt.estimate(tr.gyr_rad_s[keep], tr.acc_m_s2[keep], t, params=params)
         err = broad.inclination_error_deg(out.quat_E_S, tr.quat_E_S_opt[keep])
-        full = tilt.estimate(tr.gyr_rad_s, tr.acc_m_s2, tr.dt_s, params=params)
+        full = tilt.estimate(tr.gyr_rad_s, tr.acc_m_s2, period_s=tr.dt_s, params=params)
         err_full = broad.inclination_error_deg(full.quat_E_S, tr.quat_E_S_opt)[keep]
         ok = np.isfinite(err) & tr.movement[keep]
         t_end = tr.t_s[starts + int(args.gap * fs)]

@@ -1,5 +1,5 @@
 """Our tilt filter beside VQF on synthetic handheld recordings with realistic sensor errors
-(:mod:`verticality.analysis.realistic_recordings`: six motion classes, consumer-MEMS offsets,
+(:mod:`verticality.tilt.evaluation.realistic`: six motion classes, consumer-MEMS offsets,
 scale and cross-axis errors, noise, clipping, 100–400 Hz; no parameter of either filter was
 chosen on them). Inclination RMSE (deg) per class (mean over the seeds), causal and offline, and
 the ratio to VQF's of the same mode, in the same run.
@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 
-from verticality.analysis import realistic_recordings as rr
+from verticality.tilt.evaluation import realistic as rr
 
 FILTERS = ("verticality", "vqf", "verticality-offline", "vqf-offline")
 

@@ -1,10 +1,10 @@
 """The tilt filter's σ on the synthetic fault recordings with known truth
-(:mod:`verticality.analysis.fault_recordings`), 20 recordings (seeds 0–19) of each: the share of
+(:mod:`verticality.tilt.evaluation.faults`), 20 recordings (seeds 0–19) of each: the share of
 unflagged samples, and of those within σ and 2σ of the true tilt (pooled, and the worst single
 recording). ``python benchmarks/sigma_faults.py`` prints the table of docs/tilt.md, "The
 uncertainty under faults"."""
 
-from verticality.analysis.fault_recordings import FAULTS, sigma_honesty_over_seeds
+from verticality.tilt.evaluation.faults import FAULTS, sigma_honesty_over_seeds
 
 
 def main() -> None:

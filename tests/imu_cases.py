@@ -3,6 +3,7 @@
 import numpy as np
 
 from verticality import so3
+from verticality.tilt.evaluation.faults import fast_roll  # noqa: F401  (shared)
 
 G = 9.81
 
@@ -21,26 +22,4 @@ def tumbling(bias, n, dt=0.01, rate=0.4, seed=1):
     R = np.einsum("ij,njk->nik", R0, np.asarray(so3.exp(np.outer(t, [rate, 0.0, 0.0]))))
     acc = G * up_S(R) + rng.normal(0, 0.02, (n, 3))
     gyr = np.array([rate, 0.0, 0.0]) + bias + rng.normal(0, 1e-3, (n, 3))
-    return gyr, acc, up_S(R)
-
-
-def fast_roll(n=2000, dt=0.01, peak=12.0, width_s=0.1, centers_s=(5.0, 10.0, 15.0), seed=3):
-    """A level sensor turned about its x axis (horizontal at the start) by pulses of rate
-    ``peak`` (rad/s, Gaussian in time of standard deviation ``width_s``, alternating in sign,
-    centred at ``centers_s``), still in between: ``(gyr (n, 3), acc (n, 3), true up_S (n, 3))``
-    with white noise on both sensors (the true rate and specific force, before any clipping).
-    Gyro sample k is the mean rate over its interval (t_{k−1}, t_k], as the filter integrates it
-    (an integrating gyro), so that the discretization of the simulated rate adds no error."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * dt
-    angle = np.zeros(n)
-    from math import erf, sqrt
-
-    for j, c in enumerate(centers_s):
-        s = peak * (-1) ** j
-        angle += s * width_s * sqrt(np.pi / 2) * (1 + np.vectorize(erf)((t - c) / (width_s * sqrt(2))))
-    R = np.asarray(so3.exp(np.outer(angle, [1.0, 0.0, 0.0])))
-    acc = G * up_S(R) + rng.normal(0, 0.02, (n, 3))
-    mean_rate = np.diff(angle, prepend=angle[0]) / dt
-    gyr = np.column_stack([mean_rate, np.zeros(n), np.zeros(n)]) + rng.normal(0, 1e-3, (n, 3))
     return gyr, acc, up_S(R)

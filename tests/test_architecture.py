@@ -210,3 +210,26 @@ def test_no_test_benchmark_or_default_reads_beside_the_clone():
     hits = [f"{f.relative_to(ROOT)}: {m.group(0)}" for f in files
             for m in pattern.finditer(f.read_text(encoding="utf-8"))]
     assert hits == []
+
+
+def test_the_tilt_filter_lives_in_one_subpackage():
+    """Tilt from an IMU is one subpackage (docs/architecture.md): no tilt module is left in
+    ``estimators`` or ``analysis``, and outside ``verticality.tilt`` no module imports the filter's
+    internals (core, batch kernel, layout, smoother, plain-Python form): callers use the API."""
+    internals = {f"verticality.tilt.{m}" for m in
+                 ("core", "kernels", "batch", "layout", "smoother", "stream")}
+    assert not [p.name for d in ("estimators", "analysis") for p in (SRC / d).glob("*tilt*")]
+    offenders = []
+    for module, path, tree in _modules():
+        if module == "verticality.tilt" or module.startswith("verticality.tilt."):
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                src = _resolve(module, path, node)
+                names = {src} | {f"{src}.{a.name}" for a in node.names}
+            elif isinstance(node, ast.Import):
+                names = {a.name for a in node.names}
+            else:
+                continue
+            offenders += [f"{module}: {n}" for n in sorted(names & internals)]
+    assert offenders == []

@@ -7,11 +7,10 @@ import numpy as np
 import pytest
 
 from broad_slices import FAST_TRANSLATION, SLOW_ROTATION
-from verticality import cli, so3
-from verticality.analysis.broad_eval import evaluate_trials
+from verticality import cli, so3, tilt
 from verticality.errors import InputError
-from verticality.estimators import tilt
 from verticality.io import broad
+from verticality.tilt.evaluation.broad import evaluate_trials
 
 
 def _q(axis, deg):
@@ -88,7 +87,7 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
         g.attrs["sampling_rate"] = f.attrs["sampling_rate"]
     trial = broad.load_trial(tmp_path / "slice.hdf5")
     assert trial.movement.sum() > 2000
-    out = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+    out = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, period_s=trial.dt_s)
     rmse = broad.inclination_rmse_deg(out.quat_E_S, trial)
     assert rmse < 1.0
     assert cli.main(["evaluate", "broad", str(tmp_path), "--json", "--filters", "verticality"]) == 0
@@ -111,7 +110,7 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
     assert "within σ / 2σ" in capsys.readouterr().out
     # the smoother beside the filter in the same run: its own σ calibration, and better here
     res = evaluate_trials([tmp_path / "slice.hdf5"], ["verticality", "verticality-offline"])
-    smooth = tilt.smooth(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+    smooth = tilt.smooth(trial.gyr_rad_s, trial.acc_m_s2, period_s=trial.dt_s)
     assert res["trials"]["slice"]["verticality-offline"] == pytest.approx(
         broad.inclination_rmse_deg(smooth.quat_E_S, trial), rel=1e-12)
     assert res["trials"]["slice"]["verticality-offline"] < rmse
@@ -121,7 +120,7 @@ def test_broad_slice_ours_accurate_and_evaluate_json(tmp_path, capsys):
 def test_sigma_calibration_counts_errors_within_sigma(tmp_path):
     """The fractions within σ and 2σ over the scored samples (movement, valid reference), on a
     hand-made case: 100 movement samples 1° off with σ 0.8°, 100 with σ 2°."""
-    from verticality.analysis.broad_eval import sigma_calibration
+    from verticality.tilt.evaluation.broad import sigma_calibration
 
     p = tmp_path / "t.hdf5"
     _write_trial(p)

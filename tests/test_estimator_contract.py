@@ -20,7 +20,6 @@ from verticality.estimators.kalman import (
 )
 from verticality.estimators.laurens import laurens_angelaki
 from verticality.estimators.merfeld import MerfeldZupan
-from verticality.estimators.tilt import TiltFilter
 from verticality.experiments.separation import linear_model
 from verticality.models import head
 from verticality.models import lissajous_plant as lp
@@ -31,6 +30,7 @@ from verticality.models.pendulum import PendulumState
 from verticality.models.planar import HeadInput, PlanarState
 from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM
 from verticality.perception_params import LAURENS_PRESETS, MERFELD_PRESETS
+from verticality.tilt import TiltFilter
 
 DT = 0.01
 N = 30

@@ -14,12 +14,12 @@ import pytest
 
 from imu_cases import tumbling
 from verticality import cli
-from verticality.analysis import folder
-from verticality.analysis.broad_eval import evaluate_trials
-from verticality.analysis.imu_estimate import estimate_file, settled_samples
 from verticality.errors import InputError
-from verticality.estimators.tilt_flags import FLAG_NAMES
 from verticality.io import imu
+from verticality.tilt import folder
+from verticality.tilt.evaluation.broad import evaluate_trials
+from verticality.tilt.files import estimate_file, settled_samples
+from verticality.tilt.flags import FLAG_NAMES
 
 BAD = "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n0,0,0,0,0,0,9.81\nnot a number,0,0,0,0,0,9.81\n"
 

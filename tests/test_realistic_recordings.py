@@ -1,4 +1,4 @@
-"""The realistic synthetic recordings (verticality.analysis.realistic_recordings): the truth is
+"""The realistic synthetic recordings (verticality.tilt.evaluation.realistic): the truth is
 consistent with what a perfect sensor reads, the drawn errors are applied as documented, the
 readings clip at the range, and a recording is a pure function of its seed."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from verticality import so3
-from verticality.analysis import realistic_recordings as rr
+from verticality.tilt.evaluation import realistic as rr
 
 
 @pytest.fixture(scope="module")

@@ -303,24 +303,23 @@ def hdf5_case(seed: int) -> bytes:
 
 
 def api_violations(seed: int) -> list[str]:
-    """The Python API on random arrays with random corruption: ``tilt.estimate`` and the
-    reference ``Stream`` give one finite row per sample wherever no flag is raised, or refuse
-    with an InputError; ``tilt.smooth`` gives the filter's rows and flags, finite wherever the
-    filter's estimate is."""
+    """The Python API on random arrays with random corruption (time stamps included):
+    ``tilt.estimate`` and ``tilt.Stream`` give one finite row per sample wherever no flag is
+    raised, or refuse with an InputError; ``tilt.smooth`` gives the filter's rows and flags,
+    finite wherever the filter's estimate is."""
+    from verticality import tilt
     from verticality.errors import InputError
-    from verticality.estimators import tilt
-    from verticality.estimators.tilt_stream import Stream
 
     rng = np.random.default_rng(seed)
     n = int(rng.choice([0, 1, 2, 40, 300]))
     gyr = rng.normal(0, 0.5, (n, 3))
     acc = rng.normal(0, 1.0, (n, 3)) + [0.0, 0.0, 9.81]
-    dt = np.full(n, 0.01)
+    t = np.arange(n) * 0.01
     values = [np.nan, np.inf, -np.inf, 1e308, -1e308, 1e10, 1e-320, 0.0, 5e3, -80.0]
     for _ in range(int(rng.integers(0, 8))):
         if n == 0:
             break
-        target = [gyr, acc, dt][int(rng.integers(3))]
+        target = [gyr, acc, t][int(rng.integers(3))]
         k = int(rng.integers(n))
         if target.ndim == 2:
             target[k, int(rng.integers(3))] = values[int(rng.integers(len(values)))]
@@ -328,7 +327,7 @@ def api_violations(seed: int) -> list[str]:
             target[k] = values[int(rng.integers(len(values)))]
     found: list[str] = []
     try:
-        out = tilt.estimate(gyr, acc, dt)
+        out = tilt.estimate(gyr, acc, t)
     except InputError:
         return found
     except Exception as exc:  # noqa: BLE001
@@ -336,12 +335,12 @@ def api_violations(seed: int) -> list[str]:
     if out.roll_rad.shape != (n,):
         found.append("row count")
     unflagged = np.asarray(out.flags) == 0
-    for a in (out.roll_rad, out.pitch_rad, out.quat_E_S, out.var):
+    for a in (out.roll_rad, out.pitch_rad, out.quat_E_S, out.var, out.sigma_rad):
         if not np.all(np.isfinite(np.asarray(a)[unflagged])):
             found.append("non-finite in an unflagged row")
             break
     try:  # the offline smoother: the filter's rows and flags, finite where the filter's are
-        sm = tilt.smooth(gyr, acc, dt)
+        sm = tilt.smooth(gyr, acc, t)
     except Exception as exc:  # noqa: BLE001
         return found + [f"smooth traceback: {type(exc).__name__}"]
     if not np.array_equal(sm.flags, out.flags) or sm.roll_rad.shape != (n,):
@@ -350,13 +349,14 @@ def api_violations(seed: int) -> list[str]:
         if not np.all(np.isfinite(b[np.isfinite(a)])):
             found.append("smooth: non-finite where the filter is finite")
             break
-    s = Stream()
+    s = tilt.Stream(period_s=0.01)
     for k in range(min(n, 120)):
         try:
-            r = s.step(gyr[k], acc[k], dt[k])
+            r = s.step(gyr[k], acc[k], t[k])
         except Exception as exc:  # noqa: BLE001
             return found + [f"traceback: {type(exc).__name__}"]
-        if r[5] == 0 and not all(math.isfinite(v) for v in (r[0], r[1], s.tilt_sigma_rad)):
+        if r.flags == 0 and not all(math.isfinite(v) for v in (r.roll_rad, r.pitch_rad,
+                                                               r.sigma_rad)):
             found.append("non-finite in an unflagged row")
             break
     return found

@@ -4,8 +4,7 @@ import io
 
 import numpy as np
 
-from verticality import cli
-from verticality.estimators import tilt
+from verticality import cli, tilt
 from verticality.io import imu
 
 EUROC_HEADER = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"

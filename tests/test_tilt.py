@@ -1,4 +1,4 @@
-"""3-D otolith–canal tilt filter (verticality.estimators.tilt) on synthetic recordings with known
+"""3-D otolith–canal tilt filter (verticality.tilt) on synthetic recordings with known
 truth: static tilts, constant rotation with a known gyro bias, linear acceleration, NaN, gaps,
 irregular time steps; the error-state Jacobian against autodiff; the two batch kernels. The paths
 of the filter against each other: tests/test_tilt_reference.py."""
@@ -9,9 +9,11 @@ import pytest
 
 from imu_cases import G, tumbling
 from imu_cases import up_S as _up_S
-from verticality import so3
+from verticality import so3, tilt
 from verticality.errors import InputError
-from verticality.estimators import tilt
+from verticality.tilt import estimator
+from verticality.tilt.core import TiltOutput, quat_from_acc
+from verticality.tilt.params import BLOCK
 
 
 def _tilt_err_deg(up_true, up_est):
@@ -30,7 +32,7 @@ def _static(roll, pitch, n=1500, dt=0.01, seed=0, gyr_sigma=1e-3, acc_sigma=0.02
 @pytest.mark.parametrize("roll_deg,pitch_deg", [(0.0, 0.0), (20.0, -35.0), (120.0, 10.0)])
 def test_static_tilt_converges_to_truth(roll_deg, pitch_deg):
     gyr, acc, dt, up = _static(np.radians(roll_deg), np.radians(pitch_deg))
-    out = tilt.estimate(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, period_s=dt)
     assert _tilt_err_deg(up, out.up_S[-1]) < 0.2
     assert abs(np.degrees(out.roll_rad[-1]) - roll_deg) < 0.3
     assert abs(np.degrees(out.pitch_rad[-1]) - pitch_deg) < 0.3
@@ -45,7 +47,7 @@ def _tumbling(bias, n=6000, dt=0.01, rate=0.4, seed=1):
 def test_constant_rotation_recovers_known_gyro_bias():
     bias = np.array([0.01, -0.008, 0.006])
     gyr, acc, dt, up = _tumbling(bias)
-    out = tilt.estimate(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, period_s=dt)
     assert np.max(np.abs(out.bias_S_rad_s[-1] - bias)) < 1.5e-3
     # and the bias variance shrank far below its prior (0.1 rad/s)²
     assert np.all(out.var[-1, 4:7] < 0.2 * 0.01**2)
@@ -64,7 +66,7 @@ def test_linear_acceleration_rejected_as_translation():
     rng = np.random.default_rng(2)
     acc = np.column_stack([a_x, np.zeros(n), np.full(n, G)]) + rng.normal(0, 0.02, (n, 3))
     gyr = rng.normal(0, 1e-3, (n, 3))
-    out = tilt.estimate(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, period_s=dt)
     err = _tilt_err_deg(np.array([0.0, 0.0, 1.0]), out.up_S)
     naive = np.degrees(np.arctan(1.0 / G))
     assert np.max(err) < 0.5 * naive
@@ -79,7 +81,7 @@ def test_nan_samples_are_skipped_and_flagged():
     dts[700] = np.nan
     dts[701] = -0.01
     acc[:5] = np.nan  # no estimate before the first accelerometer sample
-    out = tilt.estimate(gyr, acc, dts)
+    out = estimator.estimate_steps(gyr, acc, dts)
     for field in out:
         assert np.all(np.isfinite(np.asarray(field))), "a NaN sample leaked into the estimate"
     assert np.all(out.flags[:5] & tilt.ACC_MISSING)
@@ -104,12 +106,12 @@ def test_irregular_time_steps_and_gap_use_true_dt():
     R = np.asarray(so3.exp(np.outer(t, [rate, 0.0, 0.0])))
     acc = G * _up_S(R) + rng.normal(0, 0.02, (t.size, 3))
     gyr = np.tile([rate, 0.0, 0.0], (t.size, 1)) + rng.normal(0, 1e-3, (t.size, 3))
-    out = tilt.estimate(gyr, acc, dts)
+    out = estimator.estimate_steps(gyr, acc, dts)
     err = _tilt_err_deg(_up_S(R), out.up_S)
     assert np.sqrt(np.mean(err[500:] ** 2)) < 0.3
     assert np.flatnonzero(out.flags & tilt.DT_GAP).tolist() == [1500]
     # same data but a wrong constant dt (the mean step ignoring the gap) goes wrong at the gap
-    bad = tilt.estimate(gyr, acc, float(np.median(dts)))
+    bad = tilt.estimate(gyr, acc, period_s=float(np.median(dts)))
     assert np.max(_tilt_err_deg(_up_S(R), bad.up_S)[1500:1600]) > 5 * np.max(err[1500:1600])
 
 
@@ -124,7 +126,7 @@ def _assert_reacquired_once_after(flags, k_gap):
 
 
 def test_init_with_given_state_and_quaternion_helper():
-    q = tilt.quat_from_acc(jnp.array([0.0, 0.0, -G]))  # upside down
+    q = quat_from_acc(jnp.array([0.0, 0.0, -G]))  # upside down
     up = np.asarray(so3.matrix_from_quat(q))[2]
     np.testing.assert_allclose(up, [0.0, 0.0, -1.0], atol=1e-12)
     filt = tilt.TiltFilter()
@@ -151,12 +153,12 @@ def test_start_in_motion_is_reacquired():
     acc = np.column_stack([a_x, np.zeros(t.size), np.full(t.size, G)])
     acc += rng.normal(0, 0.02, acc.shape)
     gyr = rng.normal(0, 1e-3, acc.shape)
-    out = tilt.estimate(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, period_s=dt)
     err = _tilt_err_deg(np.array([0.0, 0.0, 1.0]), out.up_S)
     k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
     assert out.flags[0] & tilt.INIT and err[0] > 20.0
     _assert_reacquired_once_after(out.flags, 0)
-    assert 1.0 <= t[k_re] <= 1.0 + 2 * tilt.BLOCK * dt
+    assert 1.0 <= t[k_re] <= 1.0 + 2 * BLOCK * dt
     assert np.all(np.degrees(np.sqrt(out.var[:k_re, 0])) > 45.0)  # it says it does not know
     k15 = int(round(1.5 / dt))
     assert err[k15] < 2.0 and np.degrees(np.sqrt(out.var[k15, 0])) > err[k15]
@@ -164,7 +166,7 @@ def test_start_in_motion_is_reacquired():
     sigma = np.degrees(np.sqrt(out.var[:, 0] + out.var[:, 1]))
     assert np.max(err[-200:]) < 0.2 and err[-1] < 0.1 and np.all(err[-200:] < 2 * sigma[-200:])
     filt = tilt.TiltFilter()
-    _, trusted = filt.run(filt.init((tilt.quat_from_acc(acc[0]), np.zeros(3))), gyr, acc, dt)
+    _, trusted = filt.run(filt.init((quat_from_acc(acc[0]), np.zeros(3))), gyr, acc, dt)
     err_trusted = _tilt_err_deg(np.array([0.0, 0.0, 1.0]), trusted.up_S)
     assert err_trusted[k15] > 5 * err[k15]
 
@@ -173,7 +175,7 @@ def test_start_at_rest_reacquires_precisely():
     """Started at rest, every block before the re-acquisition is quiet: the mean specific force is
     then as good as the rest velocity prior says (vel_rest_m_s), not the moving one."""
     gyr, acc, dt, up = _static(np.radians(20.0), np.radians(-35.0), n=300)
-    out = tilt.estimate(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, period_s=dt)
     k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
     assert np.degrees(np.sqrt(out.var[k_re, 0])) < 0.2
     assert np.max(_tilt_err_deg(up, out.up_S[k_re:])) < 0.2
@@ -185,17 +187,17 @@ def test_tilt_sigma_spans_the_start_and_rests_on_the_calibration_floor():
     calibration error allows (atan(c/g)) and not far above it; the errors stay inside it; a larger
     calibration error raises the floor, the estimate is unchanged."""
     gyr, acc, dt, up = _static(np.radians(20.0), np.radians(-35.0), n=1000)
-    out = tilt.estimate(gyr, acc, dt)
-    sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
+    out = tilt.estimate(gyr, acc, period_s=dt)
+    sigma = np.degrees(out.sigma_rad)
     floor = np.degrees(tilt.DEFAULT_PARAMS.acc_calib_m_s2 / tilt.DEFAULT_PARAMS.g_m_s2)
     assert sigma[0] > 45.0
     k_re = int(np.flatnonzero(out.flags & tilt.REACQUIRED)[0])
     assert np.all(sigma[k_re:] >= floor) and np.all(sigma[k_re:] < 1.5 * floor)
     assert np.all(_tilt_err_deg(up, out.up_S) <= sigma)
     wide = tilt.DEFAULT_PARAMS._replace(acc_calib_m_s2=0.5)
-    out_wide = tilt.estimate(gyr, acc, dt, params=wide)
+    out_wide = tilt.estimate(gyr, acc, period_s=dt, params=wide)
     np.testing.assert_array_equal(out_wide.quat_E_S, out.quat_E_S)
-    assert np.degrees(tilt.tilt_sigma_rad(out_wide.var[-1], wide)) > 2.5
+    assert np.degrees(out_wide.sigma_rad[-1]) > 2.5
 
 
 def test_start_in_motion_on_broad():
@@ -208,13 +210,14 @@ def test_start_in_motion_on_broad():
 
     trial = broad.load_trial(FAST_TRANSLATION)
     k0, n = 15_000, int(10 / trial.dt_s)
-    out = tilt.estimate(trial.gyr_rad_s[k0:k0 + n], trial.acc_m_s2[k0:k0 + n], trial.dt_s)
+    out = tilt.estimate(trial.gyr_rad_s[k0:k0 + n], trial.acc_m_s2[k0:k0 + n],
+                        period_s=trial.dt_s)
     err = broad.inclination_error_deg(out.quat_E_S, trial.quat_E_S_opt[k0:k0 + n])
     assert err[0] > 40.0
     sel = slice(int(1.5 / trial.dt_s), n)
     assert np.sqrt(np.nanmean(err[sel] ** 2)) < 3.2
     # the reported σ covers the error throughout, the first wrong second included
-    sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
+    sigma = np.degrees(out.sigma_rad)
     fin = np.isfinite(err)
     assert np.all(err[fin] <= 2 * sigma[fin])
 
@@ -224,7 +227,7 @@ def test_taylor_exponential_matches_the_exact_one():
     exponential to rounding over its whole range (beyond it the kernel falls back to the exact
     one: the large_rotations case of tests/test_tilt_reference.py); and so3's component form
     equals its array form."""
-    from verticality.estimators import tilt_kernels as tk
+    from verticality.tilt import kernels as tk
 
     v = np.random.default_rng(6).normal(size=(1000, 3))
     v *= (np.sqrt(tk.SMALL_TH2) * np.random.default_rng(7).uniform(0, 1, 1000)
@@ -255,16 +258,16 @@ def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path,
     up = _up_S(np.asarray(so3.exp(np.outer(roll, [1.0, 0.0, 0.0]))))
     acc = G * up + rng.normal(0, 0.02, (t.size, 3))
     gyr = rng.normal(0, 1e-3, (t.size, 3))
-    out = tilt.estimate(gyr, acc, np.diff(t, prepend=-0.01))
+    out = tilt.estimate(gyr, acc, t)
     err = _tilt_err_deg(up, out.up_S)
     k = int(np.searchsorted(t, 11.0))
     assert np.flatnonzero(out.flags & tilt.DT_GAP).tolist() == [k]
     _assert_reacquired_once_after(out.flags, k)
     k_re = int(np.flatnonzero((out.flags & tilt.REACQUIRED > 0) & (np.arange(t.size) > k))[0])
-    assert 1.0 <= t[k_re] - t[k] <= 1.0 + 2 * tilt.BLOCK * 0.01  # the averaging time, whole blocks
+    assert 1.0 <= t[k_re] - t[k] <= 1.0 + 2 * BLOCK * 0.01  # the averaging time, whole blocks
     assert err[k] > 25.0 and np.all(err[k:k_re] > 25.0)  # what the flags warn of
     # an honest variance from the gap on (mid-block too: the gap's variance is added at once)
-    sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
+    sigma = np.degrees(out.sigma_rad)
     assert np.all(sigma[k:k_re] > 30.0) and np.all(err[k:] < 2 * sigma[k:])
     assert err[k_re] < 1.0 and np.max(err[k_re + 100:]) < 0.3  # re-acquired, then converged
     assert np.sqrt(np.mean(err[200:k] ** 2)) < 0.05  # before the gap: unaffected
@@ -283,9 +286,10 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     initialization, which is re-acquired too, and the gaps); on a recording with a gap near its
     start and one near its end, that equals the kernel with gap handling everywhere, to
     rounding."""
-    from verticality.estimators import tilt_batch, tilt_kernels
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt import kernels as tilt_kernels
 
-    n = 2 * tilt_batch.CHUNK_BLOCKS * tilt.BLOCK + 3000
+    n = 2 * tilt_batch.CHUNK_BLOCKS * BLOCK + 3000
     gyr, acc, dt, _ = _tumbling(np.array([0.01, -0.005, 0.002]), n=n)
     acc[100:150] = np.nan
     dts = np.full(n, dt)
@@ -299,7 +303,7 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
         return real(*args, gaps=gaps, **kw)
 
     monkeypatch.setattr(tilt_kernels, "run_chunk", spy)
-    fast = tilt.estimate(gyr, acc, dts)
+    fast = estimator.estimate_steps(gyr, acc, dts)
     short, long = (True, tilt_batch.GAP_CHUNK_BLOCKS), (False, tilt_batch.CHUNK_BLOCKS)
     assert set(used) == {short, long}
     # one short chunk covers the initialization and the first gap; two long chunks follow (the
@@ -308,8 +312,8 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     assert tilt_batch.GAP_CHUNK_BLOCKS == 32 and tilt_batch.CHUNK_BLOCKS == 256
     assert used == [short, long, long, short, short]
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
-    ref = tilt.estimate(gyr, acc, dts)
-    for name in tilt.TiltOutput._fields:
+    ref = estimator.estimate_steps(gyr, acc, dts)
+    for name in TiltOutput._fields:
         np.testing.assert_allclose(getattr(fast, name), getattr(ref, name), rtol=0, atol=1e-12,
                                    err_msg=name)
     _assert_reacquired_once_after(ref.flags, n - 1500)
@@ -319,7 +323,8 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
     """``tilt_batch.blocks_needing_gaps`` tells from the data alone which blocks need the kernel's gap
     handling. Against the kernel's own flag (the kernel with gap handling everywhere): every block
     that starts pending or holds a gap is marked, plus at most one block per re-acquisition."""
-    from verticality.estimators import tilt_batch, tilt_kernels
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt import kernels as tilt_kernels
 
     gyr, acc, dt, _ = _tumbling(np.array([0.01, 0.0, 0.0]), n=3000)
     dts = np.full(3000, dt)
@@ -327,19 +332,20 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
     acc[1500:1700] = np.nan  # no accelerometer: the re-acquisition after 1450 waits
     real = tilt_kernels.run_chunk
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
-    out = tilt.estimate(gyr, acc, dts)
+    out = estimator.estimate_steps(gyr, acc, dts)
+    block = tilt.block_samples(tilt.DEFAULT_PARAMS, dts)  # estimate's samples per update
     fl = out.flags[1:]  # blocks start after the sample that initializes
-    nb = -(-fl.size // tilt.BLOCK)
-    pad = np.zeros(nb * tilt.BLOCK, dtype=fl.dtype)
+    nb = -(-fl.size // block)
+    pad = np.zeros(nb * block, dtype=fl.dtype)
     pad[:fl.size] = fl
-    blocks = pad.reshape(nb, tilt.BLOCK)
+    blocks = pad.reshape(nb, block)
     truth = (blocks[:, 0] & tilt.REACQUIRING > 0) | np.any(blocks & tilt.DT_GAP > 0, axis=1)
     # pending from the start: the initializing sample is re-acquired too
-    need = tilt_batch.blocks_needing_gaps(dts, acc, 1, tilt.BLOCK, tilt.DEFAULT_PARAMS, True, 0.0)
+    need = tilt_batch.blocks_needing_gaps(dts, acc, 1, block, tilt.DEFAULT_PARAMS, True, 0.0)
     assert need.shape == truth.shape and np.all(need[truth]) and truth[0]
     n_reacq = int(np.count_nonzero(out.flags & tilt.REACQUIRED))
     assert n_reacq == 3 and np.count_nonzero(need & ~truth) <= n_reacq
-    assert truth[(1600 - 1) // tilt.BLOCK]  # still pending inside the accelerometer dropout
+    assert truth[(1600 - 1) // block]  # still pending inside the accelerometer dropout
 
 
 def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
@@ -352,8 +358,8 @@ def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
     error at the block's end. Also returns the nominal block end and the block's inputs."""
     import jax
 
-    from verticality.estimators import tilt_core as core
-    from verticality.estimators.tilt_layout import NE, E, X
+    from verticality.tilt import core
+    from verticality.tilt.layout import NE, E, X
 
     p = tilt.DEFAULT_PARAMS
     q_true = so3.quat_multiply(so3.quat_exp(jnp.concatenate([e[E.tilt], jnp.zeros(1)])), q_hat0)
@@ -390,8 +396,8 @@ def test_error_transition_is_the_jacobian_of_the_block_prediction(omega, b_hat):
     differ at first order in |ω|T: by less than |ω|T / 2 of F's largest entry."""
     import jax
 
-    from verticality.estimators import tilt_core as core
-    from verticality.estimators.tilt_layout import NE, C, E
+    from verticality.tilt import core
+    from verticality.tilt.layout import NE, C, E
 
     n, dt = 32, 0.0035
     omega, b_hat = jnp.asarray(omega, dtype=float), jnp.asarray(b_hat, dtype=float)
@@ -421,7 +427,7 @@ def test_structured_covariance_propagation_is_the_dense_product():
     """``tilt_core.propagate_covariance`` (the block update's ``F P Fᵀ`` from the structure of
     ``F``, element-wise) equals the dense product with ``error_transition``'s ``F`` to rounding,
     on random covariances, orientations and gyro sums, and is symmetric when ``P`` is."""
-    from verticality.estimators import tilt_core as core
+    from verticality.tilt import core
 
     rng = np.random.default_rng(3)
     for _ in range(20):
@@ -442,7 +448,7 @@ def test_the_filter_is_an_estimator_value_with_named_state():
     """TiltFilter follows the project's estimator interface; its state reads by name the flat
     vectors the kernels use, through one layout per vector."""
     from verticality.estimators.base import Estimator
-    from verticality.estimators.tilt_layout import NE, Packed, S, X
+    from verticality.tilt.layout import NE, Packed, S, X
 
     filt = tilt.TiltFilter()
     assert isinstance(filt, Estimator)
@@ -482,26 +488,26 @@ def test_one_corrupt_sample_is_flagged_and_skipped_on_every_path(where, value):
     """A component beyond the sensor's physical range is a missing sample flagged OUT_OF_RANGE:
     the batch run, the per-sample step, the stepper and the reference Stream give what they give
     with that component missing (NaN), and everything after it is finite and unflagged by it."""
-    from verticality.estimators.tilt_stream import Stream
+    from verticality.tilt.stream import Stream
 
     gyr, acc = _tumbling(np.array([0.01, -0.02, 0.005]), n=700)[:2]
     k = 400
     bad_g, bad_a, nan_g, nan_a = gyr.copy(), acc.copy(), gyr.copy(), acc.copy()
     (bad_g if where == "gyr" else bad_a)[k, 1] = value
     (nan_g if where == "gyr" else nan_a)[k, 1] = np.nan
-    out = tilt.estimate(bad_g, bad_a, 0.01)
-    ref = tilt.estimate(nan_g, nan_a, 0.01)
+    out = tilt.estimate(bad_g, bad_a, period_s=0.01)
+    ref = tilt.estimate(nan_g, nan_a, period_s=0.01)
     assert out.flags[k] & tilt.OUT_OF_RANGE and not np.any(np.delete(out.flags, k)
                                                             & tilt.OUT_OF_RANGE)
     assert out.flags[k] & (tilt.GYR_MISSING if where == "gyr" else tilt.ACC_MISSING)
     np.testing.assert_array_equal(out.flags & ~tilt.OUT_OF_RANGE, ref.flags)
     np.testing.assert_allclose(out.quat_E_S, ref.quat_E_S, rtol=0, atol=1e-12)
     assert np.all(np.isfinite(out.quat_E_S)) and np.all(np.isfinite(out.var))
-    filt = tilt.TiltFilter()
+    filt = tilt.TiltFilter(block=tilt.block_samples(tilt.DEFAULT_PARAMS, 0.01))  # as estimate's
     s = filt.init()
-    stepper = tilt.make_step()
+    stepper = estimator.make_step(period_s=0.01)
     z = stepper.init()
-    stream = Stream()
+    stream = Stream(period_s=0.01)
     for j in range(k - 40, k + 40):
         if j == k - 40:
             s = filt.run(s, bad_g[:j], bad_a[:j], 0.01)[0]
@@ -523,11 +529,11 @@ def test_a_regular_10_hz_clock_is_no_gap():
     assert np.any(dt > 0.1)
     gyr = np.zeros((300, 3))
     acc = np.tile([0.0, 0.0, 9.81], (300, 1))
-    out = tilt.estimate(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, t)
     assert not np.any(out.flags & tilt.DT_GAP)
     gap = dt.copy()
     gap[150] = 0.1 + 2e-6
-    assert tilt.estimate(gyr, acc, gap).flags[150] & tilt.DT_GAP
+    assert estimator.estimate_steps(gyr, acc, gap).flags[150] & tilt.DT_GAP
 
 
 def test_sigma_stays_honest_under_a_turn_on_bias_of_0_1_rad_s():
@@ -536,9 +542,9 @@ def test_sigma_stays_honest_under_a_turn_on_bias_of_0_1_rad_s():
     (the bias prior covers it: the filter learns it while σ says how far it may be off)."""
     bias = np.array([0.06, -0.06, 0.05])
     gyr, acc, dt, up = _tumbling(bias, n=4000)
-    out = tilt.estimate(gyr, acc, dt)
+    out = tilt.estimate(gyr, acc, period_s=dt)
     err = np.radians(_tilt_err_deg(up, out.up_S))
-    sigma = tilt.tilt_sigma_rad(out.var)
+    sigma = out.sigma_rad
     ok = out.flags == 0
     assert ok.mean() > 0.9
     assert np.mean(err[ok] <= 2 * sigma[ok]) >= 0.95
@@ -551,9 +557,9 @@ def test_a_long_recording_read_and_written_in_pieces_equals_the_one_pass(tmp_pat
     with pieces of 700 rows, a recording of 5000 rows with NaNs, a gap and an initialization late
     in the first piece gives tilt.estimate's result in the same pieces bit for bit, and the
     one-pass run's to rounding."""
-    from verticality.analysis.imu_estimate import estimate_file
-    from verticality.estimators import tilt_batch
     from verticality.io import imu
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt.files import estimate_file
 
     rec = swinging_imu(n=5000, dt_s=0.01, seed=7)
     rec.acc_m_s2[:650] = np.nan  # initialized at row 650, late in the first piece
@@ -563,16 +569,16 @@ def test_a_long_recording_read_and_written_in_pieces_equals_the_one_pass(tmp_pat
     rec = imu.ImuRecording(t, rec.gyr_rad_s, rec.acc_m_s2)
     src = imu.write_imu_csv(tmp_path / "rec.csv", rec)
     whole = imu.read_imu_csv(src)
-    one_pass = tilt.estimate(whole.gyr_rad_s, whole.acc_m_s2, whole.dt_s)
+    one_pass = tilt.estimate(whole.gyr_rad_s, whole.acc_m_s2, whole.t_s)
     monkeypatch.setattr(tilt_batch, "PIECE_SAMPLES", 700)
-    ref = tilt.estimate(whole.gyr_rad_s, whole.acc_m_s2, whole.dt_s)
+    ref = tilt.estimate(whole.gyr_rad_s, whole.acc_m_s2, whole.t_s)
     run = estimate_file(src, tmp_path / "est.csv", sigma=True, piece_rows=700, keep=True)
     got = imu.read_estimate_csv(tmp_path / "est.csv")
     assert run.n == 5000 and not (tmp_path / "est.csv.part").exists()
     np.testing.assert_array_equal(got.roll_rad, ref.roll_rad)
     np.testing.assert_array_equal(got.flags, ref.flags)
-    np.testing.assert_array_equal(got.tilt_sigma_rad, tilt.tilt_sigma_rad(ref.var))
-    for name in tilt.TiltOutput._fields:
+    np.testing.assert_array_equal(got.tilt_sigma_rad, ref.sigma_rad)
+    for name in tilt.TiltEstimate._fields:
         np.testing.assert_array_equal(getattr(run.out, name), getattr(ref, name), err_msg=name)
         np.testing.assert_allclose(getattr(run.out, name), getattr(one_pass, name), rtol=0,
                                    atol=1e-12, err_msg=name)
@@ -583,7 +589,7 @@ def test_sigma_stays_honest_on_the_fault_recordings(fault):
     """On the synthetic fault recordings with known truth (a gyro bias twice the prior, a shake
     clipped by a ±2 g accelerometer, taps that bounce back) at least 95 % of the unflagged samples
     are within 2σ (docs/tilt.md, "The uncertainty under faults")."""
-    from verticality.analysis.fault_recordings import sigma_honesty
+    from verticality.tilt.evaluation.faults import sigma_honesty
 
     h = sigma_honesty(fault)
     assert h["unflagged"] > 0.75
@@ -594,7 +600,7 @@ def test_sigma_stays_honest_over_the_kick_recordings():
     """Kicks that leave the sensor moving (the benchmark's 20 recordings, pooled): at least 95 %
     of the unflagged samples within 2σ, and no recording below 70 % (before the persistence test
     widened the bias too, a bias the kicks had made wrong drifted the tilt unseen: 68 %)."""
-    from verticality.analysis.fault_recordings import sigma_honesty_over_seeds
+    from verticality.tilt.evaluation.faults import sigma_honesty_over_seeds
 
     h = sigma_honesty_over_seeds("kicks", range(20))
     assert h["unflagged"] > 0.9
@@ -621,7 +627,7 @@ def test_a_csv_with_saturated_readings_is_read_as_it_is_and_the_filter_flags_the
     np.testing.assert_array_equal(rec.acc_m_s2, acc)
     at = np.any(np.abs(acc) == 19.62, axis=1)
     assert at.sum() > 10
-    out = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s)
+    out = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, rec.t_s)
     assert np.array_equal((out.flags & tilt.CLIPPED) > 0, at)
     assert not np.any(out.flags & (tilt.OUT_OF_RANGE | tilt.ACC_MISSING))
 
@@ -631,7 +637,7 @@ def test_sigma_stays_honest_under_shaking_and_clipping_and_kicks_are_not_read_as
     faults"): shaking, clipped or not, taps and kicks keep ≥ 95 % of the unflagged samples within
     2σ (five recordings of each, pooled); forgetting a kick's velocity keeps the error of the kick
     recording below what reading it as tilt gives."""
-    from verticality.analysis.fault_recordings import fault_recording, sigma_honesty_over_seeds
+    from verticality.tilt.evaluation.faults import fault_recording, sigma_honesty_over_seeds
 
     for fault in ("shake", "clipped_2g", "taps", "kicks"):
         # measured 100.0, 100.0, 100.0 and 99.5 %; kicks 80.0 % without the persistence test
@@ -639,7 +645,7 @@ def test_sigma_stays_honest_under_shaking_and_clipping_and_kicks_are_not_read_as
     gyr, acc, dt, up = fault_recording("kicks", seed=2)
     rms = []
     for params in (tilt.DEFAULT_PARAMS, tilt.DEFAULT_PARAMS._replace(vel_jump_nis=np.inf)):
-        out = tilt.estimate(gyr, acc, dt, params)
+        out = tilt.estimate(gyr, acc, period_s=dt, params=params)
         err = np.arccos(np.clip(np.sum(out.up_S * up, axis=1), -1, 1))
         rms.append(np.degrees(np.sqrt(np.mean(err**2))))
     assert rms[0] < 0.7 * rms[1], rms  # measured 3.0° against 5.9°

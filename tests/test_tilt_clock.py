@@ -5,11 +5,11 @@ library and through ``verticality estimate``."""
 import numpy as np
 import pytest
 
-from verticality import cli
-from verticality.analysis.fault_recordings import turning
-from verticality.estimators import tilt
-from verticality.estimators.tilt_flags import BAD_DT, INIT
+from verticality import cli, tilt
 from verticality.io import imu
+from verticality.tilt import estimator
+from verticality.tilt.evaluation.faults import turning
+from verticality.tilt.flags import BAD_DT, INIT
 
 G = 9.81
 FINE_S = 0.001  # the truth's grid
@@ -54,14 +54,14 @@ def test_jittered_stamps_are_filtered_with_the_true_dt(truth):
     g1, a1, d1, up1 = _sample(truth, jittered)
     assert d1.min() < 0.0075 and d1.max() > 0.0125
     ok = slice(300, None)  # after the start's re-acquisition
-    rms0, _ = _rms_deg(tilt.estimate(g0, a0, d0), up0, ok)
-    out = tilt.estimate(g1, a1, d1)
+    rms0, _ = _rms_deg(estimator.estimate_steps(g0, a0, d0), up0, ok)
+    out = estimator.estimate_steps(g1, a1, d1)
     rms1, err = _rms_deg(out, up1, ok)
     assert out.flags.shape == (jittered.size,) and not np.any(out.flags[ok] & BAD_DT)
     assert rms1 < 1.5 * rms0, (rms1, rms0)
-    sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
+    sigma = np.degrees(tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS))
     assert np.mean(err[ok] <= 2 * sigma[ok]) >= 0.95
-    rms_nominal, _ = _rms_deg(tilt.estimate(g1, a1, 0.01), up1, ok)
+    rms_nominal, _ = _rms_deg(tilt.estimate(g1, a1, period_s=0.01), up1, ok)
     assert rms_nominal > 1.2 * rms1, (rms_nominal, rms1)
 
 
@@ -76,21 +76,21 @@ def test_repeated_stamps_are_flagged_and_keep_their_row(truth):
     idx[rep] = idx[rep - 1]
     gyr, acc, dts, up = _sample(truth, idx)
     assert np.flatnonzero(dts == 0).tolist() == rep.tolist()
-    out = tilt.estimate(gyr, acc, dts)
+    out = estimator.estimate_steps(gyr, acc, dts)
     assert out.flags.shape == (idx.size,)
     assert np.flatnonzero(out.flags & BAD_DT).tolist() == rep.tolist()
     assert not np.any(out.measured[rep])
     # nothing integrated: the estimate as it stands (unless the row closes a block, whose update
     # then runs as for any skipped sample)
     k_init = int(np.flatnonzero(out.flags & INIT)[0])
-    inside = (rep - k_init) % tilt.BLOCK != 0
+    inside = (rep - k_init) % tilt.block_samples(tilt.DEFAULT_PARAMS, dts) != 0
     assert inside.sum() > 25
     np.testing.assert_allclose(out.up_S[rep[inside]], out.up_S[rep[inside] - 1], rtol=0,
                                atol=1e-12)
     g0, a0, d0, up0 = _sample(truth, np.arange(10, 39_990, 10))
     keep = np.ones(idx.size, dtype=bool)
     keep[:300] = False
-    rms0, _ = _rms_deg(tilt.estimate(g0, a0, d0), up0, keep)
+    rms0, _ = _rms_deg(estimator.estimate_steps(g0, a0, d0), up0, keep)
     rms, err = _rms_deg(out, up, keep)
     assert rms < 1.5 * rms0, (rms, rms0)
     assert np.all(np.isfinite(out.up_S))

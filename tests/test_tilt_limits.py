@@ -1,4 +1,4 @@
-"""Sensors at their limits (estimators/tilt_limits.py): clipped gyro and accelerometer axes, given
+"""Sensors at their limits (tilt/limits.py): clipped gyro and accelerometer axes, given
 or inferred from flat tops, and held rows; what the filter makes of them against the unclipped
 truth."""
 
@@ -7,9 +7,10 @@ import pytest
 
 from broad_slices import ALL
 from imu_cases import G, fast_roll
+from verticality import tilt
 from verticality.errors import InputError
-from verticality.estimators import tilt, tilt_limits
-from verticality.estimators.tilt_flags import ACC_MISSING, CLIPPED, HELD
+from verticality.tilt import limits as tilt_limits
+from verticality.tilt.flags import ACC_MISSING, CLIPPED, HELD
 
 CLIP_RAD_S = 7.0
 
@@ -26,10 +27,10 @@ def clipped_roll():
     gyr, acc, up = fast_roll(n=2000, peak=12.0, centers_s=(5.0,), seed=1)
     assert np.max(np.abs(gyr)) > 10.0
     clipped = np.clip(gyr, -CLIP_RAD_S, CLIP_RAD_S)
-    outs = {"inferred": tilt.estimate(clipped, acc, 0.01),
-            "given": tilt.estimate(clipped, acc, 0.01, gyr_range_rad_s=CLIP_RAD_S),
-            "off": tilt.estimate(clipped, acc, 0.01, detect_clipping=False),
-            "unclipped": tilt.estimate(gyr, acc, 0.01)}
+    outs = {"inferred": tilt.estimate(clipped, acc, period_s=0.01),
+            "given": tilt.estimate(clipped, acc, period_s=0.01, gyr_range_rad_s=CLIP_RAD_S),
+            "off": tilt.estimate(clipped, acc, period_s=0.01, detect_clipping=False),
+            "unclipped": tilt.estimate(gyr, acc, period_s=0.01)}
     return clipped, acc, up, outs
 
 
@@ -49,7 +50,7 @@ def test_clipped_rotation_error_is_at_most_half_of_the_undetected(clipped_roll):
     for name in ("inferred", "off"):
         out = outs[name]
         scored = (out.flags & ~CLIPPED) == 0
-        within = np.mean(err[name][scored] <= 2 * tilt.tilt_sigma_rad(out.var[scored]) * 180 / np.pi)
+        within = np.mean(err[name][scored] <= 2 * out.sigma_rad[scored] * 180 / np.pi)
         assert (within >= 0.95) == (name == "inferred"), (name, within)
 
 
@@ -58,7 +59,7 @@ def test_clipped_samples_are_flagged_and_the_inferred_range_is_the_given_one(cli
     at = np.any(np.abs(gyr) >= CLIP_RAD_S, axis=1)
     assert np.array_equal((outs["inferred"].flags & CLIPPED) > 0, at)
     assert not np.any(outs["off"].flags & CLIPPED)
-    for field in tilt.TiltOutput._fields:
+    for field in tilt.TiltEstimate._fields:
         np.testing.assert_array_equal(getattr(outs["inferred"], field),
                                       getattr(outs["given"], field), err_msg=field)
     # outside the clipped run (before it) nothing changes
@@ -68,8 +69,8 @@ def test_clipped_samples_are_flagged_and_the_inferred_range_is_the_given_one(cli
 
 def test_smoother_uses_the_same_limits(clipped_roll):
     gyr, acc, up, outs = clipped_roll
-    sm = tilt.smooth(gyr, acc, 0.01)
-    off = tilt.smooth(gyr, acc, 0.01, detect_clipping=False)
+    sm = tilt.smooth(gyr, acc, period_s=0.01)
+    off = tilt.smooth(gyr, acc, period_s=0.01, detect_clipping=False)
     np.testing.assert_array_equal(sm.flags, outs["inferred"].flags)
     assert np.mean(_err_deg(sm, up)) < 0.5 * np.mean(_err_deg(off, up))
 
@@ -108,7 +109,7 @@ def test_a_clipped_accelerometer_sample_is_kept_and_flagged():
         np.abs(acc) >= 2 * G, np.full((n, 3), sigma), np.full(n, 0.01)), rtol=1e-12)
     assert np.all(lim.vel_var_m2_s2[at] > 0) and not np.any(lim.vel_var_m2_s2[~at])
     for kw in ({}, {"acc_range_m_s2": 2 * G}):
-        out = tilt.estimate(gyr, acc, 0.01, **kw)
+        out = tilt.estimate(gyr, acc, period_s=0.01, **kw)
         assert np.array_equal((out.flags & CLIPPED) > 0, at)
         assert not np.any(out.flags & ACC_MISSING) and np.all(out.measured)
 
@@ -119,7 +120,7 @@ def test_keeping_clipped_accelerometer_samples_beats_dropping_them():
     without the clipped side's impulse and the tilt follows (2.16° RMS when measured); keeping
     them with the excess's velocity variance stays near the filter without detection (0.60° and
     0.57°)."""
-    from verticality.analysis import realistic_recordings as rr
+    from verticality.tilt.evaluation import realistic as rr
 
     rec = rr.recording("fast_translation", 2)
     lim = tilt_limits.find_limits(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s)
@@ -127,7 +128,7 @@ def test_keeping_clipped_accelerometer_samples_beats_dropping_them():
     dropped = np.where(lim.acc_clipped[:, None], np.nan, rec.acc_m_s2)
 
     def rmse(acc, **kw):
-        return rr.inclination_rmse_deg(tilt.estimate(rec.gyr_rad_s, acc, rec.dt_s, **kw).quat_E_S,
+        return rr.inclination_rmse_deg(tilt.estimate(rec.gyr_rad_s, acc, period_s=rec.dt_s, **kw).quat_E_S,
                                        rec)
 
     kept, off = rmse(rec.acc_m_s2), rmse(rec.acc_m_s2, detect_clipping=False)
@@ -179,7 +180,7 @@ def test_no_clip_level_below_the_smallest_ranges_or_without_a_flat_top():
 @pytest.mark.parametrize("bad", [0.0, -1.0, np.nan, [1.0, 2.0], "x"])
 def test_a_bad_range_is_refused(bad):
     with pytest.raises(InputError, match="range"):
-        tilt.estimate(np.zeros((10, 3)), np.tile([0, 0, G], (10, 1)), 0.01, gyr_range_rad_s=bad)
+        tilt.estimate(np.zeros((10, 3)), np.tile([0, 0, G], (10, 1)), period_s=0.01, gyr_range_rad_s=bad)
 
 
 def test_held_rows_are_flagged_bit_for_bit():
@@ -187,7 +188,7 @@ def test_held_rows_are_flagged_bit_for_bit():
                   [0.0, 0.2, 0.3]])
     a = np.tile([0.0, 0.0, G], (5, 1))
     assert tilt_limits.held_rows(g, a).tolist() == [False, True, True, False, False]
-    out = tilt.estimate(g, a, 0.01)
+    out = tilt.estimate(g, a, period_s=0.01)
     assert ((out.flags & HELD) > 0).tolist() == [False, True, True, False, False]
 
 
@@ -196,21 +197,21 @@ def test_a_logger_faster_than_its_sensor_costs_nothing():
     HELD, the output keeps one row per input row, the tilt error is that of the 100 Hz recording
     within a small factor (measured 0.207° against 0.224° RMS) and σ stays honest (all samples
     within 2σ in both)."""
-    from verticality.analysis.fault_recordings import fault_recording
+    from verticality.tilt.evaluation.faults import fault_recording
 
     n = 24000
     gyr, acc, _, up = fault_recording("clean", n=n, dt=0.0025, seed=0)
     k = np.arange(0, n, 4)  # the sensor's samples
     hold = np.arange(n) // 4 * 4  # the row the logger repeats
-    outs = {"100": tilt.estimate(gyr[k], acc[k], 0.01),
-            "400 held": tilt.estimate(gyr[hold], acc[hold], 0.0025)}
+    outs = {"100": tilt.estimate(gyr[k], acc[k], period_s=0.01),
+            "400 held": tilt.estimate(gyr[hold], acc[hold], period_s=0.0025)}
     truth = {"100": up[k], "400 held": up}
     rms = {}
     for name, out in outs.items():
         err = _err_deg(out, truth[name])
         scored = (out.flags & ~HELD) == 0
         assert scored.mean() > 0.95
-        sigma = np.degrees(tilt.tilt_sigma_rad(out.var))
+        sigma = np.degrees(out.sigma_rad)
         assert np.mean(err[scored] <= 2 * sigma[scored]) >= 0.95, name
         rms[name] = np.sqrt(np.mean(err[scored] ** 2))
     held = outs["400 held"].flags & HELD > 0
@@ -223,8 +224,8 @@ def test_estimate_command_finds_the_limits_of_a_csv_read_in_pieces(tmp_path):
     inferred) and the held rows (one straddling a piece boundary) are flagged as ``tilt.estimate``
     flags them on the whole recording; a range is refused for a peer filter."""
     from verticality import cli
-    from verticality.analysis.imu_estimate import check_ranges, estimate_file
     from verticality.io import imu
+    from verticality.tilt.files import check_ranges, estimate_file
 
     gyr, acc, _ = fast_roll(n=1500, peak=12.0, centers_s=(5.0,), seed=4)
     gyr = np.clip(gyr, -CLIP_RAD_S, CLIP_RAD_S)
@@ -232,7 +233,7 @@ def test_estimate_command_finds_the_limits_of_a_csv_read_in_pieces(tmp_path):
     t = np.arange(1500) * 0.01
     path = imu.write_imu_csv(tmp_path / "roll.csv", imu.ImuRecording(t, gyr, acc))
     rec = imu.read_imu_csv(path)  # the values as the CSV holds them
-    ref = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, gyr_range_rad_s=CLIP_RAD_S)
+    ref = tilt.estimate(rec.gyr_rad_s, rec.acc_m_s2, rec.t_s, gyr_range_rad_s=CLIP_RAD_S)
     assert np.flatnonzero(ref.flags & HELD).tolist() == [600, 601, 602]
     assert np.count_nonzero(ref.flags & CLIPPED) > 10
     for ranges in ({"gyr_range_rad_s": CLIP_RAD_S}, {}):

@@ -12,9 +12,11 @@ import pytest
 
 from broad_slices import FAST_ROTATION
 from imu_cases import G, tumbling
-from verticality.estimators import tilt, tilt_core
+from verticality import tilt
 from verticality.estimators.base import scan_steps
-from verticality.estimators.tilt_flags import (
+from verticality.tilt import core as tilt_core
+from verticality.tilt import estimator
+from verticality.tilt.flags import (
     ACC_MISSING,
     BAD_DT,
     DT_GAP,
@@ -23,7 +25,8 @@ from verticality.estimators.tilt_flags import (
     REACQUIRED,
     REACQUIRING,
 )
-from verticality.estimators.tilt_stream import Stream
+from verticality.tilt.params import BLOCK
+from verticality.tilt.stream import Stream
 
 N = 1600  # every case has this many samples: the sequential reference compiles once
 
@@ -109,7 +112,7 @@ def _large_rotations():
 
 def _given_x0():
     gyr, acc, dts = _tumbling(np.array([0.0, 0.006, 0.0]), seed=6)
-    q0 = np.asarray(tilt.quat_from_acc(acc[0]))
+    q0 = np.asarray(tilt_core.quat_from_acc(acc[0]))
     return (gyr, acc, dts), (q0, np.array([0.0, 0.005, 0.0]))
 
 
@@ -124,7 +127,7 @@ def _kicks_and_shaking():
     """One-sided kicks, then hard shaking: the kick gates forget the velocity (the one-block test,
     and the persistence test at sample 512) and the prior widens under the disturbance (every
     branch of the velocity update)."""
-    from verticality.analysis.fault_recordings import fault_recording
+    from verticality.tilt.evaluation.faults import fault_recording
 
     gyr_k, acc_k, dt, _ = fault_recording("kicks", seed=3)
     gyr_k, acc_k = gyr_k[:N // 2], acc_k[:N // 2]
@@ -140,7 +143,7 @@ CASES = {"broad_slice": _broad_slice, "kicks_and_shaking": _kicks_and_shaking, "
          "start_in_motion": _start_in_motion, "large_rotations": _large_rotations,
          "given_x0": _given_x0, "never_initialized": _never_initialized}
 
-FILTER = tilt.TiltFilter()
+FILTER = estimator.TiltFilter()
 
 
 @jax.jit
@@ -149,7 +152,7 @@ def _scan(state, gyr, acc, dts):
 
 
 def _stream(gyr, acc, dts, x0):
-    s = Stream(x0=x0)
+    s = Stream(x0=x0, block=FILTER.block)
     rows, sigma = [], []
     for k in range(gyr.shape[0]):
         rows.append(s.step(gyr[k], acc[k], dts[k]))
@@ -174,7 +177,7 @@ def test_reference_stream_equals_core(case):
     the same state."""
     name, (gyr, acc, dts), x0, _, final, out = case
     s, got = _stream(gyr, acc, dts, x0)
-    sigma = tilt.tilt_sigma_rad(out.var)
+    sigma = tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS)
     for field, val in got.items():
         want = sigma if field == "tilt_sigma_rad" else getattr(out, field)
         np.testing.assert_allclose(val, want, rtol=0, atol=1e-9, err_msg=f"{name}: {field}")
@@ -188,11 +191,11 @@ def test_batch_run_equals_sequential_steps(case):
     outputs and final state (a block in progress included), to rounding."""
     name, (gyr, acc, dts), _, state0, final, out = case
     ref_final, ref = _scan(state0, gyr, acc, dts)
-    for field in tilt.TiltOutput._fields:
+    for field in tilt_core.TiltOutput._fields:
         np.testing.assert_allclose(np.asarray(getattr(out, field)),
                                    np.asarray(getattr(ref, field)), rtol=0, atol=1e-12,
                                    err_msg=f"{name}: {field}")
-    for field in tilt.TiltState._fields:
+    for field in tilt_core.TiltState._fields:
         np.testing.assert_allclose(np.asarray(getattr(final, field)),
                                    np.asarray(getattr(ref_final, field)), rtol=0, atol=1e-12,
                                    err_msg=f"{name}: state {field}")
@@ -209,7 +212,7 @@ def test_run_continues_from_any_state(case):
     for lo, hi in ((0, 45), (45, 305), (305, 1000), (1000, N)):  # 305: a gap in the block
         state, o = FILTER.run(state, gyr[lo:hi], acc[lo:hi], dts[lo:hi])
         parts.append(o)
-    for i, field in enumerate(tilt.TiltOutput._fields):
+    for i, field in enumerate(tilt_core.TiltOutput._fields):
         np.testing.assert_allclose(np.concatenate([p[i] for p in parts]), out[i], rtol=0,
                                    atol=1e-12, err_msg=f"{name}: {field}")
     np.testing.assert_allclose(state.x, final.x, rtol=0, atol=1e-12, err_msg=name)
@@ -220,7 +223,7 @@ def test_packed_stepper_equals_step(name):
     """The real-time JAX stepper (state and outputs as flat vectors) gives ``step``'s numbers."""
     (gyr, acc, dts), x0 = CASES[name]()
     n = 400 if name == "start_in_motion" else N  # past the re-acquisitions and the gaps
-    stepper = tilt.make_step(x0=x0)
+    stepper = estimator.make_step(x0=x0, block=FILTER.block)
     z = stepper.init()
     state = FILTER.init(x0)
     _, ref = _scan(state, gyr, acc, dts)
@@ -253,7 +256,7 @@ def test_the_cases_exercise_what_they_claim(case):
         assert np.flatnonzero(f & DT_GAP).tolist() == [1200]
         _reacquired_once_after(f, 1200)
         # no estimate before the initialization, and the initialization is unsure: σ says so
-        assert np.all(np.degrees(tilt.tilt_sigma_rad(out.var[:4])) > 45.0)
+        assert np.all(np.degrees(tilt.tilt_sigma_rad(out.var[:4], tilt.DEFAULT_PARAMS)) > 45.0)
     elif name == "nan_every_channel":
         assert all(f[100 + 37 * c] & GYR_MISSING and f[400 + 41 * c] & ACC_MISSING
                    for c in range(3))
@@ -275,11 +278,11 @@ def test_the_cases_exercise_what_they_claim(case):
         assert final.rest_s >= tilt.DEFAULT_PARAMS.rest_min_s  # the rest update ran
     elif name == "kicks_and_shaking":
         for change in ({"vel_jump_nis": np.inf}, {"vel_disturbed_hz": 1e9}):  # each branch matters
-            other = tilt.estimate(gyr, acc, dts, tilt.DEFAULT_PARAMS._replace(**change))
+            other = estimator.estimate_steps(gyr, acc, dts, tilt.DEFAULT_PARAMS._replace(**change))
             assert np.max(np.abs(other.up_S - out.up_S)) > 1e-3, change
     elif name == "large_rotations":
         rot2 = np.sum((gyr * dts[:, None]) ** 2, axis=1)
-        from verticality.estimators.tilt_kernels import SMALL_TH2
+        from verticality.tilt.kernels import SMALL_TH2
 
         assert np.all(rot2 > SMALL_TH2)
     elif name == "given_x0":
@@ -287,7 +290,7 @@ def test_the_cases_exercise_what_they_claim(case):
     elif name == "never_initialized":
         assert not np.any(f & INIT) and not bool(final.initialized)
         # no estimate anywhere, and σ says so (not P0's 4°)
-        assert np.all(np.degrees(tilt.tilt_sigma_rad(out.var)) > 45.0)
+        assert np.all(np.degrees(tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS)) > 45.0)
         assert f[500] & DT_GAP
 
 
@@ -303,7 +306,7 @@ def test_predict_is_step_without_accelerometer():
             np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
         assert not bool(out.measured) and out.flags & ACC_MISSING
         state = predicted
-    assert np.asarray(tilt_core.TiltState(*state).count) == (100 - 1) % tilt.BLOCK
+    assert np.asarray(tilt_core.TiltState(*state).count) == (100 - 1) % BLOCK
 
 
 def _clipped_and_held():
@@ -323,10 +326,10 @@ def test_reference_stream_clipping_and_held_rows_equal_core():
     """Clipped gyro and accelerometer samples and held rows: the plain-Python stream (detecting
     them sample by sample from the given ranges) gives the batch run's outputs and σ to 1e-9, and
     the batch run (``tilt.estimate``) equals the core's ``step`` given the same limits."""
-    from verticality.estimators.tilt_flags import CLIPPED, HELD
+    from verticality.tilt.flags import CLIPPED, HELD
 
     gyr, acc, dts, ranges = _clipped_and_held()
-    out = tilt.estimate(gyr, acc, dts, **ranges)
+    out = estimator.estimate_steps(gyr, acc, dts, **ranges)
     f = out.flags
     assert np.count_nonzero(f & CLIPPED) > 40 and np.flatnonzero(f & HELD).tolist() == [900, 901,
                                                                                          902, 903]
@@ -338,8 +341,8 @@ def test_reference_stream_clipping_and_held_rows_equal_core():
         sigma.append(s.tilt_sigma_rad)
     np.testing.assert_array_equal(np.array([r[5] for r in rows]), f)
     np.testing.assert_allclose(np.array([r[2] for r in rows]), out.up_S, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(sigma, tilt.tilt_sigma_rad(out.var), rtol=0, atol=1e-9)
-    lim = tilt.recording_limits(gyr, acc, dts, **ranges)
+    np.testing.assert_allclose(sigma, tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS), rtol=0, atol=1e-9)
+    lim = estimator.recording_limits(gyr, acc, dts, **ranges)
     assert np.all(lim.tilt_var_rad2 >= 0) and lim.tilt_var_rad2.max() > 0
     assert np.all(lim.vel_var_m2_s2 >= 0) and lim.vel_var_m2_s2.max() > 0
 
@@ -351,7 +354,7 @@ def test_reference_stream_clipping_and_held_rows_equal_core():
         return jax.lax.scan(one, state, (gyr, acc, dts, var, vvar, flags))
 
     _, ref = scan(FILTER.init(), gyr, acc, dts, lim.tilt_var_rad2, lim.vel_var_m2_s2, lim.flags)
-    for field in tilt.TiltOutput._fields:
+    for field in tilt_core.TiltOutput._fields:
         np.testing.assert_allclose(np.asarray(getattr(out, field)),
                                    np.asarray(getattr(ref, field)), rtol=0, atol=1e-12,
                                    err_msg=field)

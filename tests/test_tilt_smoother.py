@@ -1,4 +1,4 @@
-"""The offline smoother of the tilt filter (``tilt.smooth``, verticality.estimators.tilt_smoother):
+"""The offline smoother of the tilt filter (``tilt.smooth``, verticality.tilt.smoother):
 better than the filter on synthetic recordings with truth and an honest σ; the RTS identity at the
 end; a gap splits the smoothing; the filter's flags and rows; the backward pass against the dense
 batch solution of a linear-Gaussian chain; the command line."""
@@ -6,11 +6,13 @@ batch solution of a linear-Gaussian chain; the command line."""
 import numpy as np
 import pytest
 
-from verticality import cli
-from verticality.analysis.fault_recordings import fault_recording
+from verticality import cli, tilt
 from verticality.errors import InputError
-from verticality.estimators import tilt, tilt_batch, tilt_smoother
-from verticality.estimators.tilt_layout import NE
+from verticality.tilt import batch as tilt_batch
+from verticality.tilt import estimator
+from verticality.tilt import smoother as tilt_smoother
+from verticality.tilt.evaluation.faults import fault_recording
+from verticality.tilt.layout import NE
 
 
 def _err_rad(up_true, up_est):
@@ -21,25 +23,25 @@ def _err_rad(up_true, up_est):
 def test_smoother_beats_the_filter_with_an_honest_sigma(fault):
     for seed in (0, 1):
         gyr, acc, dt, up = fault_recording(fault, seed=seed)
-        causal = tilt.estimate(gyr, acc, dt)
-        smooth = tilt.smooth(gyr, acc, dt)
+        causal = tilt.estimate(gyr, acc, period_s=dt)
+        smooth = tilt.smooth(gyr, acc, period_s=dt)
         e_c, e_s = _err_rad(up, causal.up_S), _err_rad(up, smooth.up_S)
         rms_c, rms_s = np.sqrt(np.mean(e_c**2)), np.sqrt(np.mean(e_s**2))
         assert rms_s < 0.9 * rms_c, (fault, seed, rms_s, rms_c)
-        sigma = tilt.tilt_sigma_rad(smooth.var)
+        sigma = smooth.sigma_rad
         assert np.mean(e_s <= 2 * sigma) >= 0.95
         # at the block updates (the last sample of a block) the smoothed σ is not above the
         # filter's (P^s ≤ P⁺: it uses more data), and below it on average
         ends = _block_ends(gyr, acc, dt)
-        s_c = tilt.tilt_sigma_rad(causal.var)[ends]
+        s_c = causal.sigma_rad[ends]
         assert np.all(sigma[ends] <= s_c * (1 + 1e-12)) and np.mean(sigma[ends]) < np.mean(s_c)
 
 
 def _block_ends(gyr, acc, dt):
     """The last sample of every updated block of the filter's run."""
-    f = tilt.TiltFilter()
+    f = tilt.TiltFilter(block=tilt.block_samples(tilt.DEFAULT_PARAMS, dt))  # as estimate's
     _, _, trans = tilt_batch.run(f.params, f.block, f.init(), gyr, acc, dt, transitions=True)
-    return trans.start + tilt.BLOCK * np.arange(1, trans.rows.shape[0] + 1) - 1
+    return trans.start + f.block * np.arange(1, trans.rows.shape[0] + 1) - 1
 
 
 def test_the_end_of_the_recording_is_the_filter_estimate():
@@ -47,10 +49,10 @@ def test_the_end_of_the_recording_is_the_filter_estimate():
     last updated block's last sample, and the unfinished block after it), while earlier samples
     move."""
     gyr, acc, dt, _ = fault_recording("shake", n=3000 + 17, seed=2)
-    causal = tilt.estimate(gyr, acc, dt)
-    smooth = tilt.smooth(gyr, acc, dt)
+    causal = tilt.estimate(gyr, acc, period_s=dt)
+    smooth = tilt.smooth(gyr, acc, period_s=dt)
     end = _block_ends(gyr, acc, dt)[-1] + 1  # the unfinished block's first sample
-    assert 0 < gyr.shape[0] - end < tilt.BLOCK
+    assert 0 < gyr.shape[0] - end < tilt.block_samples(tilt.DEFAULT_PARAMS, dt)
     for name in ("quat_E_S", "roll_rad", "pitch_rad", "bias_S_rad_s", "var"):
         a, b = getattr(causal, name), getattr(smooth, name)
         np.testing.assert_array_equal(a[end:], b[end:], err_msg=name)
@@ -73,13 +75,13 @@ def _with_gap(seed_after: int):
 def test_a_gap_splits_the_smoothing():
     gyr, acc, dts, _, k = _with_gap(0)
     gyr2, acc2, dts2, _, _ = _with_gap(7)
-    a, b = tilt.smooth(gyr, acc, dts), tilt.smooth(gyr2, acc2, dts2)
+    a, b = estimator.smooth_steps(gyr, acc, dts), estimator.smooth_steps(gyr2, acc2, dts2)
     assert a.flags[k] & tilt.DT_GAP
     for name in ("quat_E_S", "bias_S_rad_s", "var", "flags"):
         np.testing.assert_array_equal(getattr(a, name)[:k], getattr(b, name)[:k], err_msg=name)
     # ... while after the gap they differ, and before it the smoothing did act
     assert np.max(np.abs(a.quat_E_S[k + 500:] - b.quat_E_S[k + 500:])) > 1e-3
-    causal = tilt.estimate(gyr, acc, dts)
+    causal = estimator.estimate_steps(gyr, acc, dts)
     assert np.max(np.degrees(_err_rad(causal.up_S[:k - 100], a.up_S[:k - 100]))) > 0.1
 
 
@@ -93,8 +95,8 @@ def test_flags_and_rows_are_the_filters():
     dts[1200] = 0.0
     dts[2500] = 0.4
     gyr[3000, 1] = 1e6
-    causal = tilt.estimate(gyr, acc, dts)
-    smooth = tilt.smooth(gyr, acc, dts)
+    causal = estimator.estimate_steps(gyr, acc, dts)
+    smooth = estimator.smooth_steps(gyr, acc, dts)
     assert smooth._fields == causal._fields
     for a, b in zip(causal, smooth, strict=True):
         assert a.shape == b.shape and a.dtype == b.dtype
@@ -106,7 +108,8 @@ def test_flags_and_rows_are_the_filters():
     reacq = np.flatnonzero(causal.flags & tilt.REACQUIRING)
     reacq = reacq[reacq > 2500]
     inner = reacq[:-1][np.diff(reacq) == 1]
-    inner = inner[(inner + 1) % tilt.BLOCK != 0]  # not a block's last sample (the updated end)
+    block = tilt.block_samples(tilt.DEFAULT_PARAMS, dts)
+    inner = inner[(inner + 1) % block != 0]  # not a block's last sample (the updated end)
     np.testing.assert_allclose(smooth.quat_E_S[inner], causal.quat_E_S[inner], rtol=0,
                                atol=1e-15)
 
@@ -196,7 +199,7 @@ def test_a_recording_beyond_memory_is_refused(monkeypatch):
     monkeypatch.setattr(verticality.sizing, "MAX_WORK_BYTES",
                         999 * tilt_smoother.BYTES_PER_SAMPLE)
     with pytest.raises(InputError, match="offline smoother"):
-        tilt.smooth(gyr, acc, dt)
+        tilt.smooth(gyr, acc, period_s=dt)
 
 
 def test_estimate_offline_command(tmp_path, capsys, monkeypatch):
@@ -212,7 +215,7 @@ def test_estimate_offline_command(tmp_path, capsys, monkeypatch):
     assert "offline (smoothed)" in capsys.readouterr().out
     est = imu.read_estimate_csv(tmp_path / "est.csv")
     rec = load_imu(path)
-    ref = tilt.smooth(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s)
+    ref = tilt.smooth(rec.gyr_rad_s, rec.acc_m_s2, rec.t_s)
     np.testing.assert_allclose(est.roll_rad, ref.roll_rad, atol=1e-12)
     np.testing.assert_array_equal(est.flags, ref.flags)
     # refused: a peer offline, and a recording beyond memory (sized before it is read)
@@ -259,7 +262,7 @@ def test_estimate_offline_reads_every_format(tmp_path):
         est = imu.read_estimate_csv(out)
         rec = load_imu(path, columns=columns if extra else None,
                        time_unit="ms" if extra else None)
-        ref = tilt.smooth(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s)
+        ref = tilt.smooth(rec.gyr_rad_s, rec.acc_m_s2, rec.t_s)
         assert est.roll_rad.shape == (n,)
         np.testing.assert_allclose(est.roll_rad, ref.roll_rad, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(est.flags, ref.flags)

@@ -22,7 +22,7 @@ from verticality.errors import InputError
 
 
 def register(sub):
-    from verticality.analysis.broad_eval import FILTERS, OURS
+    from verticality.tilt.evaluation.broad import FILTERS, OURS
 
     p = sub.add_parser("estimate", help="estimate roll, pitch and the gravity direction from an "
                                         "IMU recording (CSV or BROAD HDF5)")
@@ -77,7 +77,7 @@ def sensor_ranges(gyr_range_deg_s, acc_range_g) -> dict:
     """``--gyr-range`` (°/s) and ``--acc-range`` (g) as ``tilt.estimate``'s ranges in SI units."""
     import math
 
-    from verticality.estimators.tilt_params import G_M_S2
+    from verticality.tilt.params import G_M_S2
 
     return {"gyr_range_rad_s": None if gyr_range_deg_s is None else math.radians(gyr_range_deg_s),
             "acc_range_m_s2": None if acc_range_g is None else acc_range_g * G_M_S2}
@@ -86,9 +86,9 @@ def sensor_ranges(gyr_range_deg_s, acc_range_g) -> dict:
 def run(args) -> int:
     from rich.console import Console
 
-    from verticality.analysis.folder import is_folder_input
-    from verticality.analysis.imu_estimate import check_sigma, estimate_file
     from verticality.io.paths import check_input_file, check_paths
+    from verticality.tilt.files import check_sigma, estimate_file
+    from verticality.tilt.folder import is_folder_input
 
     if is_folder_input(args.input):
         return run_folder(args)
@@ -115,7 +115,7 @@ def run(args) -> int:
     if run.t_origin is not None:
         print(f"t is in seconds from the input's first time stamp, {run.t_origin}")
     if args.plot is not None:
-        from verticality.analysis.tilt_plot import plot_estimate
+        from verticality.tilt.plots import plot_estimate
 
         print(f"wrote {plot_estimate(args.plot, run.t_s, run.out, args.filter, run.tilt_sigma_rad)}")
     return 0
@@ -124,7 +124,7 @@ def run(args) -> int:
 def run_folder(args) -> int:
     """``estimate FOLDER --out DIR``: exit status 0 when every recording was estimated, 1 when
     some failed (each a row of the summary with its error, named on stderr)."""
-    from verticality.analysis.folder import estimate_folder
+    from verticality.tilt.folder import estimate_folder
 
     if args.plot is not None:
         raise InputError("--plot: one recording at a time; a folder's run writes no figures")

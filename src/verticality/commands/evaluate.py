@@ -31,13 +31,13 @@ def run_broad(args) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from verticality.analysis.broad_eval import (
+    from verticality.io import broad
+    from verticality.tilt.evaluation.broad import (
         OURS,
         OURS_OFFLINE,
         choose_filters,
         evaluate_trials,
     )
-    from verticality.io import broad
 
     err = Console(stderr=True)
     paths = broad.list_trials(args.directory)

@@ -1,7 +1,7 @@
 """``verticality stream [INPUT] [--sigma] [--units ...] [--columns ...] [--time-unit ...]``.
 
 Live tilt estimation on a pipe: IMU CSV rows in (standard input, or a file), one estimate row out
-per input row on standard output, flushed at once (:func:`verticality.analysis.live_tilt.
+per input row on standard output, flushed at once (:func:`verticality.tilt.live.
 stream_estimates`). The same layouts as ``estimate`` (ours, EuRoC / TUM-VI, ``--columns``), the
 same output columns, and the same filter in its sample-by-sample form. The first second (at most
 500 rows) is held back and checked as ``estimate`` checks a whole file; then rows pass one by
@@ -28,10 +28,10 @@ def register(sub):
 
 
 def run(args) -> int:
-    from verticality.analysis.live_tilt import stream_estimates
     from verticality.io import imu_layout
     from verticality.io.paths import check_input_file
     from verticality.io.recording import parse_units
+    from verticality.tilt.live import stream_estimates
 
     gyr_u, acc_u = parse_units(args.units)
     mapping = imu_layout.parse_columns_spec(args.columns) if args.columns is not None else None

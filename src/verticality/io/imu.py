@@ -338,11 +338,11 @@ def write_imu_csv(path, rec: ImuRecording) -> Path:
 
 
 def write_estimate_csv(path, t_s, out, tilt_sigma_rad=None) -> Path:
-    """Write a :class:`verticality.estimators.tilt.TiltOutput` (or any object with roll_rad,
+    """Write a :class:`verticality.tilt.TiltEstimate` (or any object with roll_rad,
     pitch_rad, up_S, bias_S_rad_s, flags) as ``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,
     flags``; ``(gx, gy, gz)`` is the unit gravity direction (down) in the sensor frame. With
     ``tilt_sigma_rad`` (N,) a last column ``tilt_sigma_rad`` holds the tilt's standard deviation
-    (``tilt.tilt_sigma_rad``); filters that report none (the peers) are written without it."""
+    (``TiltEstimate.sigma_rad``); filters that report none (the peers) are written without it."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     sigma = tilt_sigma_rad is not None

@@ -1,8 +1,8 @@
 """The host side of the tilt filter's batch run (``TiltFilter.run``): the samples before the
-initialization, the chunks of the batch kernel (:func:`verticality.estimators.tilt_kernels.
+initialization, the chunks of the batch kernel (:func:`verticality.tilt.kernels.
 run_chunk`), which of the two compiled kernels each chunk needs, and the result arrays.
 
-Every number comes from the filter's core (:mod:`verticality.estimators.tilt_core`): the kernel on
+Every number comes from the filter's core (:mod:`verticality.tilt.core`): the kernel on
 the device, and on the host the same core functions run on NumPy arrays (``xp=np``) for the few
 samples before the initialization and for the scheduling. The result equals the core's ``step``
 applied sample by sample, to rounding (tests/test_tilt_reference.py).
@@ -16,17 +16,17 @@ import jax
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators import tilt_core as core
-from verticality.estimators import tilt_kernels
-from verticality.estimators.tilt_flags import (
+from verticality.tilt import core
+from verticality.tilt import kernels as tilt_kernels
+from verticality.tilt.flags import (
     DT_GAP,
     INIT,
     OUT_OF_RANGE,
     REACQUIRING,
     accelerometer_used,
 )
-from verticality.estimators.tilt_layout import CHUNK_SAMPLE, HEAD, NE, ROW, SOA, TRANS, E, S, X
-from verticality.estimators.tilt_params import MAX_ACC_M_S2, MAX_RATE_RAD_S
+from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, NE, ROW, SOA, TRANS, E, S, X
+from verticality.tilt.params import MAX_ACC_M_S2, MAX_RATE_RAD_S
 
 CHUNK_BLOCKS = 256
 PIECE_SAMPLES = 2**18  # a long recording is filtered piece by piece (tilt.estimate, estimate's
@@ -47,7 +47,7 @@ _OUTPUT_FIELDS = (((), np.float64), ((), np.float64), ((3,), np.float64), ((4,),
 
 
 def empty_output(n: int, alloc=np.zeros) -> core.TiltOutput:
-    """A :class:`~verticality.estimators.tilt_core.TiltOutput` of ``n`` samples to be filled
+    """A :class:`~verticality.tilt.core.TiltOutput` of ``n`` samples to be filled
     (``alloc=np.empty`` when every sample will be written). Each field is a C-contiguous array
     carved from one allocation: the operating system maps one large allocation in huge pages,
     which is written several times faster the first time than eight separate arrays (on a
@@ -80,7 +80,7 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     ``transitions`` also the block updates (:class:`Transitions`, by the kernel compiled with
     them: the same numbers). ``tilt_var``, ``vel_var``, ``flags`` (N,): each sample's extra tilt
     (rad²) and velocity (m²/s²) variances and flags from the recording's limits (``step``'s arguments of the same names;
-    :class:`~verticality.estimators.tilt_limits.Limits`), None for none."""
+    :class:`~verticality.tilt.limits.Limits`), None for none."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:

@@ -36,6 +36,10 @@ from verticality.sensors import specific_force_B
 
 MOTIONS = ("slow_rotation", "fast_rotation", "slow_translation", "fast_translation",
            "rotation_with_breaks", "translation_with_breaks")
+# a hand swinging the IMU at a few Hz: rates whose peaks pass a ±500 °/s gyro's range (a few per
+# cent of the samples clipped) and accelerations of about a g that are motion, not disturbance
+VIGOROUS = "vigorous_handheld"
+ALL_MOTIONS = MOTIONS + (VIGOROUS,)
 RATES_HZ = (100.0, 200.0, 400.0)
 SCORE_FROM_S = 5.0
 DEG = np.pi / 180.0
@@ -98,8 +102,10 @@ def motion(kind: str, rng: np.random.Generator, duration_s: float = 60.0):
     position, each a sum of random sinusoids whose amplitudes and frequencies set the class
     (rotation: up to ±1 rad at 0.1–0.4 Hz slow, 0.5–1.5 Hz fast; translation: up to ±0.3 m at
     0.2–0.5 Hz slow, ±0.2 m at 1–3 Hz fast, with small rotations)."""
-    if kind not in MOTIONS:
-        raise ValueError(f"unknown motion {kind!r}; choose one of {', '.join(MOTIONS)}")
+    if kind not in ALL_MOTIONS:
+        raise ValueError(f"unknown motion {kind!r}; choose one of {', '.join(ALL_MOTIONS)}")
+    if kind == VIGOROUS:
+        return _vigorous(rng, duration_s)
     rotation = "rotation" in kind
     fast = kind.startswith("fast")
     breaks = kind.endswith("with_breaks")
@@ -120,6 +126,20 @@ def motion(kind: str, rng: np.random.Generator, duration_s: float = 60.0):
         return series(t, pa, pf, pp) * _envelope(t, breaks)
 
     return trajectories.from_euler(position, rpy, duration_s, kind)
+
+
+def _vigorous(rng: np.random.Generator, duration_s: float):
+    """:data:`VIGOROUS`: rotations of up to ±0.8 rad in roll and yaw (±0.5 rad in pitch, clear of
+    the Euler angles' singularity) and hand translations of up to ±5 cm, both at 1.5–4 Hz,
+    throughout."""
+    ra, rf, rp = (jnp.asarray(v) for v in _sines(rng, 3, [0.8, 0.5, 0.8], 1.5, 4.0))
+    pa, pf, pp = (jnp.asarray(v) for v in _sines(rng, 3, [0.05] * 3, 1.5, 4.0))
+
+    def series(t, a, f, ph):
+        return jnp.sum(a * (jnp.sin(2 * jnp.pi * f * t + ph) - jnp.sin(ph)), axis=1)
+
+    return trajectories.from_euler(lambda t: series(t, pa, pf, pp),
+                                   lambda t: series(t, ra, rf, rp), duration_s, VIGOROUS)
 
 
 class Recording(NamedTuple):
@@ -149,13 +169,19 @@ def perfect(e: SensorErrors) -> SensorErrors:
                       acc_range_m_s2=np.inf)
 
 
-def recording(kind: str, seed: int, duration_s: float = 60.0, ideal: bool = False) -> Recording:
+def recording(kind: str, seed: int, duration_s: float = 60.0, ideal: bool = False,
+              rate_hz: float | None = None) -> Recording:
     """The recording of motion ``kind`` drawn with ``seed`` (motion, lever arm, sensor errors,
-    noise all from it); ``ideal``: the same motion read by a perfect sensor."""
-    if kind not in MOTIONS:
-        raise ValueError(f"unknown motion {kind!r}; choose one of {', '.join(MOTIONS)}")
-    rng = np.random.default_rng([seed, MOTIONS.index(kind)])
+    noise all from it); ``ideal``: the same motion read by a perfect sensor; ``rate_hz``: sampled
+    at that rate instead of the drawn one (the same motion and errors; the noise drawn anew)."""
+    if kind not in ALL_MOTIONS:
+        raise ValueError(f"unknown motion {kind!r}; choose one of {', '.join(ALL_MOTIONS)}")
+    rng = np.random.default_rng([seed, ALL_MOTIONS.index(kind)])
     e = draw_errors(rng)
+    if kind == VIGOROUS:  # a ±500 °/s gyro (common industrial IMUs' range), a ±16 g accelerometer
+        e = e._replace(gyr_range_rad_s=500.0 * DEG, acc_range_m_s2=16.0 * 9.81)
+    if rate_hz is not None:
+        e = e._replace(rate_hz=float(rate_hz))
     e = perfect(e) if ideal else e
     traj = motion(kind, rng, duration_s)
     lever_B_m = rng.uniform(-0.1, 0.1, 3)
@@ -192,7 +218,7 @@ def clipped_share(rec: Recording) -> tuple[float, float]:
 def compare(kinds=MOTIONS, seeds=range(5), filters=("verticality", "vqf"), progress=None):
     """Each filter's RMSE (deg) on each recording: ``{(kind, seed): {filter: rmse}}``.
     ``progress(done, total)`` is called after each recording."""
-    from verticality.analysis.broad_eval import run_filter
+    from verticality.tilt.evaluation.broad import run_filter
 
     kinds, seeds = list(kinds), list(seeds)
     out = {}

@@ -10,16 +10,21 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.analysis.broad_eval import OURS, run_filter
 from verticality.errors import InputError
-from verticality.estimators import tilt, tilt_batch
-from verticality.estimators.tilt_core import gaps_in, up_roll_pitch
-from verticality.estimators.tilt_flags import DT_GAP, INIT, REACQUIRED, REACQUIRING
+from verticality.tilt import batch as tilt_batch
+from verticality.tilt import estimator
+from verticality.tilt.core import TiltOutput, gaps_in, up_roll_pitch
+from verticality.tilt.evaluation.broad import OURS, run_filter
+from verticality.tilt.flags import DT_GAP, INIT, REACQUIRED, REACQUIRING
+from verticality.tilt.layout import NE
+from verticality.tilt.output import TiltEstimate, estimate_of, tilt_sigma_rad
+from verticality.tilt.params import DEFAULT_PARAMS, block_samples
 
 
 class ImuEstimate(NamedTuple):
-    out: tilt.TiltOutput  # NumPy arrays
-    tilt_sigma_rad: np.ndarray | None  # (N,) our filter's σ of the tilt; None for a peer
+    out: TiltEstimate  # NumPy arrays
+    tilt_sigma_rad: np.ndarray | None  # (N,) our filter's σ of the tilt (out.sigma_rad); None for
+    #                                    a peer
 
 
 def check_offline(filter_name: str, offline: bool) -> None:
@@ -46,35 +51,39 @@ def check_ranges(filter_name: str, ranges: dict | None) -> dict:
     return given
 
 
-def estimate_imu(gyr_rad_s, acc_m_s2, dt_s, filter_name: str = OURS,
+def estimate_imu(gyr_rad_s, acc_m_s2, t_s, dt_s, filter_name: str = OURS,
                  offline: bool = False, ranges: dict | None = None) -> ImuEstimate:
-    """Roll, pitch, gravity direction, bias and flags of a recording by ``filter_name`` (ours:
-    ``tilt.estimate`` with its σ, or with ``offline`` the smoother ``tilt.smooth``, given the
-    sensor's ``ranges`` if known (``gyr_range_rad_s``, ``acc_range_m_s2``); a peer:
-    :func:`peer_output` of its quaternions and bias)."""
+    """Roll, pitch, gravity direction, bias and flags of a recording at times ``t_s`` with steps
+    ``dt_s`` as a reader found them (non-finite where a time stamp is missing: that sample is
+    skipped and flagged) by ``filter_name`` (ours: ``tilt.estimate`` with its σ, or with
+    ``offline`` the smoother ``tilt.smooth``, given the sensor's ``ranges`` if known
+    (``gyr_range_rad_s``, ``acc_range_m_s2``); a peer: :func:`peer_output` of its quaternions and
+    bias)."""
     check_offline(filter_name, offline)
     ranges = check_ranges(filter_name, ranges)
     if filter_name == OURS:
-        out = (tilt.smooth if offline else tilt.estimate)(gyr_rad_s, acc_m_s2, dt_s, **ranges)
-        return ImuEstimate(out, tilt.tilt_sigma_rad(out.var))
+        run = estimator.smooth_steps if offline else estimator.estimate_steps
+        out = estimate_of(run(gyr_rad_s, acc_m_s2, dt_s, **ranges), t_s, DEFAULT_PARAMS)
+        return ImuEstimate(out, out.sigma_rad)
     quat, bias = run_filter(filter_name, gyr_rad_s, acc_m_s2, dt_s)
-    return ImuEstimate(peer_output(np.asarray(quat), np.asarray(bias), dt_s), None)
+    return ImuEstimate(peer_output(np.asarray(quat), np.asarray(bias), t_s, dt_s), None)
 
 
-def peer_output(quat_wxyz, bias_rad_s, dt_s) -> tilt.TiltOutput:
-    """A peer filter's output as a :class:`~verticality.estimators.tilt.TiltOutput`: its
-    quaternions (normalized) and bias, the angles from them (as ours), no variances, and of our
+def peer_output(quat_wxyz, bias_rad_s, t_s, dt_s) -> TiltEstimate:
+    """A peer filter's output as a :class:`~verticality.tilt.TiltEstimate`: its quaternions
+    (normalized) and bias, the angles from them (as ours), no variances and no σ (NaN), and of our
     flags only ``DT_GAP`` (a property of the input); every accelerometer sample counted as used
     (the peers take no missing samples)."""
     quat = np.asarray(quat_wxyz, dtype=np.float64)
     quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
     n = quat.shape[0]
-    gap = gaps_in(np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,)), tilt.DEFAULT_PARAMS,
+    gap = gaps_in(np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,)), DEFAULT_PARAMS,
                   xp=np)
     up, roll, pitch = up_roll_pitch(tuple(quat.T), xp=np)
-    return tilt.TiltOutput(roll, pitch, np.stack(up, axis=1), quat,
-                           np.asarray(bias_rad_s, dtype=np.float64), np.zeros((n, 7)),
-                           np.where(gap, DT_GAP, 0).astype(np.int32), np.ones(n, dtype=bool))
+    return TiltEstimate(np.asarray(t_s, dtype=np.float64), roll, pitch, np.stack(up, axis=1), quat,
+                        np.asarray(bias_rad_s, dtype=np.float64), np.full(n, np.nan),
+                        np.full((n, NE), np.nan), np.where(gap, DT_GAP, 0).astype(np.int32),
+                        np.ones(n, dtype=bool))
 
 
 def settled_samples(flags) -> np.ndarray:
@@ -104,7 +113,7 @@ def sigma_summary(sigma_rad, flags) -> str:
 def gap_warning(t_s, dt_s, ours: bool = True) -> str | None:
     """A one-line warning when the time stamps have gaps longer than the tilt filter's
     ``gap_flag_s`` (motion inside a gap goes unseen by the gyro integration), else None."""
-    p = tilt.DEFAULT_PARAMS
+    p = DEFAULT_PARAMS
     dt = np.asarray(dt_s, dtype=np.float64)
     gaps = np.flatnonzero(gaps_in(dt, p, xp=np))
     if gaps.size == 0:
@@ -136,7 +145,7 @@ class EstimateRun(NamedTuple):
     gap_line: str | None
     t_origin: str | None
     t_s: np.ndarray | None = None
-    out: tilt.TiltOutput | None = None
+    out: TiltEstimate | None = None
     tilt_sigma_rad: np.ndarray | None = None
     duration_s: float | None = None
     flags: np.ndarray | None = None
@@ -161,7 +170,7 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     """``verticality estimate``: filter the recording in ``path`` and write the estimate CSV to
     ``out_path`` (through a temporary file beside it, renamed at the end: a refusal midway leaves
     no partial file). An IMU CSV through our filter is read, filtered and written piece by piece
-    (:func:`verticality.io.imu.iter_imu_csv`, :func:`verticality.estimators.tilt.run_in_pieces`'s
+    (:func:`verticality.io.imu.iter_imu_csv`, :func:`verticality.tilt.estimator.run_in_pieces`'s
     pieces: the numbers of the in-memory run bit for bit), so that memory stays proportional to a
     piece, not to the file; ``keep`` (a figure) also keeps every output. A BROAD HDF5 file and the
     peers are read whole. ``offline``: our smoother (``tilt.smooth``), which needs the whole
@@ -169,9 +178,9 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     beyond what memory allows. ``ranges``: the sensor's full-scale readings
     (``gyr_range_rad_s``, ``acc_range_m_s2``, our filter only); without them clipping is inferred
     from flat tops (per piece of ``piece_rows`` rows when read in pieces)."""
-    from verticality.estimators import tilt_smoother
     from verticality.io import broad, imu, imu_layout
     from verticality.io.recording import load_imu, parse_units
+    from verticality.tilt import smoother as tilt_smoother
 
     check_offline(filter_name, offline)
     ranges = check_ranges(filter_name, ranges)
@@ -183,8 +192,8 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     try:
         if filter_name != OURS or offline or broad.is_broad_file(path):
             rec = load_imu(path, units, columns, time_unit)
-            est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.dt_s, filter_name, offline,
-                               ranges)
+            est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.t_s, rec.dt_s, filter_name,
+                               offline, ranges)
             imu.write_estimate_csv(part, rec.t_s, est.out,
                                    tilt_sigma_rad=est.tilt_sigma_rad if sigma else None)
             os.replace(part, out_path)
@@ -199,8 +208,8 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
         mapping = imu_layout.parse_columns_spec(columns) if isinstance(columns, str) else columns
         pieces = imu.iter_imu_csv(path, gyr_units=gyr_u, acc_units=acc_u, columns=mapping,
                                   time_unit=time_unit, piece_rows=piece_rows)
-        filt = tilt.TiltFilter()
-        state = filt.init()
+        filt = None  # its update interval in samples comes from the first piece's period
+        state = estimator.TiltFilter().init()
         # for the summary lines: every sample's flags and σ (6 bytes), the gaps' t and dt
         kept: dict[str, list] = {"t": [], "dt": [], "flags": [], "sigma": [], "out": [],
                                  "t_all": []}
@@ -213,25 +222,27 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
             fh.write(imu.estimate_header(sigma) + "\n")
 
             def filter_some(final: bool):
-                nonlocal buf, state
+                nonlocal buf, state, filt
                 # a window that may be the last is left until the input's end is known (as
                 # run_in_pieces cuts: the last window of a recording is taken whole)
                 while buf is not None and buf[0].size and (final or buf[0].size > piece_rows):
                     w = min(buf[0].size, piece_rows)
                     t, g, a_read, d = (v[:w] for v in buf)
                     last = final and w == buf[0].size
-                    lim = tilt.recording_limits(g, a_read, d, prev=prev[0], **ranges)
+                    lim = estimator.recording_limits(g, a_read, d, prev=prev[0], **ranges)
+                    if filt is None:
+                        filt = estimator.TiltFilter(block=block_samples(DEFAULT_PARAMS, d))
                     m = tilt_batch.piece_cut(state, a_read, d, filt.block, final=last) or w
                     state, o = tilt_batch.run(filt.params, filt.block, state, g[:m], a_read[:m],
                                               d[:m], **lim.run_args(slice(m)))
                     prev[0] = np.concatenate([g[m - 1], a_read[m - 1]])
-                    sig = tilt.tilt_sigma_rad(o.var)
+                    sig = tilt_sigma_rad(o.var, filt.params)
                     for lo in range(0, m, WRITE_ROWS):  # the rows' text, a slice at a time
                         hi = min(m, lo + WRITE_ROWS)
-                        part_out = tilt.TiltOutput(*(v[lo:hi] for v in o))
+                        part_out = TiltOutput(*(v[lo:hi] for v in o))
                         fh.write(imu.estimate_rows(t[lo:hi], part_out,
                                                    sig[lo:hi] if sigma else None))
-                    gaps = gaps_in(d[:m], tilt.DEFAULT_PARAMS, xp=np)  # the gap warning's rows
+                    gaps = gaps_in(d[:m], filt.params, xp=np)  # the gap warning's rows
                     for key, v in (("t", t[:m][gaps]), ("dt", d[:m][gaps]),
                                    ("flags", o.flags.astype(np.int16)),
                                    ("sigma", sig.astype(np.float32))):
@@ -261,9 +272,10 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
             part.unlink()
     flags, sig_all = np.concatenate(kept["flags"]), np.concatenate(kept["sigma"])
     origin = None if first.t0_stamp is None else f"{first.t0_stamp} {first.time_unit}"
-    out_all = tilt.concatenate_outputs(kept["out"]) if keep else None
+    out_all = (estimate_of(estimator.concatenate_outputs(kept["out"]),
+                           np.concatenate(kept["t_all"]), filt.params) if keep else None)
     return EstimateRun(n_done[0], filter_name, sigma_summary(sig_all.astype(np.float64), flags),
                        gap_warning(np.concatenate(kept["t"]), np.concatenate(kept["dt"])), origin,
-                       np.concatenate(kept["t_all"]) if keep else None, out_all,
-                       tilt.tilt_sigma_rad(out_all.var) if keep else None,
+                       out_all.t_s if keep else None, out_all,
+                       out_all.sigma_rad if keep else None,
                        float(t_last[0] - first.t_s[0]), flags, sig_all)

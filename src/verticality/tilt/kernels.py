@@ -1,5 +1,5 @@
 """The batch kernel of the 3-D tilt filter: :func:`run_chunk` filters a chunk of samples with the
-core's functions (:mod:`verticality.estimators.tilt_core`: the per-sample terms, the
+core's functions (:mod:`verticality.tilt.core`: the per-sample terms, the
 pre-integration, the block update, the output angles), arranged so that XLA on a CPU runs them
 quickly:
 
@@ -14,7 +14,7 @@ quickly:
   element-wise, with the rest update and the gap handling under ``lax.cond``);
 * the per-sample quaternion, up, roll and pitch (:func:`atan2`, a vectorizable arctan2) and flags
   leave the device block-major; the host writes them, and the per-block bias and variances, into
-  the result arrays (:mod:`verticality.estimators.tilt_batch`).
+  the result arrays (:mod:`verticality.tilt.batch`).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import so3
-from verticality.estimators import tilt_core as core
-from verticality.estimators.tilt_layout import CHUNK_SAMPLE, HEAD, P_DIAG, ROW, SOA, TRANS, S, X
+from verticality.tilt import core
+from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, P_DIAG, ROW, SOA, TRANS, S, X
 
 SMALL_TH2 = 0.04  # |rotation|² (rad²) below which the Taylor exponential is used (error < 1e-27)
 
@@ -93,7 +93,7 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     initialized filter ``x`` (``X``). ``data`` (``CHUNK_SAMPLE``, block, nb): [gyr (3), acc (3),
     dt, tilt_var, vel_var] of sample ``k`` of block ``j`` at ``[:, k, j]``, as the outputs (one
     array: one host-to-device transfer per chunk; packed so by the host, which transposes faster
-    than XLA: :func:`verticality.estimators.tilt_batch.chunk_data`). ``head`` (``HEAD``): ``sums0``, the sums
+    than XLA: :func:`verticality.tilt.batch.chunk_data`). ``head`` (``HEAD``): ``sums0``, the sums
     the first block starts from (the samples of a block begun before the chunk; they stand in for
     as many leading samples of ``data``, which the caller fills with skipped samples, dt = NaN),
     and ``n_update``, the number of leading blocks whose update is applied: a block after them is

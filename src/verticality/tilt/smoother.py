@@ -2,8 +2,8 @@
 pass over the block filter's error state.
 
 The forward pass is the filter itself (``tilt_batch.run`` with ``transitions``: the same block
-update, :func:`verticality.estimators.tilt_core.block_update`, which also reports each block as a
-linear-Gaussian step, :class:`~verticality.estimators.tilt_core.BlockTransition`). Per block
+update, :func:`verticality.tilt.core.block_update`, which also reports each block as a
+linear-Gaussian step, :class:`~verticality.tilt.core.BlockTransition`). Per block
 ``j`` it gives the covariance at its start ``P0_j`` (the filtered ``P⁺`` of the block before), the
 error transition ``F_j``, the covariance before its measurement updates ``P⁻_j`` and the
 correction ``dx_j`` the updates applied. Backward, with ``e_j`` the smoothed error at the start of
@@ -38,10 +38,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import sizing, so3
-from verticality.estimators import tilt_core as core
-from verticality.estimators.tilt_batch import Transitions
-from verticality.estimators.tilt_kernels import atan2, quat_exp_batched
-from verticality.estimators.tilt_layout import NE, TRANS, E
+from verticality.tilt import core
+from verticality.tilt.batch import Transitions
+from verticality.tilt.kernels import atan2, quat_exp_batched
+from verticality.tilt.layout import NE, TRANS, E
 
 # memory per sample of a smoothing run (the inputs, the filter's outputs smoothed in place, the
 # per-block transitions, the device's copies): the peak resident size grew by ~490 bytes per

@@ -2,7 +2,7 @@
 
 A jitted JAX step costs ~90 µs per call on a CPU (dispatch plus ~50 small XLA kernels), too slow
 for a 1 kHz robot loop within 5 % of a core. This module runs the filter of
-:mod:`verticality.estimators.tilt` (the equations of ``tilt_core.step``; the every-``block``-samples
+:mod:`verticality.tilt` (the equations of ``tilt_core.step``; the every-``block``-samples
 Kalman update is ``tilt_core.block_update``) with scalar ``math`` for the per-sample
 pre-integration and NumPy for the block update. It is deliberately written apart from the JAX
 core, sharing nothing with it but the constants (flag bits, default parameters), as PyVQF stands
@@ -19,7 +19,7 @@ import struct
 
 import numpy as np
 
-from verticality.estimators.tilt_flags import (
+from verticality.tilt.flags import (
     ACC_DISTURBED,
     ACC_MISSING,
     BAD_DT,
@@ -32,15 +32,15 @@ from verticality.estimators.tilt_flags import (
     REACQUIRED,
     REACQUIRING,
 )
-from verticality.estimators.tilt_limits import EXCESS_FRACTION
-from verticality.estimators.tilt_params import (
-    BLOCK,
+from verticality.tilt.limits import EXCESS_FRACTION
+from verticality.tilt.params import (
     DEFAULT_P0,
     DEFAULT_PARAMS,
     GAP_TOLERANCE_S,
     MAX_ACC_M_S2,
     MAX_DT_S,
     MAX_RATE_RAD_S,
+    block_samples,
 )
 
 
@@ -136,8 +136,8 @@ class Stream:
     run widens the velocity; both flag ``CLIPPED``. A sample repeating the previous one bit for bit is flagged
     ``HELD``."""
 
-    def __init__(self, params=None, block: int = BLOCK, P0=None, x0=None, gyr_range_rad_s=None,
-                 acc_range_m_s2=None):
+    def __init__(self, params=None, block: int | None = None, P0=None, x0=None,
+                 gyr_range_rad_s=None, acc_range_m_s2=None, period_s: float | None = None):
         self.gyr_range = None if gyr_range_rad_s is None else [
             float(v) for v in np.broadcast_to(np.asarray(gyr_range_rad_s, dtype=float), (3,))]
         self.acc_range = None if acc_range_m_s2 is None else [
@@ -146,7 +146,10 @@ class Stream:
         self.acc_clip_t = [0.0, 0.0, 0.0]  # and each accelerometer axis
         self.prev_bits = None  # the previous sample's six channels, as bytes
         self.p = DEFAULT_PARAMS if params is None else params
-        self.block = block
+        # samples per update: given, or params.update_s at the sampling period (given, or the
+        # first step integrated after the initialization)
+        self.block = (block_samples(self.p, period_s) if block is None and period_s is not None
+                      else block)
         self.P = np.array(DEFAULT_P0 if P0 is None else P0, dtype=np.float64)
         if x0 is None:
             self.q, self.b, self.initialized = (1.0, 0.0, 0.0, 0.0), [0.0, 0.0, 0.0], False
@@ -215,6 +218,8 @@ class Stream:
         init_now = False
         gap = dts > p.gap_flag_s + GAP_TOLERANCE_S
         if self.initialized:
+            if self.block is None and dt_ok:  # the first step integrated sets the update's length
+                self.block = block_samples(p, dt)
             self.dq = dq = _qmul(self.dq, _qexp(gx * dts, gy * dts, gz * dts))
             wa = dts if acc_ok else 0.0
             if gyr_ok:
@@ -248,7 +253,7 @@ class Stream:
             self.reacquire = True
             self.P = _widen_tilt(self.P, p.init_tilt_rad**2)
         disturbed = reacq = False
-        if self.initialized and self.count >= self.block:
+        if self.initialized and self.block is not None and self.count >= self.block:
             disturbed, reacq = self._update()
         if self.count == 0:
             q = self.q

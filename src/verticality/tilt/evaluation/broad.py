@@ -18,6 +18,8 @@ import numpy as np
 
 from verticality.errors import InputError
 from verticality.io import broad
+from verticality.tilt.output import tilt_sigma_rad
+from verticality.tilt.params import DEFAULT_PARAMS
 
 OURS = "verticality"
 PEERS = ("vqf", "madgwick", "mahony")
@@ -65,17 +67,17 @@ def choose_filters(requested=None) -> tuple[list[str], list[str]]:
 
 
 def _ours(gyr, acc, dt_s):
-    from verticality.estimators import tilt
+    from verticality.tilt import estimator
 
-    out = tilt.estimate(gyr, acc, dt_s)
-    return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
+    out = estimator.estimate_steps(gyr, acc, dt_s)
+    return out.quat_E_S, out.bias_S_rad_s, tilt_sigma_rad(out.var, DEFAULT_PARAMS)
 
 
 def _ours_offline(gyr, acc, dt_s):
-    from verticality.estimators import tilt
+    from verticality.tilt import estimator
 
-    out = tilt.smooth(gyr, acc, dt_s)
-    return out.quat_E_S, out.bias_S_rad_s, tilt.tilt_sigma_rad(out.var)
+    out = estimator.smooth_steps(gyr, acc, dt_s)
+    return out.quat_E_S, out.bias_S_rad_s, tilt_sigma_rad(out.var, DEFAULT_PARAMS)
 
 
 def _vqf_offline(gyr, acc, dt_s):
@@ -118,10 +120,10 @@ def run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
     """Quaternions ``q_E_S`` (N, 4) wxyz and gyro bias (N, 3) of filter ``name``. Peers need a
     constant rate (the median step is used) and finite samples; they report no bias except VQF
     (zeros otherwise)."""
-    return _run_filter(name, gyr_rad_s, acc_m_s2, dt_s)[:2]
+    return run_filter_sigma(name, gyr_rad_s, acc_m_s2, dt_s)[:2]
 
 
-def _run_filter(name: str, gyr_rad_s, acc_m_s2, dt_s):
+def run_filter_sigma(name: str, gyr_rad_s, acc_m_s2, dt_s):
     """:func:`run_filter` and the tilt's standard deviation (N,) rad, or None for the peers."""
     if name not in _RUNNERS:
         raise InputError(f"unknown filter {name!r}; choose one of {', '.join(_RUNNERS)}")
@@ -167,7 +169,7 @@ def evaluate_trial(path, filters, progress: Callable[[str], None] | None = None,
         if progress is not None:
             progress(f"{trial.name}: {name}")
         t0 = time.perf_counter()
-        quat, _, sig = _run_filter(name, trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+        quat, _, sig = run_filter_sigma(name, trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
         res["runtime_s"][name] = time.perf_counter() - t0
         res["rmse"][name] = broad.inclination_rmse_deg(np.asarray(quat), trial)
         if sig is not None:

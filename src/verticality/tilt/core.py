@@ -1,15 +1,15 @@
-"""The core of the 3-D otolith–canal tilt filter (:mod:`verticality.estimators.tilt`), written
+"""The core of the 3-D otolith–canal tilt filter (:mod:`verticality.tilt`), written
 once: the per-sample pre-integration, the block update (prediction, velocity pseudo-measurement,
 re-acquisition after a gap or the start, rest/bias update), the initialization from the
 accelerometer, the sample's validity and flags, and the per-sample step built from them.
 
 Three paths run these functions: the per-sample :func:`step` (and the real-time stepper
 ``tilt.make_step``, which wraps it), and the batch kernel
-(:func:`verticality.estimators.tilt_kernels.run_chunk`), which applies the same per-sample terms
+(:func:`verticality.tilt.kernels.run_chunk`), which applies the same per-sample terms
 and the same block update to many blocks at once. The filter lives in flat vectors whose fields
-are named in :mod:`verticality.estimators.tilt_layout` (``X`` the filter, ``S`` the block sums,
+are named in :mod:`verticality.tilt.layout` (``X`` the filter, ``S`` the block sums,
 ``C`` the per-block inputs, ``E`` the error state). The plain-Python
-:class:`~verticality.estimators.tilt_stream.Stream` is an independent reference implementation of
+:class:`~verticality.tilt.stream.Stream` is an independent reference implementation of
 the same filter, tested against this core (tests/test_tilt_reference.py).
 
 Functions that the host side of the batch run also needs on NumPy arrays (sample validity, flags,
@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality import so3
-from verticality.estimators.tilt_flags import (
+from verticality.tilt.flags import (
     ACC_DISTURBED,
     ACC_MISSING,
     BAD_DT,
@@ -45,8 +45,8 @@ from verticality.estimators.tilt_flags import (
     REACQUIRED,
     REACQUIRING,
 )
-from verticality.estimators.tilt_layout import NE, C, E, S, X
-from verticality.estimators.tilt_params import (
+from verticality.tilt.layout import NE, C, E, S, X
+from verticality.tilt.params import (
     GAP_TOLERANCE_S,
     MAX_ACC_M_S2,
     MAX_DT_S,
@@ -108,7 +108,7 @@ class TiltOutput(NamedTuple):
     bias_S_rad_s: jax.Array  # (3,)
     var: jax.Array  # (10,) variances of (δx, δy [rad²], ṽx, ṽy [m²/s²], b̃x, b̃y, b̃z [rad²/s²],
     #                 s̃x, s̃y, s̃z)
-    flags: jax.Array  # int32 bit set (verticality.estimators.tilt_flags)
+    flags: jax.Array  # int32 bit set (verticality.tilt.flags)
     measured: jax.Array  # bool: the accelerometer sample entered the filter
 
 
@@ -200,7 +200,7 @@ def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0,
     the same arithmetic, each compiled the faster way (XLA runs few large kernels best, and a
     single sample's few small ones as vectors). ``tilt_var`` (rad², scalar or (...)): a tilt
     variance the sample adds besides its own terms (a clipped gyro axis's unknown excess,
-    :mod:`~verticality.estimators.tilt_limits`), summed with the dropouts' in ``qmiss``;
+    :mod:`~verticality.tilt.limits`), summed with the dropouts' in ``qmiss``;
     ``vel_var`` (m²/s²) likewise the velocity variance of a clipped accelerometer axis's unknown
     excess (``vmiss``)."""
     dt_ok, gyr_ok, acc_ok, acc_n2 = masks(g, a, dt, xp)
@@ -491,7 +491,7 @@ def block_prediction(x, c):
 
 class BlockTransition(NamedTuple):
     """What a block update did to the error state, for the offline smoother
-    (:mod:`verticality.estimators.tilt_smoother`): the block as a linear-Gaussian step
+    (:mod:`verticality.tilt.smoother`): the block as a linear-Gaussian step
     ``x_prior = F x_start + w`` followed by the measurement updates, ``x_new = x_prior ⊕ dx``.
 
     A velocity reset (a kick, a persistent velocity, a gap) replaces the velocity by a fresh
@@ -701,7 +701,7 @@ def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0, v
     update runs. Before the initialization, the first usable accelerometer sample sets the tilt
     (flag INIT), to be re-acquired after reacquire_s. ``tilt_var``, ``vel_var``, ``flags``: the
     sample's extra tilt (rad²) and velocity (m²/s²) variances and flags from the recording's limits
-    (:class:`~verticality.estimators.tilt_limits.Limits`; none by default). Returns
+    (:class:`~verticality.tilt.limits.Limits`; none by default). Returns
     ``(state, TiltOutput)``."""
     gyr = jnp.asarray(gyr, dtype=jnp.float64)
     acc = jnp.asarray(acc, dtype=jnp.float64)

@@ -30,14 +30,14 @@ arrays. The layouts:
 * :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input).
 * :data:`CHUNK_SAMPLE` a batch chunk's sample: a :data:`SAMPLE` (same offsets), ``tilt_var`` and
   ``vel_var``, the tilt (rad²) and velocity (m²/s²) variances the sample adds besides its own
-  terms (clipped gyro and accelerometer axes, :mod:`~verticality.estimators.tilt_limits`); along
+  terms (clipped gyro and accelerometer axes, :mod:`~verticality.tilt.limits`); along
   the leading axis of the chunk's input (structure of arrays).
 * :data:`OUT` the stepper's output ``[roll, pitch, up (3), quat (4), bias (3), flags]``.
 * :data:`ROW` the batch kernel's row per block: the state at its start (``q0``, ``b0``, ``var0``
   the diagonal of ``P``) and after its update (``q1``, ``b1``, ``var1``), whether the update found
   the accelerometer disturbed and re-acquired the tilt, and ``reacquire`` before and after.
 * :data:`TRANS` the batch kernel's row per block for the offline smoother: the covariance at the
-  block's start ``P0`` and the block's :class:`~verticality.estimators.tilt_core.BlockTransition`
+  block's start ``P0`` and the block's :class:`~verticality.tilt.core.BlockTransition`
   (``F``, ``P_prior``, ``dx``, ``split``; matrices row-major).
 * :data:`SOA` the batch kernel's per-sample outputs, along the leading axis.
 * :data:`HEAD` the batch kernel's chunk header: the sums the chunk's first block starts from and

@@ -1,5 +1,5 @@
 """Sensors at their limits, found in a recording before the tilt filter runs
-(:func:`verticality.estimators.tilt.estimate`, :func:`~verticality.estimators.tilt.smooth`):
+(:func:`verticality.tilt.estimate`, :func:`~verticality.tilt.smooth`):
 clipped (saturated) gyro and accelerometer axes, and held rows (a logger faster than its sensor
 repeats the sensor's last reading). NumPy, on the host; the filter receives the result as per-sample
 inputs (:class:`Limits`).
@@ -60,8 +60,8 @@ from typing import NamedTuple
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators.tilt_flags import CLIPPED, HELD
-from verticality.estimators.tilt_params import G_M_S2
+from verticality.tilt.flags import CLIPPED, HELD
+from verticality.tilt.params import G_M_S2
 
 MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make it a clip level
 GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s

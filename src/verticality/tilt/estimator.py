@@ -33,10 +33,13 @@ The estimator (the project's interface, :mod:`verticality.estimators.base`)::
     state, out = filt.step(state, gyr, acc, dt)   # gyr (3,) rad/s, acc (3,) m/s², dt s
     state, outs = filt.run(state, gyrs, accs, dts)  # (N, 3), (N, 3), scalar or (N,): the fast
                                                      # batch path, equal to repeated step
-    out = estimate(gyr, acc, dt)                  # a whole recording from the start
 
-``out`` is a :class:`TiltOutput` (roll, pitch, gravity direction, quaternion, bias, variances,
-flags, ``measured``: the accelerometer sample was used). A NaN in ``acc`` means "no accelerometer":
+``out`` is the core's raw :class:`~verticality.tilt.core.TiltOutput` (roll, pitch, gravity
+direction, quaternion, bias, variances, flags, ``measured``: the accelerometer sample was used).
+A whole recording from the start is ``estimate(gyr, acc, t_s)`` (or ``period_s=``), offline
+``smooth``: both return the package's one output type,
+:class:`~verticality.tilt.output.TiltEstimate` (the fields above, the time and the tilt's σ from
+the run's parameters). A NaN in ``acc`` means "no accelerometer":
 predict only (flag ``ACC_MISSING``); a NaN gyro sample propagates the covariance with
 ``omega_missing_rad_s`` as the unknown rate (flag ``GYR_MISSING``); a non-finite or non-positive
 Δt skips the sample (flag ``BAD_DT``). A Δt above ``gap_flag_s`` (a gap in the recording) is used
@@ -48,11 +51,11 @@ initialization from the accelerometer is treated the same way (the first sample 
 inertial acceleration): wide tilt variance (``init_tilt_rad``), re-acquired after ``reacquire_s``.
 Nothing turns a finite estimate into NaN.
 
-The filter is written once, in :mod:`~verticality.estimators.tilt_core` (per-sample step, block
-update); :mod:`~verticality.estimators.tilt_kernels` runs it on many blocks at once for ``run``;
-:class:`Stepper` wraps the per-sample step for Python loops in JAX, and the plain-Python
-:class:`~verticality.estimators.tilt_stream.Stream` is its independent reference implementation
-for real-time loops.
+The filter is written once, in :mod:`~verticality.tilt.core` (per-sample step, block update);
+:mod:`~verticality.tilt.kernels` runs it on many blocks at once for ``run``; :class:`Stepper`
+wraps the per-sample step for Python loops in JAX, and the plain-Python
+:class:`~verticality.tilt.stream.Stream` is its independent reference implementation for
+real-time loops (wrapped by :class:`verticality.tilt.Stream`).
 """
 
 from __future__ import annotations
@@ -65,35 +68,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators import tilt_batch, tilt_core, tilt_limits, tilt_smoother
-from verticality.estimators.tilt_core import TiltOutput, TiltState, quat_from_acc
-from verticality.estimators.tilt_flags import (  # noqa: F401  (the flags, for users of tilt)
-    ACC_DISTURBED,
-    ACC_MISSING,
-    BAD_DT,
-    CLIPPED,
-    DT_GAP,
-    FLAG_NAMES,
-    GYR_MISSING,
-    HELD,
-    INIT,
-    OUT_OF_RANGE,
-    REACQUIRED,
-    REACQUIRING,
-)
-from verticality.estimators.tilt_layout import NE, OUT, SAMPLE, E, X, Z
-from verticality.estimators.tilt_params import (  # noqa: F401  (re-exported for users of tilt)
-    BLOCK,
-    DEFAULT_P0,
-    DEFAULT_PARAMS,
-    G_M_S2,
-    TiltParams,
-)
 from verticality.models.base import model_dataclass, static_field
+from verticality.tilt import batch as tilt_batch
+from verticality.tilt import core as tilt_core
+from verticality.tilt import limits as tilt_limits
+from verticality.tilt import smoother as tilt_smoother
+from verticality.tilt.core import TiltOutput, TiltState
+from verticality.tilt.layout import NE, OUT, SAMPLE, X, Z
+from verticality.tilt.output import TiltEstimate, estimate_of, time_axis
+from verticality.tilt.params import BLOCK, DEFAULT_P0, DEFAULT_PARAMS, TiltParams, block_samples
 
-__all__ = ["TiltFilter", "TiltState", "TiltOutput", "TiltParams", "Stepper", "estimate", "smooth",
-           "recording_limits", "make_step", "tilt_sigma_rad", "quat_from_acc", "DEFAULT_PARAMS",
-           "DEFAULT_P0", "BLOCK"]
+__all__ = ["TiltFilter", "Stepper", "estimate", "smooth", "estimate_steps", "smooth_steps",
+           "recording_limits", "run_in_pieces", "concatenate_outputs", "make_step"]
 
 _NO_ACC = np.full(3, np.nan)
 
@@ -154,7 +140,7 @@ _EMPTY_SUMS = np.asarray(tilt_core.empty_sums(xp=np))
 
 def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
                      detect_clipping: bool = True, prev=None):
-    """The clipped and held samples of a recording (:func:`tilt_limits.find_limits`; ``prev`` the
+    """The clipped and held samples of a recording (:func:`verticality.tilt.limits.find_limits`; ``prev`` the
     row before the first when it is read in pieces), or None when its shapes are wrong (the
     filter's own checks then say so). ``detect_clipping=False``: no clipping at all, given ranges
     or not (held rows are still flagged)."""
@@ -168,31 +154,84 @@ def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
     return lim
 
 
-def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
-             block: int = BLOCK, gyr_range_rad_s=None, acc_range_m_s2=None,
-             detect_clipping: bool = True) -> TiltOutput:
+def estimate(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
+             params: TiltParams = DEFAULT_PARAMS, block: int | None = None, gyr_range_rad_s=None,
+             acc_range_m_s2=None, detect_clipping: bool = True) -> TiltEstimate:
     """Filter a whole recording from the start (no prior state): gyro (N, 3) rad/s,
-    accelerometer (N, 3) m/s², ``dt_s`` a scalar sampling period or (N,) per-sample steps
-    (``dt_s[k]`` is the time from sample k−1 to k). Returns a :class:`TiltOutput` of NumPy arrays.
+    accelerometer (N, 3) m/s², and its time: the time stamps ``t_s`` (N,) s, or a fixed sampling
+    period ``period_s`` (s) (:func:`~verticality.tilt.output.time_axis`). Returns a
+    :class:`~verticality.tilt.output.TiltEstimate` of NumPy arrays, σ from ``params``.
 
-    Sensors at their limits (:mod:`~verticality.estimators.tilt_limits`): ``gyr_range_rad_s``,
+    Sensors at their limits (:mod:`~verticality.tilt.limits`): ``gyr_range_rad_s``,
     ``acc_range_m_s2`` the sensor's full-scale readings (scalar or one per axis); a component at
     or beyond them is clipped (flag ``CLIPPED``): a clipped gyro axis widens the tilt variance for
-    its unknown excess, a clipped accelerometer axis the velocity variance. Without them the clip levels
-    are inferred from the recording's flat tops; ``detect_clipping=False`` turns clipping off.
-    Rows that repeat the previous row bit for bit are flagged ``HELD``.
+    its unknown excess, a clipped accelerometer axis the velocity variance. Without them the clip
+    levels are inferred from the recording's flat tops; ``detect_clipping=False`` turns clipping
+    off. Rows that repeat the previous row bit for bit are flagged ``HELD``. ``block``: samples
+    per Kalman update; default ``params.update_s`` at the recording's sampling period.
 
     Example::
 
-        from verticality.estimators import tilt
-        out = tilt.estimate(gyr, acc, 1 / 285.7)
-        out.roll_rad, out.pitch_rad, out.up_S, out.bias_S_rad_s, out.flags
+        from verticality import tilt
+        out = tilt.estimate(gyr, acc, period_s=1 / 285.7)   # or tilt.estimate(gyr, acc, t_s)
+        out.roll_rad, out.pitch_rad, out.up_S, out.sigma_rad, out.flags
     """
-    filt = TiltFilter(params, block)
+    gyr, acc = _arrays(gyr_rad_s, acc_m_s2)
+    t, dt = time_axis(gyr.shape[0], t_s, period_s)
+    out = estimate_steps(gyr, acc, dt, params, block, gyr_range_rad_s, acc_range_m_s2,
+                         detect_clipping)
+    return estimate_of(out, t, params)
+
+
+def smooth(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
+           params: TiltParams = DEFAULT_PARAMS, block: int | None = None, gyr_range_rad_s=None,
+           acc_range_m_s2=None, detect_clipping: bool = True) -> TiltEstimate:
+    """The offline estimate of a whole recording: the filter (:func:`estimate`, the same
+    arguments, the sensors' limits included) followed by a Rauch–Tung–Striebel backward pass over
+    its error state (:mod:`~verticality.tilt.smoother`), so that every sample's tilt uses the
+    samples after it as well as those before. The same output type, fields, row count and flags
+    as :func:`estimate`; ``var`` and ``sigma_rad`` are the smoothed ones. A gap in the time
+    stamps, and the re-acquisition after it (or after the start), splits the smoothing: nothing
+    after a gap changes the estimate before it. The whole recording is held in memory: a
+    recording beyond :data:`verticality.sizing.MAX_WORK_BYTES` is refused (``InputError``).
+
+    Example::
+
+        out = tilt.smooth(gyr, acc, period_s=1 / 285.7)
+        out.roll_rad, out.pitch_rad, out.sigma_rad
+    """
+    gyr, acc = _arrays(gyr_rad_s, acc_m_s2)
+    t, dt = time_axis(gyr.shape[0], t_s, period_s)
+    out = smooth_steps(gyr, acc, dt, params, block, gyr_range_rad_s, acc_range_m_s2,
+                       detect_clipping)
+    return estimate_of(out, t, params)
+
+
+def _arrays(gyr_rad_s, acc_m_s2):
+    """The gyro and accelerometer as float64 (N, 3) arrays of one length, else a one-line
+    ``InputError``."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
+    if gyr.ndim != 2 or gyr.shape[1:] != (3,) or acc.shape != gyr.shape:
+        raise InputError(f"gyr_rad_s and acc_m_s2 must both have shape (N, 3); got {gyr.shape} "
+                         f"and {acc.shape}")
+    return gyr, acc
+
+
+def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int | None = None,
+                   gyr_range_rad_s=None, acc_range_m_s2=None, detect_clipping: bool = True):
+    """:func:`estimate` given the steps ``dt_s`` (a scalar, or (N,): ``dt_s[k]`` the time from
+    sample k−1 to k, non-finite where a reader found no usable time stamp: that sample is skipped
+    and flagged ``BAD_DT``), for readers of files that judge the time stamps themselves
+    (:mod:`verticality.tilt.files`). ``block``: samples per Kalman update; default
+    ``params.update_s`` over the sampling period (:func:`~verticality.tilt.params.block_samples`).
+    Returns the core's raw ``TiltOutput`` (NumPy arrays)."""
+    gyr = np.asarray(gyr, dtype=np.float64)
+    acc = np.asarray(acc, dtype=np.float64)
     n = gyr.shape[0] if gyr.ndim == 2 else 0
     dt = np.asarray(dt_s, dtype=np.float64)
+    block = block_samples(params, dt) if block is None else block
+    filt = TiltFilter(params, block)
     lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping)
     if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
@@ -202,27 +241,15 @@ def estimate(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
                                                   np.broadcast_to(dt, (n,)), limits=lim)))
 
 
-def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
-           block: int = BLOCK, gyr_range_rad_s=None, acc_range_m_s2=None,
-           detect_clipping: bool = True) -> TiltOutput:
-    """The offline estimate of a whole recording: the filter (:func:`estimate`, the same
-    arguments, the sensors' limits included) followed by a Rauch–Tung–Striebel backward pass over
-    its error state (:mod:`~verticality.estimators.tilt_smoother`), so that every sample's tilt uses the samples
-    after it as well as those before. The same fields, row count and flags as :func:`estimate`;
-    ``var`` the smoothed variances (:func:`tilt_sigma_rad` gives the smoothed tilt's σ). A gap in
-    the time stamps, and the re-acquisition after it (or after the start), splits the smoothing:
-    nothing after a gap changes the estimate before it. The whole recording is held in memory:
-    a recording beyond :data:`verticality.sizing.MAX_WORK_BYTES` is refused (``InputError``).
-
-    Example::
-
-        out = tilt.smooth(gyr, acc, 1 / 285.7)
-        out.roll_rad, out.pitch_rad, tilt.tilt_sigma_rad(out.var)
-    """
-    gyr = np.asarray(gyr_rad_s, dtype=np.float64)
+def smooth_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int | None = None,
+                 gyr_range_rad_s=None, acc_range_m_s2=None, detect_clipping: bool = True):
+    """:func:`smooth` given the steps ``dt_s`` (as :func:`estimate_steps`); the core's raw
+    ``TiltOutput`` with the smoothed variances."""
+    gyr = np.asarray(gyr, dtype=np.float64)
     tilt_smoother.check_size(gyr.shape[0] if gyr.ndim else 0)
+    block = block_samples(params, dt_s) if block is None else block
     filt = TiltFilter(params, block)
-    acc = np.asarray(acc_m_s2, dtype=np.float64)
+    acc = np.asarray(acc, dtype=np.float64)
     lim = recording_limits(gyr, acc, np.asarray(dt_s, dtype=np.float64), gyr_range_rad_s,
                            acc_range_m_s2, detect_clipping)
     extra = {} if lim is None else lim.run_args()
@@ -235,9 +262,10 @@ def smooth(gyr_rad_s, acc_m_s2, dt_s, params: TiltParams = DEFAULT_PARAMS,
 def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int | None = None,
                   limits: tilt_limits.Limits | None = None):
     """The outputs of ``filt.run`` over a long recording, piece by piece (each of at most
-    ``piece`` samples ending at a block boundary, :func:`~verticality.estimators.tilt_batch.
-    piece_cut`): a generator of :class:`TiltOutput` pieces, as ``estimate`` and the streaming
-    read of ``verticality estimate`` filter; ``piece`` default ``tilt_batch.PIECE_SAMPLES``).
+    ``piece`` samples ending at a block boundary, :func:`~verticality.tilt.batch.piece_cut`): a
+    generator of raw :class:`~verticality.tilt.core.TiltOutput` pieces, as ``estimate`` and the
+    streaming read of ``verticality estimate`` filter; ``piece`` default
+    ``tilt_batch.PIECE_SAMPLES``).
     Equal to one ``run`` over the whole to rounding (the batch kernel's chunks differ), and bit
     for bit to any other reading in the same pieces. ``limits``: the recording's clipped and held
     samples (:func:`recording_limits`)."""
@@ -256,19 +284,8 @@ def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int 
 
 
 def concatenate_outputs(outs) -> TiltOutput:
-    """One :class:`TiltOutput` of consecutive pieces."""
+    """One raw :class:`~verticality.tilt.core.TiltOutput` of consecutive pieces."""
     return TiltOutput(*(np.concatenate(parts) for parts in zip(*outs, strict=True)))
-
-
-def tilt_sigma_rad(var, params: TiltParams = DEFAULT_PARAMS) -> np.ndarray:
-    """Standard deviation of the tilt (rad) from a :class:`TiltOutput`'s ``var`` ((..., 10)): the
-    RMS angle between the true and the estimated vertical, ``sqrt(var_δx + var_δy + (c/g)²)``.
-    The first two terms are the filter's covariance of its tilt error (frame-free: the trace does
-    not depend on the heading); ``c = params.acc_calib_m_s2`` adds the accelerometer's calibration
-    error, a systematic error that the filter cannot average out and that sets the error at rest
-    (docs/tilt.md, "The uncertainty")."""
-    v = np.asarray(var, dtype=np.float64)
-    return np.sqrt(np.sum(v[..., E.tilt], axis=-1) + (params.acc_calib_m_s2 / params.g_m_s2) ** 2)
 
 
 # --- the real-time form in JAX: the state and the sample as flat vectors ---
@@ -321,10 +338,15 @@ class Stepper:
         return jax.tree_util.tree_map(np.asarray, _state_of(np.asarray(z)))
 
 
-def make_step(params: TiltParams = DEFAULT_PARAMS, block: int = BLOCK, x0=None, P0=None
-              ) -> Stepper:
-    """The real-time stepper of the filter with ``params`` and ``block``, started from
-    ``TiltFilter.init(x0, P0)``."""
+def make_step(params: TiltParams = DEFAULT_PARAMS, block: int | None = None, x0=None, P0=None,
+              period_s: float | None = None) -> Stepper:
+    """The real-time stepper of the filter with ``params``, started from
+    ``TiltFilter.init(x0, P0)``, updating every ``block`` samples or, by default, every
+    ``params.update_s`` at the sampling period ``period_s`` (one of them is needed)."""
+    if block is None:
+        if period_s is None:
+            raise InputError("make_step needs the sampling period (period_s=…) or block=…")
+        block = block_samples(params, period_s)
     filt = TiltFilter(params, block)
     s = filt.init(x0, P0)
     return Stepper(filt, Z.pack(xp=np, x=s.x, sums=s.sums, count=s.count,

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.estimators.tilt_flags import FLAG_NAMES, REACQUIRING
-from verticality.estimators.tilt_params import DEFAULT_PARAMS
+from verticality.tilt.flags import FLAG_NAMES, REACQUIRING
+from verticality.tilt.params import DEFAULT_PARAMS
 
 
 def flag_runs(flags, bit):

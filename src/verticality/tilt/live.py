@@ -2,8 +2,9 @@
 per row in, flushed at once, so that a logger, a serial reader or a robot's driver can be piped
 through it.
 
-The filter is the plain-Python :class:`~verticality.estimators.tilt_stream.Stream` (equal to the
-batch run to 1e-9; a jitted JAX call per sample would be too slow for 1 kHz). The rows are read
+The filter is :class:`verticality.tilt.Stream`, the plain-Python implementation (equal to the
+batch run to 1e-9; a jitted JAX call per sample would be too slow for 1 kHz), given each row's
+step as this reader judges the time stamps (:func:`next_step`). The rows are read
 by :class:`~verticality.io.imu_rows.RowReader`: the first second (at most 500 rows) is held back
 and read and checked as ``verticality estimate`` reads a whole file
 (:func:`verticality.io.imu.recording_from_rows`: layout, time unit, units, increasing time); then
@@ -16,10 +17,12 @@ from __future__ import annotations
 import math
 from typing import TextIO
 
-from verticality.estimators.tilt_params import MAX_DT_S
-from verticality.estimators.tilt_stream import Stream
+import numpy as np
+
 from verticality.io import imu, imu_layout
 from verticality.io.imu_rows import RowReader
+from verticality.tilt.params import MAX_DT_S
+from verticality.tilt.realtime import Stream
 
 
 def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin",
@@ -43,14 +46,15 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
     if head.t0_stamp is not None:
         print(f"t is in seconds from the input's first time stamp, {head.t0_stamp} "
               f"{head.time_unit}", file=err)
-    s = Stream()
+    s = Stream(period_s=float(np.median(head.dt_s)) if head.dt_s.size else None)
     fmt = imu.estimate_row_format(sigma)
 
     def emit(t_s, g, a, dt):
-        roll, pitch, up, _, bias, flags = s.step(g, a, dt)
-        row = (t_s, roll, pitch, -up[0], -up[1], -up[2], *bias, flags)
+        e = s.step_dt(g, a, dt, t_s)
+        up = e.up_S
+        row = (e.t_s, e.roll_rad, e.pitch_rad, -up[0], -up[1], -up[2], *e.bias_S_rad_s, e.flags)
         if sigma:
-            row += (s.tilt_sigma_rad,)
+            row += (e.sigma_rad,)
         out.write(fmt % row + "\n")
         out.flush()
 

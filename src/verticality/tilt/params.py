@@ -1,7 +1,7 @@
-"""Parameters of the 3-D tilt filter (:mod:`verticality.estimators.tilt`): one set for every
+"""Parameters of the 3-D tilt filter (:mod:`verticality.tilt`): one set for every
 recording, physically motivated (docs/tilt.md, "The filter"), and the default prior covariance and
 block length. Constants only, so that the plain-Python reference
-(:mod:`verticality.estimators.tilt_stream`) can share them without sharing any arithmetic.
+(:mod:`verticality.tilt.stream`) can share them without sharing any arithmetic.
 """
 
 from __future__ import annotations
@@ -34,7 +34,15 @@ class TiltParams(NamedTuple):
     caught (flag ``REACQUIRING`` until then).
     ``acc_calib_m_s2``: the accelerometer's calibration error (bias, scale, misalignment), which
     gravity alone cannot reveal; it does not change the estimate, only the reported uncertainty
-    (``tilt.tilt_sigma_rad``).
+    (``tilt.tilt_sigma_rad``). Its default is a consumer MEMS part's after a user's calibration:
+    offsets of ±10 mg and cross-axis sensitivities of ±1 % per axis (data sheets of the Bosch
+    BMI160, InvenSense MPU-9250 and ICM-20948), each uniform, tilt gravity's horizontal
+    components by about 0.08 m/s² per axis, 0.11 m/s² over both; a better-calibrated part may
+    set its own. ``update_s``: the Kalman update interval (s); the gyro is integrated over it
+    between updates (:func:`block_samples` turns it into samples at a recording's rate). Short
+    against the motion's correlation times (≥ 0.3 s), long enough for the block's velocity
+    pseudo-measurement to average the accelerometer's noise: 32 samples at BROAD's 285.7 Hz,
+    11 at 100 Hz, 6 at 50 Hz.
     ``acc_disturbed_m_s2``: flag threshold on the disturbance estimate. Under a disturbance the
     speed prior of the velocity pseudo-measurement grows to the speed the disturbance's RMS
     acceleration makes at ``vel_disturbed_hz`` (``a_rms / 2πf`` when above ``vel_m_s``), so that
@@ -71,9 +79,10 @@ class TiltParams(NamedTuple):
     gap_flag_s: float = 0.1
     reacquire_s: float = 1.0
     init_tilt_rad: float = 1.0
-    acc_calib_m_s2: float = 0.05
+    acc_calib_m_s2: float = 0.11
     vel_disturbed_hz: float = 1.0
     vel_jump_nis: float = 9.21
+    update_s: float = 0.112
 
 
 DEFAULT_PARAMS = TiltParams()
@@ -85,7 +94,20 @@ BIAS_PRIOR_RAD_S = 0.1
 SCALE_PRIOR = 0.005
 DEFAULT_P0 = np.diag([0.05**2, 0.05**2, 0.1**2, 0.1**2] + [BIAS_PRIOR_RAD_S**2] * 3
                      + [SCALE_PRIOR**2] * 3)
-BLOCK = 32  # samples per Kalman update (the canal signal is integrated in between)
+BLOCK = 32  # samples per Kalman update of a TiltFilter built without a sampling period
+
+
+def block_samples(params: TiltParams, dt_s) -> int:
+    """The number of samples per Kalman update: ``params.update_s`` over the recording's sampling
+    period (the median of its valid steps ``dt_s``, scalar or (N,)), at least one. The filter's
+    noise terms are densities and its velocity prior a time constant, so the update interval in
+    seconds, not in samples, keeps the filter the same at every rate."""
+    dt = np.asarray(dt_s, dtype=np.float64).reshape(-1)
+    dt = dt[np.isfinite(dt) & (dt > 0) & (dt < MAX_DT_S)]
+    if dt.size == 0:
+        return 1
+    period = float(dt[0]) if dt.size == 1 else float(np.median(dt))
+    return max(1, int(round(params.update_s / period)))
 
 # Physical range of a sample: twice the largest common MEMS ranges (gyros ±2000 °/s, accelerometers
 # ±16 g; high-g parts read to ±32 g): a gyro or accelerometer component at or beyond them (±inf

@@ -4,7 +4,7 @@ list or glob of them), one task per recording on the sweeps' engine
 worker processes, or on a running Dask scheduler.
 
 Each recording ``NAME.csv`` / ``NAME.hdf5`` gives ``OUT/NAME.csv``, written by
-:func:`verticality.analysis.imu_estimate.estimate_file` exactly as the single-file command writes
+:func:`verticality.tilt.files.estimate_file` exactly as the single-file command writes
 it (bit for bit), and one row of the summary table ``OUT/summary.csv`` / ``OUT/summary.json``
 (:data:`SUMMARY_COLUMNS`). A recording that cannot be read or filtered is a row with its error
 (``status`` ``error``), not the end of the run. A task writes its row to ``OUT/rows/NAME.json``
@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from verticality.errors import InputError
-from verticality.estimators import tilt_flags as F
+from verticality.tilt import flags as F
 
 RECORDING_SUFFIXES = (".csv", ".hdf5", ".h5")
 SUMMARY_NAMES = ("summary.csv", "summary.json", "folder.json")  # in OUT beside the outputs
@@ -104,10 +104,10 @@ def output_names(recordings: list[Path]) -> list[str]:
 
 
 def run_summary(run) -> dict:
-    """The summary row's numbers of one :class:`~verticality.analysis.imu_estimate.EstimateRun`
+    """The summary row's numbers of one :class:`~verticality.tilt.files.EstimateRun`
     (``mean_sigma_deg``: the mean σ of the tilt over the settled samples, None for a peer or
     when no sample settled)."""
-    from verticality.analysis.imu_estimate import settled_samples
+    from verticality.tilt.files import settled_samples
 
     flags = np.asarray(run.flags).astype(np.int64)
     row = {"rows": int(run.n), "duration_s": float(run.duration_s),
@@ -137,11 +137,11 @@ def error_message(exc: BaseException) -> str:
 def estimate_one(path: str, out_path: str, row_path: str, options: dict,
                  compile_cache: str | None = None) -> dict:
     """One task: ``estimate`` of the recording ``path`` into ``out_path`` with ``options``
-    (:func:`~verticality.analysis.imu_estimate.estimate_file`'s keywords), then its summary row
+    (:func:`~verticality.tilt.files.estimate_file`'s keywords), then its summary row
     into ``row_path`` (atomically). A failure is the row's ``error``; the task never raises for a
     bad recording."""
-    from verticality.analysis.imu_estimate import estimate_file
     from verticality.sweep.engine import use_compile_cache, write_atomic
+    from verticality.tilt.files import estimate_file
 
     use_compile_cache(compile_cache)
     row = dict.fromkeys(SUMMARY_COLUMNS)
@@ -164,9 +164,9 @@ def estimate_options(units=(), columns=None, time_unit=None, filter_name: str | 
                      sigma: bool = False, offline: bool = False, ranges: dict | None = None) -> dict:
     """The options of every recording's ``estimate`` (checked once, before any task), as a
     JSON-able dict."""
-    from verticality.analysis.broad_eval import OURS
-    from verticality.analysis.imu_estimate import check_offline, check_ranges, check_sigma
     from verticality.io.recording import parse_units
+    from verticality.tilt.evaluation.broad import OURS
+    from verticality.tilt.files import check_offline, check_ranges, check_sigma
 
     filter_name = filter_name or OURS
     check_offline(filter_name, offline)
@@ -222,7 +222,7 @@ def estimate_folder(inputs, out_dir, *, units=(), columns=None, time_unit=None,
     task each (:func:`estimate_one`), on the scheduler at ``scheduler``, a ``LocalCluster`` of
     ``workers`` processes, or (neither given) in this process; write the summary table
     (``summary.csv``, ``summary.json``). ``units`` … ``ranges``: as for
-    :func:`~verticality.analysis.imu_estimate.estimate_file` (:func:`estimate_options`).
+    :func:`~verticality.tilt.files.estimate_file` (:func:`estimate_options`).
     ``compile_cache``: JAX's persistent compilation cache for the workers (default: this
     process's)."""
     from verticality.io.paths import resolved
