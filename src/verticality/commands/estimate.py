@@ -88,7 +88,7 @@ def run(args) -> int:
 
     from verticality.analysis.folder import is_folder_input
     from verticality.analysis.imu_estimate import check_sigma, estimate_file
-    from verticality.io.paths import check_input_file, check_paths
+    from verticality.io.paths import check_input_file, check_paths, check_written
 
     if is_folder_input(args.input):
         return run_folder(args)
@@ -106,6 +106,7 @@ def run(args) -> int:
                             args.filter, sigma=args.sigma, keep=args.plot is not None,
                             offline=args.offline,
                             ranges=sensor_ranges(args.gyr_range, args.acc_range))
+    check_written(args.out)
     how = ", offline (smoothed)" if args.offline else ""
     print(f"wrote {args.out} ({run.n} samples, filter {args.filter}{how})")
     if run.sigma_line is not None:
