@@ -104,6 +104,21 @@ def check_written(path, option: str = "--out") -> Path:
     return path
 
 
+def fingerprint(path) -> dict:
+    """What a file is now: its size, modification time (ns) and SHA-256, so that an output made
+    from it can later prove it was made from this content (a recording that grew, was edited or
+    replaced is estimated again)."""
+    import hashlib
+
+    path = Path(path)
+    st = path.stat()
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return {"size": st.st_size, "mtime_ns": st.st_mtime_ns, "sha256": h.hexdigest()}
+
+
 def figure_formats() -> dict[str, str]:
     """The file extensions matplotlib can write (without the dot) and their descriptions."""
     from matplotlib.figure import Figure
