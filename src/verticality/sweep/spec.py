@@ -51,6 +51,10 @@ from verticality.sweep.kernels import Kernel
 from verticality.sweep.registry import KERNELS
 
 TOP_KEYS = ("kernel", "batch", "runs_per_task", "options", "design", "knobs", "seeds")
+# the schema of the top level: each key's type (TOML's: a string, an integer, a table)
+TOP_TYPES = {"kernel": (str, "a string"), "batch": (int, "an integer"),
+             "runs_per_task": (int, "an integer"), "options": (dict, "a table"),
+             "design": (dict, "a table"), "knobs": (dict, "a table"), "seeds": (dict, "a table")}
 MAX_SEED = 2**31 - 1
 DEFAULT_BATCH = 32
 # Memory a run takes, for the size of a spec before its design is built (``sizing``): the
@@ -183,6 +187,10 @@ def parse(text: str, source: str = "spec", limit_bytes: float | None = None) -> 
     unknown = sorted(set(raw) - set(TOP_KEYS))
     if unknown:
         raise InputError(f"{source}: unknown key(s) {', '.join(unknown)}; expected {', '.join(TOP_KEYS)}")
+    for key, (kind_, what) in TOP_TYPES.items():
+        value = raw.get(key)
+        if value is not None and (not isinstance(value, kind_) or isinstance(value, bool)):
+            raise InputError(f"{source}: {key} = {value!r} must be {what}")
     name = raw.get("kernel")
     if name not in KERNELS:
         raise InputError(f"{source}: kernel must be one of {', '.join(sorted(KERNELS))} (got {name!r})")
@@ -199,6 +207,8 @@ def parse(text: str, source: str = "spec", limit_bytes: float | None = None) -> 
     if not isinstance(design, dict):
         raise InputError(f"{source}: [design] must be a table")
     kind = design.get("kind", "grid")
+    if not isinstance(kind, str):
+        raise InputError(f"{source}: [design] kind = {kind!r} must be \"grid\" or \"random\"")
     extra = sorted(set(design) - {"kind", "n", "seed"})
     if kind not in ("grid", "random") or extra:
         raise InputError(f"{source}: [design] takes kind = \"grid\" or \"random\" (with n and seed); "
