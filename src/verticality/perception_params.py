@@ -98,14 +98,14 @@ def perception_params(model: str, preset: str | None = None, items=()):
         raise InputError(f"unknown preset {name!r} for {model}; known: {', '.join(presets)}")
     p = presets[name]
     p = p._replace(**parse_name_values(items, p._fields, allow_inf=True))
+    if isinstance(p, MerfeldParams) and not (p.k_omega >= 0.0 and p.k_a < 1.0 and p.k_f >= 0.0
+                                             and p.k_f_omega >= 0.0):
+        raise InputError(f"merfeld: need k_omega, k_f, k_f_omega >= 0 and k_a < 1 (the observer's "
+                         f"algebraic loops), got {p}")
     for key in p._fields:
         lo, hi, inf_ok = PARAM_DOMAIN[key]
         v = getattr(p, key)
         if not (lo <= v <= hi or (inf_ok and v == math.inf)):
             raise InputError(f"{model}: {key} = {v:g} is outside [{lo:g}, {hi:g}]"
                              f"{' (or inf)' if inf_ok else ''}, where the model stays finite")
-    if isinstance(p, MerfeldParams) and not (p.k_omega >= 0.0 and p.k_a < 1.0 and p.k_f >= 0.0
-                                             and p.k_f_omega >= 0.0):
-        raise InputError(f"merfeld: need k_omega, k_f, k_f_omega >= 0 and k_a < 1 (the observer's "
-                         f"algebraic loops), got {p}")
     return p
