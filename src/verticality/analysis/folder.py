@@ -203,8 +203,12 @@ def prepare(out_dir: Path, options: dict, resume: bool, recordings: list[Path]) 
         if not resume:
             raise InputError(f"{out_dir} already holds estimates of a folder; use --resume to "
                              "finish it or another --out")
-        old = json.loads(record.read_text(encoding="utf-8"))
-        if old.get("options") != options:
+        try:
+            old = json.loads(record.read_text(encoding="utf-8"))
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise InputError(f"{record} is damaged ({str(exc)[:80]}); the options of the "
+                             "estimates there are unknown: use another --out") from None
+        if not isinstance(old, dict) or old.get("options") != options:
             raise InputError(f"{out_dir} holds estimates made with other options "
                              f"({old.get('options')}); cannot resume them with these")
     (out_dir / ROWS_DIR).mkdir(exist_ok=True)
@@ -223,7 +227,8 @@ def finished_row(row_path: Path, out_path: Path, in_path: Path | None = None) ->
         row = json.loads(row_path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(row, dict) or row.get("status") != "ok" or not out_path.is_file():
+    if (not isinstance(row, dict) or row.get("status") != "ok" or not out_path.is_file()
+            or not set(SUMMARY_COLUMNS) <= set(row)):
         return None
     made = row.pop(MANIFEST, None)
     if not isinstance(made, dict) or not isinstance(made.get("output"), dict):
