@@ -511,16 +511,25 @@ EXTREME_PARAMS = ["1e308", "-1e308", "1e-308", "1e300", "1e30", "-1e30", "1e-30"
                   "1e6", "1e-6", "0.999", "5e3"]
 
 
-@settings(FEW, max_examples=24)
-@given(seed=SEEDS)
-def test_a_parameter_that_overflows_is_refused_or_finite(seed, tmp_path_factory):
+def param_case(seed: int, d: Path) -> list[str]:
+    """``perceive`` of a still tilted head with one or two parameters set to extreme values (the
+    first seeds: each gain of the observer at 1e308)."""
     rng = random.Random(seed)
-    model = rng.choice(["merfeld", "merfeld", "laurens"])
-    d = tmp_path_factory.mktemp("param")
+    model = "merfeld" if seed < 4 else rng.choice(["merfeld", "merfeld", "laurens"])
     (d / "m.csv").write_bytes(still_tilted_motion(20.0, 0.0, 0))
     argv = ["perceive", str(d / "m.csv"), "--model", model, "--out", str(d / "p.csv")]
+    if seed < 4:
+        return argv + ["--param", f"{PARAMS['merfeld'][seed]}=1e308"]
     for _ in range(rng.randint(1, 2)):
         argv += ["--param", f"{rng.choice(PARAMS[model])}={rng.choice(EXTREME_PARAMS)}"]
+    return argv
+
+
+@settings(FEW, max_examples=24)
+@given(seed=st.one_of(st.integers(0, 3), SEEDS))
+def test_a_parameter_that_overflows_is_refused_or_finite(seed, tmp_path_factory):
+    d = tmp_path_factory.mktemp("param")
+    argv = param_case(seed, d)
     code, _, err = run_cli(argv)
     if code == 2:
         assert one_line_refusal(code, err)
