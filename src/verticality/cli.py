@@ -61,9 +61,24 @@ def _enable_compile_cache() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    _enable_compile_cache()
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """The command: its status (0 done, 1 done with failed checks or recordings, 2 refused, 130
+    interrupted). Ctrl-C anywhere, also while a cluster is being closed, is one line."""
+    command = "verticality"
+    try:
+        _enable_compile_cache()
+        args = build_parser().parse_args(argv)
+        command = f"verticality {args.command}"
+        return _run(args)
+    except KeyboardInterrupt:
+        return _interrupted(command)
+
+
+def _interrupted(command: str) -> int:
+    print(f"{command}: interrupted", file=sys.stderr)
+    return 130
+
+
+def _run(args) -> int:
     try:
         return int(args.func(args) or 0)
     except InputError as exc:
@@ -77,9 +92,6 @@ def main(argv: list[str] | None = None) -> int:
         where = f" ({exc.filename})" if exc.filename else ""
         print(f"verticality {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
 
 
 if __name__ == "__main__":

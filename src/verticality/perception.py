@@ -22,6 +22,7 @@ axis; :func:`pitch_up_deg` is the pitch (nose up positive) that gravity implies.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import jax
@@ -140,6 +141,43 @@ def _run(est, ys, dts):
     return est.run(est.init(None), None, ys, dts)[1]
 
 
+@jax.jit
+def _run_held(est, ys, dts, n_sub):
+    """:func:`_run` with row ``k``'s interval taken in ``n_sub[k]`` equal steps, ``y_k`` held; the
+    output of its last step is the row's (memory stays one output per row)."""
+    def row(x, inp):
+        y, dt, n = inp
+        h = dt / n
+        first = est.step(x, None, y, h)
+        return jax.lax.fori_loop(1, n, lambda _, c: est.step(c[0], None, y, h), first)
+
+    return jax.lax.scan(row, est.init(None), (ys, dts, n_sub))[1]
+
+
+MAX_MODEL_STEPS = 10**8  # steps of a perception model in one run: about a minute of one core
+
+
+def run_model(est, ys, dts) -> tuple:
+    """The model's outputs on the rows (``ys`` held over the interval ``dts`` before each). An
+    estimator with a longest step (``max_step_s``: the Merfeld–Zupan observer's RK4) takes an
+    interval longer than that (a gap in the time stamps) in ⌈Δt / h⌉ equal steps, so that the gap
+    is integrated at the model's own step size, never as one step that leaves RK4's stability
+    region; the count of steps is sized first."""
+    dts = np.asarray(dts, float)
+    h = float(est.max_step_s()) if hasattr(est, "max_step_s") else math.inf
+    n_sub = np.maximum(np.ceil(dts / h - 1e-9), 1.0)
+    if not np.any(n_sub > 1):
+        return _run(est, jnp.asarray(ys), jnp.asarray(dts))
+    total = float(np.sum(n_sub))
+    if not total <= MAX_MODEL_STEPS:
+        k = int(np.argmax(dts))
+        raise InputError(f"the model steps at most {h:.3g} s at a time, so this recording needs "
+                         f"{total:.3g} steps (more than {MAX_MODEL_STEPS:.0e}): its largest time "
+                         f"step is {dts[k]:.6g} s (data row {k + 1}); cut the recording into "
+                         "shorter files or remove the jump")
+    return _run_held(est, jnp.asarray(ys), jnp.asarray(dts), jnp.asarray(n_sub.astype(np.int64)))
+
+
 def _interp(t_new, t, a) -> np.ndarray:
     """Columns of ``a`` (N, k) on times ``t``, linearly interpolated to ``t_new``."""
     return np.column_stack([np.interp(t_new, t, col) for col in np.asarray(a, float).T])
@@ -174,7 +212,7 @@ def perceive(record: MotionRecord, model: str = "merfeld", preset: str | None = 
         grid = t[0] + np.arange(int(n_grid)) * p.dt_s
         ys = _interp(grid, t, ys)
     dts = np.diff(grid, prepend=grid[0] - (grid[1] - grid[0]) if grid.size > 1 else p.dt_s)
-    outs = _run(est, jnp.asarray(ys), jnp.asarray(dts))
+    outs = run_model(est, ys, dts)
     check_finite_percepts(grid, outs, record)
     if grid is not t:
         outs = type(outs)(*(_interp(t, grid, np.asarray(a, float)) if a.dtype != bool else a
@@ -198,6 +236,8 @@ def check_finite_percepts(t_run_s, outs, record: MotionRecord) -> None:
         a = np.asarray(a)
         if a.dtype != bool:
             ok &= np.all(np.isfinite(a.reshape(a.shape[0], -1)), axis=1)
+    # perceived gravity is a direction: of length 1 (a vector that collapsed has no tilt)
+    ok &= np.abs(np.linalg.norm(np.asarray(outs.g_H, float), axis=1) - 1.0) < 1e-6
     if np.all(ok):
         return
     t = np.asarray(record.t_s, float)

@@ -71,6 +71,19 @@ LAURENS_PRESETS: dict[str, LaurensParams] = {
 }
 
 PRESETS = {"merfeld": MERFELD_PRESETS, "laurens": LAURENS_PRESETS}
+
+# The values each parameter may take (least, greatest, whether inf is allowed): wide around the
+# published ones, narrow enough that the models' arithmetic stays finite (a gain of 1e308 makes
+# the observer's state overflow, a σ of 1e-308 the Riccati equation singular). Not a claim about
+# physiology: an option outside it is refused in one line instead of giving NaN percepts.
+PARAM_DOMAIN: dict[str, tuple[float, float, bool]] = {
+    "k_omega": (0.0, 1e3, False), "k_a": (-1e3, 0.999, False), "k_f": (0.0, 1e3, False),
+    "k_f_omega": (0.0, 1e3, False), "tau_s": (1e-2, 1e4, False), "tau_a_s": (1e-2, 1e6, True),
+    "tau_v_s": (1e-2, 1e6, True),
+    "dt_s": (1e-4, 0.1, False), "tau_c_s": (1e-2, 1e4, False),
+    "sigma_omega_rad_s": (1e-6, 1e3, False), "sigma_v_rad_s": (1e-6, 1e3, False),
+    "sigma_a_g": (1e-6, 1e3, False), "sigma_f_g": (1e-6, 1e3, False),
+}
 DEFAULT_PRESET = {"merfeld": "human", "laurens": "default"}
 
 
@@ -85,12 +98,14 @@ def perception_params(model: str, preset: str | None = None, items=()):
         raise InputError(f"unknown preset {name!r} for {model}; known: {', '.join(presets)}")
     p = presets[name]
     p = p._replace(**parse_name_values(items, p._fields, allow_inf=True))
-    for key in ("tau_s", "tau_a_s", "tau_v_s", "dt_s", "tau_c_s", "sigma_omega_rad_s",
-                "sigma_v_rad_s", "sigma_a_g", "sigma_f_g"):
-        if key in p._fields and not getattr(p, key) > 0.0:
-            raise InputError(f"{model}: {key} must be positive, got {getattr(p, key)}")
     if isinstance(p, MerfeldParams) and not (p.k_omega >= 0.0 and p.k_a < 1.0 and p.k_f >= 0.0
                                              and p.k_f_omega >= 0.0):
         raise InputError(f"merfeld: need k_omega, k_f, k_f_omega >= 0 and k_a < 1 (the observer's "
                          f"algebraic loops), got {p}")
+    for key in p._fields:
+        lo, hi, inf_ok = PARAM_DOMAIN[key]
+        v = getattr(p, key)
+        if not (lo <= v <= hi or (inf_ok and v == math.inf)):
+            raise InputError(f"{model}: {key} = {v:g} is outside [{lo:g}, {hi:g}]"
+                             f"{' (or inf)' if inf_ok else ''}, where the model stays finite")
     return p

@@ -107,9 +107,56 @@ def run_experiments(names: list[str] | None, *, quick: bool = False, out_dir: Pa
             entry["figures"] = [str(p) for p in exp.figures(result, fig_dir)]
         results["experiments"][exp.name] = entry
     if out_dir is not None:
-        Path(out_dir).mkdir(parents=True, exist_ok=True)
-        (Path(out_dir) / RESULTS_NAME).write_text(json.dumps(results, indent=2))
+        write_results(out_dir, results)
     return results
+
+
+def earlier_results(out_dir: Path, quick: bool) -> dict | None:
+    """The ``results.json`` already in ``out_dir`` (None when there is none), checked to be one
+    (:func:`verticality.report.results_schema.check_results`) and of the same mode as a run with
+    ``quick``: a rerun merges into it, so a damaged file or one of the other mode is refused
+    before anything runs."""
+    from verticality.errors import InputError
+    from verticality.report.results_schema import check_results
+
+    path = Path(out_dir) / RESULTS_NAME
+    if not path.is_file():
+        return None
+    try:
+        data = check_results(json.loads(path.read_text(encoding="utf-8")), str(path))
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path} is not valid JSON ({exc.msg} at line {exc.lineno}); a rerun "
+                         "into this folder would merge into it: mend or move it, or give another "
+                         "--out") from None
+    mode = (data.get("provenance") or {}).get("mode")
+    want = "quick" if quick else "full"
+    if mode is not None and mode != want:
+        raise InputError(f"{path} holds a {mode} run; a {want} run would mix the two in one "
+                         f"report: give another --out{'' if quick else ' or add --quick'}")
+    return data
+
+
+def write_results(out_dir: Path, results: dict) -> Path:
+    """Write ``results`` to ``out_dir/results.json``, merged into what is there: an experiment of
+    this run replaces only its own entry, the others stay (and the report lists them), the
+    earlier runs' date, version, commit and experiments are kept under ``provenance.earlier``. Written under a temporary name
+    and renamed, so an interrupted write loses nothing."""
+    from verticality.sweep.engine import write_atomic
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    quick = (results.get("provenance") or {}).get("mode") == "quick"
+    old = earlier_results(out_dir, quick) or {"experiments": {}}
+    merged = dict(results)
+    merged["experiments"] = {**old["experiments"], **results["experiments"]}
+    prov = results.get("provenance")
+    if old.get("provenance") and isinstance(prov, dict):
+        before = old["provenance"]
+        kept = {k: before.get(k) for k in ("date_utc", "experiments_requested", "version", "git")}
+        merged["provenance"] = {**prov, "earlier": [*before.get("earlier", []), kept]}
+    text = json.dumps(merged, indent=2)
+    return write_atomic(out_dir / RESULTS_NAME,
+                        lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def failed_checks(results: dict) -> list[str]:

@@ -10,11 +10,15 @@ from verticality.errors import InputError
 MAX_WORK_BYTES = 2 * 2**30  # 2 GiB: fits a laptop beside everything else
 
 
-def check_work_size(count: float, bytes_each: float, what: str, advice: str) -> None:
-    """Refuse ``count`` items of ``bytes_each`` bytes when they exceed :data:`MAX_WORK_BYTES`:
-    ``what`` names the items (e.g. ``"rows of 1e9 Hz over 10 s"``), ``advice`` the option to
-    change (e.g. ``"lower --rate or --duration"``)."""
+def check_work_size(count: float, bytes_each: float, what: str, advice: str,
+                    limit_bytes: float | None = None) -> float:
+    """Refuse ``count`` items of ``bytes_each`` bytes when they exceed ``limit_bytes`` (default
+    :data:`MAX_WORK_BYTES`): ``what`` names the items (e.g. ``"rows of 1e9 Hz over 10 s"``),
+    ``advice`` the option to change (e.g. ``"lower --rate or --duration"``). Returns the size in
+    bytes (to be shown)."""
+    limit = MAX_WORK_BYTES if limit_bytes is None else float(limit_bytes)
     size = float(count) * float(bytes_each)
-    if not size <= MAX_WORK_BYTES:  # also NaN
+    if not size <= limit:  # also NaN
         raise InputError(f"this needs {float(count):.3g} {what} (~{size / 2**30:.3g} GiB, more than "
-                         f"the {MAX_WORK_BYTES / 2**30:g} GiB allowed): {advice}")
+                         f"the {limit / 2**30:g} GiB allowed): {advice}")
+    return size

@@ -86,7 +86,7 @@ def sensor_ranges(gyr_range_deg_s, acc_range_g) -> dict:
 def run(args) -> int:
     from rich.console import Console
 
-    from verticality.io.paths import check_input_file, check_paths
+    from verticality.io.paths import check_input_file, check_paths, check_written
     from verticality.tilt.files import check_sigma, estimate_file
     from verticality.tilt.folder import is_folder_input
 
@@ -106,6 +106,7 @@ def run(args) -> int:
                             args.filter, sigma=args.sigma, keep=args.plot is not None,
                             offline=args.offline,
                             ranges=sensor_ranges(args.gyr_range, args.acc_range))
+    check_written(args.out)
     how = ", offline (smoothed)" if args.offline else ""
     print(f"wrote {args.out} ({run.n} samples, filter {args.filter}{how})")
     if run.sigma_line is not None:

@@ -35,7 +35,7 @@ def register(sub):
 
 def run(args) -> int:
     from verticality.io.motion import broad_motion, write_motion_csv
-    from verticality.io.paths import check_input_file, check_paths
+    from verticality.io.paths import check_input_file, check_paths, check_written
     from verticality.recorded_trajectory import built_in_motion
     from verticality.trajectories import BY_NAME
 
@@ -54,5 +54,6 @@ def run(args) -> int:
         raise InputError(f"{args.name!r} is neither a built-in trajectory ({', '.join(sorted(BY_NAME))}) "
                          "nor an existing file")
     write_motion_csv(args.out, rec)
+    check_written(args.out)
     print(f"wrote {rec.t_s.size} rows of {what} to {args.out}")
     return 0

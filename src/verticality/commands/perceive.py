@@ -39,7 +39,7 @@ def register(sub):
 
 
 def run(args) -> int:
-    from verticality.io.paths import check_input_file, check_paths
+    from verticality.io.paths import check_input_file, check_paths, check_written
     from verticality.perception import perceive_file
 
     check_input_file(args.motion)
@@ -59,5 +59,6 @@ def run(args) -> int:
           + "; v (m/s) " + ", ".join(f"{v:.3f}" for v in f["v_m_s"]))
     for key in ("out", "plot"):
         if summary[key]:
+            check_written(summary[key], f"--{key}")
             print(f"  wrote {summary[key]}")
     return 0

@@ -22,6 +22,7 @@ def register(sub):
 
 def run(args) -> int:
     from verticality import report
+    from verticality.io.paths import check_written
 
-    print(report.build(args.results_dir, args.out))
+    print(check_written(report.build(args.results_dir, args.out)))
     return 0

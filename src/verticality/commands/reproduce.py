@@ -35,11 +35,12 @@ def register(sub):
 def run(args) -> int:
     from verticality import report
     from verticality.io.paths import check_output_folder
-    from verticality.reporting import failed_checks, run_experiments
+    from verticality.reporting import earlier_results, failed_checks, run_experiments
 
     out_dir = args.out if args.out is not None else (None if args.json else DEFAULT_OUT)
     if out_dir is not None:
         check_output_folder(out_dir, "--out")
+        earlier_results(out_dir, args.quick)  # merged into at the end: refused now if it cannot be
     err = Console(stderr=True)
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
                   console=err, transient=True, disable=not err.is_terminal) as progress:

@@ -58,7 +58,7 @@ def run(args) -> int:
     from verticality import recorded_trajectory as rt
     from verticality import stabilization as st
     from verticality.io.motion import load_motion, write_tilt_comparison_csv
-    from verticality.io.paths import check_input_file, check_paths
+    from verticality.io.paths import check_input_file, check_paths, check_written
 
     check_input_file(args.motion)
     check_paths({"--out": args.out, "--plot": args.plot}, [args.motion], figures=["--plot"])
@@ -86,6 +86,7 @@ def run(args) -> int:
                   "interpolated linearly and its rotation by cubic Hermite")
     if args.out is not None:
         write_tilt_comparison_csv(args.out, c.t_file_s(), c.series)
+        check_written(args.out)
         err.print(f"wrote {args.out}")
     for cond, (t_bad, what) in c.diverged.items():
         err.print(f"[red]error:[/red] {cond} head: the simulated {what} became non-finite at "

@@ -33,8 +33,13 @@ def register(sub):
 def run(args) -> int:
     from verticality.errors import InputError
     from verticality.reporting import to_jsonable
+    from verticality.io.paths import check_paths
     from verticality.sweep import curves, maps
 
+    if args.out is not None:  # never over the sweep's own files (the table, the spec, a part)
+        inputs = [p for p in Path(args.dir).rglob("*") if p.is_file()] \
+            if Path(args.dir).is_dir() else []
+        check_paths({"--out": args.out}, inputs, figures=["--out"])
     if args.curve is not None:
         if args.x is not None or args.y is not None:
             raise InputError("--curve draws one knob; --x and --y are for the maps")

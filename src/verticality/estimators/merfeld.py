@@ -132,6 +132,16 @@ class MerfeldZupan:
 
         return jax.lax.scan(rk4, x, None, length=self.substeps)[0]
 
+    def max_step_s(self) -> float:
+        """The longest interval one RK4 step of the observer may span: half the inverse of a
+        bound on its fastest rate (the tilt feedback kf + kfω, the canal model's 1/τ and 1/τ_a,
+        the velocity leak 1/τ_v), well inside RK4's stability interval (2.78 on the real axis).
+        A longer interval between samples (a gap) is stepped in pieces of at most this, the
+        measurement held (the sampling of 100 Hz recordings stays one step a sample)."""
+        p = self.params
+        rate = p.k_f + p.k_f_omega + 1.0 / p.tau_s + 1.0 / p.tau_a_s + 1.0 / p.tau_v_s
+        return 0.5 / rate
+
     def _fill(self, state: MerfeldState, y):
         y = jnp.asarray(y, dtype=jnp.float64)
         fill = jnp.concatenate([jnp.zeros(3), state.g_H])

@@ -63,24 +63,38 @@ def load_trial(path) -> BroadTrial:
         f = h5py.File(path, "r")
     except OSError as exc:
         raise InputError(f"{path}: not a readable HDF5 file ({exc})") from None
-    with f:
-        missing = [k for k in ("imu_gyr", "imu_acc") if k not in f]
-        if missing:
-            raise InputError(f"{path}: missing dataset(s) {', '.join(missing)} (BROAD layout expected)")
-        gyr = _dataset(f, "imu_gyr", path)
-        acc = _dataset(f, "imu_acc", path)
-        if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
-            raise InputError(f"{path}: imu_gyr and imu_acc must both have shape (N, 3), "
-                             f"got {gyr.shape} and {acc.shape}")
-        n = gyr.shape[0]
-        mag = _dataset(f, "imu_mag", path) if "imu_mag" in f else None
-        quat = (_dataset(f, "opt_quat", path) if "opt_quat" in f
-                else np.full((n, 4), np.nan))
-        movement = (_dataset(f, "movement", path, bool) if "movement" in f
-                    else np.ones(n, dtype=bool))
-        if "sampling_rate" not in f.attrs:
-            raise InputError(f"{path}: attribute sampling_rate is missing (BROAD layout expected)")
-        rate = sampling_rate_hz(f.attrs["sampling_rate"], path)
+    try:
+        with f:
+            return _read_trial(f, path)
+    except InputError:
+        raise
+    except (KeyError, OSError, RuntimeError, ValueError, TypeError, AttributeError) as exc:
+        # the file opens but an object in it does not (a damaged object header, a truncated
+        # dataset): h5py raises KeyError or OSError naming the HDF5 library's reason
+        reason = " ".join(str(exc).split())[:120]
+        raise InputError(f"{path}: a damaged HDF5 file (opens, but {reason or type(exc).__name__})"
+                         ) from None
+
+
+def _read_trial(f, path: Path) -> BroadTrial:
+    """:func:`load_trial` on the open HDF5 file ``f``."""
+    missing = [k for k in ("imu_gyr", "imu_acc") if k not in f]
+    if missing:
+        raise InputError(f"{path}: missing dataset(s) {', '.join(missing)} (BROAD layout expected)")
+    gyr = _dataset(f, "imu_gyr", path)
+    acc = _dataset(f, "imu_acc", path)
+    if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
+        raise InputError(f"{path}: imu_gyr and imu_acc must both have shape (N, 3), "
+                         f"got {gyr.shape} and {acc.shape}")
+    n = gyr.shape[0]
+    mag = _dataset(f, "imu_mag", path) if "imu_mag" in f else None
+    quat = (_dataset(f, "opt_quat", path) if "opt_quat" in f
+            else np.full((n, 4), np.nan))
+    movement = (_dataset(f, "movement", path, bool) if "movement" in f
+                else np.ones(n, dtype=bool))
+    if "sampling_rate" not in f.attrs:
+        raise InputError(f"{path}: attribute sampling_rate is missing (BROAD layout expected)")
+    rate = sampling_rate_hz(f.attrs["sampling_rate"], path)
     if quat.shape != (n, 4) or movement.shape != (n,):
         raise InputError(f"{path}: opt_quat must be (N, 4) and movement (N,) with N = {n}")
     return BroadTrial(path.stem, gyr, acc, mag, quat, movement, rate)

@@ -80,20 +80,63 @@ class RowReader:
     layout's columns as floats (a cell that is not a number is NaN, as the file parser makes it),
     the time in seconds. Unreadable rows and times that do not increase are named on ``warn_to``
     (a text stream; the first :data:`WARN_ROWS`) and counted. ``line_no`` is the number of the
-    last line read."""
+    last line read.
 
-    def __init__(self, lay: layout.Layout, source: str = "input", warn_to=None):
-        self.lay, self.source, self.warn_to = lay, source, warn_to
-        self.k_t = lay.index["t"]
-        self.cols = [lay.index[c] for c in layout.IMU_COLUMNS[1:]]
+    A header line among the rows (two logs joined, a logger restarted with other columns) is
+    recognized (no cell a number, and its names locate as a header with the ``columns`` and
+    ``time_unit`` the stream was opened with): its row is written flagged, named on ``warn_to``,
+    and the rows after it are read in its column order, never in the old one. A header that
+    changes the time unit stops the stream (:class:`InputError`): the stamps before and after it
+    cannot be put on one clock. A header right after the first, before any data row, replaces
+    it (named, no row written for it)."""
+
+    def __init__(self, lay: layout.Layout, source: str = "input", warn_to=None,
+                 columns: dict[str, str] | None = None, time_unit: str | None = None):
+        self.source, self.warn_to = source, warn_to
+        self.columns, self.time_unit = columns, time_unit
+        self._use(lay)
         self.bad = 0
         self.line_no = 1  # the header
-        self.per_s = layout.TIME_UNITS[lay.time_unit or "s"]  # stamps per second
+        self.pending: tuple[str, int] | None = None  # a line read, to be given again
         self.origin, self.gyr_scale, self.acc_scale = None, 1.0, 1.0
+
+    def _use(self, lay: layout.Layout) -> None:
+        self.lay = lay
+        self.k_t = lay.index["t"]
+        self.cols = [lay.index[c] for c in layout.IMU_COLUMNS[1:]]
+        self.per_s = layout.TIME_UNITS[lay.time_unit or "s"]  # stamps per second
+
+    def header(self, text: str) -> layout.Layout | None:
+        """The layout of ``text`` if it is a header line (see the class doc), else None."""
+        cells = text.split("#", 1)[0].split(",")
+        if any(not math.isnan(parse_number(c)) or c.strip().lower() in ("nan", "+nan", "-nan")
+               for c in cells):
+            return None
+        try:
+            return layout.locate(text, self.columns, self.time_unit, self.source)
+        except InputError:
+            return None
+
+    def switch(self, lay: layout.Layout) -> None:
+        """Read the rows from here on in ``lay``'s order (a header line just read)."""
+        if (lay.time_unit or "s") != (self.lay.time_unit or "s"):
+            raise InputError(f"{self.source}: line {self.line_no}: a new header changes the time "
+                             f"unit from {self.lay.time_unit or 's'} to {lay.time_unit or 's'}; "
+                             "the stamps cannot be put on one clock: split the stream there")
+        self.bad += 1
+        if self.warn_to is not None:
+            order = ",".join(sorted(lay.index, key=lay.index.get))
+            print(f"warning: {self.source} line {self.line_no}: a new header; the rows after it "
+                  f"are read in its column order ({order})", file=self.warn_to)
+        self._use(lay)
 
     def lines(self, fh) -> Iterator[str]:
         """The data lines of ``fh`` from where it stands (blank and ``#`` lines skipped, as files
         are read), counting ``line_no``."""
+        if self.pending is not None:
+            line, self.line_no = self.pending
+            self.pending = None
+            yield line
         for line in fh:
             self.line_no += 1
             text = line.strip()
@@ -107,6 +150,13 @@ class RowReader:
         before the first output row."""
         rows, numbers, first_t = [], [], None
         for line in self.lines(fh):
+            lay = self.header(line.strip())
+            if lay is not None:
+                if rows:  # the head ends before it: the rows after it are read in its order
+                    self.pending = (line, self.line_no)
+                    break
+                self.switch(lay)  # a header again before any data row: it replaces the first
+                continue
             rows.append(line)
             numbers.append(self.line_no)
             t_cell = self._time_cell(line)
@@ -138,6 +188,10 @@ class RowReader:
     def sample(self, text: str) -> tuple[float, np.ndarray, np.ndarray]:
         """``(t_s, gyr, acc)`` of the row just read: NaN where a cell is not a number, all NaN
         (and named) for a row with the wrong number of cells."""
+        lay = self.header(text)
+        if lay is not None:
+            self.switch(lay)
+            return math.nan, np.full(3, np.nan), np.full(3, np.nan)
         cells = text.split("#", 1)[0].split(",")
         if len(cells) != self.lay.n_columns:
             self.warn(f"{len(cells)} cells, the header has {self.lay.n_columns}")

@@ -53,6 +53,7 @@ def check_writable_file(path, option: str = "--out") -> Path:
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{option} {path}: is a folder; give a file name")
+    check_not_device(path, option)
     existed = path.exists()
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -63,6 +64,59 @@ def check_writable_file(path, option: str = "--out") -> Path:
     if not existed:
         path.unlink(missing_ok=True)
     return path
+
+
+def check_not_device(path, option: str = "--out") -> None:
+    """Refuse an output that exists and is not a regular file (``/dev/full``, ``/dev/null``, a
+    FIFO, a socket): the writers write beside it and rename, or would report a write that a
+    device swallowed or refused."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return  # not there (yet): a regular file will be created
+    if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):
+        kind = ("a character device" if stat.S_ISCHR(mode) else "a block device"
+                if stat.S_ISBLK(mode) else "a pipe" if stat.S_ISFIFO(mode) else "a socket"
+                if stat.S_ISSOCK(mode) else "not a regular file")
+        raise InputError(f"{option} {path}: is {kind}, not a file; give a file name")
+
+
+def check_written(path, option: str = "--out") -> Path:
+    """After a write: ``path`` is a regular file holding at least one byte, its data flushed to
+    the disk (``fsync``); else an :class:`InputError` instead of a "wrote" for a write that did
+    not happen (a device, a file system that lost it)."""
+    path = Path(path)
+    check_not_device(path, option)
+    try:
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+            size = os.fstat(fd).st_size
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        raise InputError(f"{option} {path}: the write did not reach the disk "
+                         f"({exc.strerror})") from None
+    if size == 0:
+        raise InputError(f"{option} {path}: nothing was written (0 bytes)")
+    return path
+
+
+def fingerprint(path) -> dict:
+    """What a file is now: its size, modification time (ns) and SHA-256, so that an output made
+    from it can later prove it was made from this content (a recording that grew, was edited or
+    replaced is estimated again)."""
+    import hashlib
+
+    path = Path(path)
+    st = path.stat()
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return {"size": st.st_size, "mtime_ns": st.st_mtime_ns, "sha256": h.hexdigest()}
 
 
 def figure_formats() -> dict[str, str]:
@@ -107,6 +161,7 @@ def check_paths(outputs: Mapping[str, object], inputs: Iterable[object] = (),
     for opt, out in outs.items():
         if out.is_dir():
             raise InputError(f"{opt} {out}: is a folder; give a file name")
+        check_not_device(out, opt)
     for opt in figures:
         if opt in outs:
             check_figure_name(outs[opt], opt)
@@ -122,6 +177,7 @@ def check_output_folder(path, option: str = "--out", inputs: Iterable[object] = 
         if src is not None and same_file(path, src):
             raise InputError(f"{option} {path}: is the input {src}; give another folder")
     if path.exists() and not path.is_dir():
+        check_not_device(path, option)
         raise InputError(f"{option} {path}: is a file; give a folder")
     try:
         path.mkdir(parents=True, exist_ok=True)

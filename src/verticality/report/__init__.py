@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 
 from verticality.errors import InputError
+from verticality.report.results_schema import check_results
 from verticality.reporting import RESULTS_NAME
 
 REPORT_NAME = "report.html"
@@ -29,10 +30,7 @@ def load_results(results_dir: Path) -> dict:
         data = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise InputError(f"{path} is not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(data, dict) or not isinstance(data.get("experiments"), dict):
-        raise InputError(f"{path} is not a results file of `verticality reproduce` "
-                         "(no \"experiments\" object)")
-    return data
+    return check_results(data, str(path))
 
 
 def render(results: dict, results_dir: Path) -> str:

@@ -82,27 +82,83 @@ def task_table(kernel_name: str, options: dict, design: sweep_spec.Design, first
     return pa.table(cols)
 
 
+# the manifest in a part's Parquet metadata: what it belongs to and what it holds
+MANIFEST_KEYS = (b"verticality.spec", b"verticality.task", b"verticality.runs",
+                 b"verticality.content")
+
+
+def runs_digest(design: sweep_spec.Design, first_run: int) -> str:
+    """SHA-256 of a task's runs: their ids, seeds and knob values."""
+    import hashlib
+
+    h = hashlib.sha256(np.arange(first_run, first_run + design.n_runs, dtype=np.int64).tobytes())
+    h.update(np.asarray(design.seeds, dtype=np.int64).tobytes())
+    for name in sorted(design.columns):
+        h.update(name.encode())
+        h.update(_column_bytes(design.columns[name]))
+    return h.hexdigest()
+
+
+def _column_bytes(values) -> bytes:
+    a = np.asarray(values)
+    if a.dtype.kind in "USO":
+        return "\x1f".join(str(v) for v in a.tolist()).encode("utf-8")
+    return np.ascontiguousarray(a).tobytes()
+
+
+def content_digest(table) -> str:
+    """SHA-256 of a part's cells (column names and values), not of its file's bytes."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for name in table.column_names:
+        h.update(name.encode())
+        h.update(_column_bytes(table.column(name).to_numpy(zero_copy_only=False)))
+    return h.hexdigest()
+
+
 def run_task(kernel_name: str, options: dict, design: sweep_spec.Design, task: int,
-             first_run: int, batch: int, parts_dir: str, compile_cache: str | None = None) -> int:
-    """Compute one task and write its part (temporary name, then an atomic rename).
-    ``compile_cache``: JAX's persistent compilation cache for the worker, so that a worker
-    process loads the kernel compiled once instead of compiling it again."""
+             first_run: int, batch: int, parts_dir: str, compile_cache: str | None = None,
+             spec_digest: str = "") -> int:
+    """Compute one task and write its part (temporary name, then an atomic rename), with its
+    manifest in the Parquet metadata: the spec's digest, the task, the digest of its runs and of
+    its cells. ``compile_cache``: JAX's persistent compilation cache for the worker, so that a
+    worker process loads the kernel compiled once instead of compiling it again."""
     import pyarrow.parquet as pq
 
     use_compile_cache(compile_cache)
     table = task_table(kernel_name, options, design, first_run, batch)
+    manifest = dict(zip(MANIFEST_KEYS, (spec_digest, str(task), runs_digest(design, first_run),
+                                        content_digest(table)), strict=True))
+    table = table.replace_schema_metadata({k: v.encode() for k, v in manifest.items()})
     write_atomic(part_path(Path(parts_dir), task), lambda tmp: pq.write_table(table, tmp))
     return task
 
 
-def part_complete(path: Path, n_rows: int) -> bool:
-    """Whether the part at ``path`` exists, is readable Parquet and holds ``n_rows`` rows."""
+def part_state(path: Path, spec_digest: str, task: int, runs: str) -> str:
+    """What the part at ``path`` is for task ``task`` (whose runs have the digest ``runs``) of
+    the spec with digest ``spec_digest``: ``"done"`` (its manifest names this spec, this task and
+    these runs, and its cells are the ones it was written with), ``"redo"`` (missing, torn, or a
+    part of this spec that is not this task's finished part: a copy of another, a damaged
+    one), or ``"foreign"`` (readable, but written for another spec or without a manifest)."""
     import pyarrow.parquet as pq
 
+    if not Path(path).is_file():
+        return "redo"
     try:
-        return pq.read_metadata(path).num_rows == n_rows
-    except (OSError, ValueError, Exception):  # a truncated or foreign file is not complete
-        return False
+        meta = pq.read_schema(path).metadata or {}
+    except Exception:  # noqa: BLE001 (a torn or non-Parquet file: recomputed)
+        return "redo"
+    if meta.get(MANIFEST_KEYS[0], b"").decode(errors="replace") != spec_digest:
+        return "foreign"
+    if (meta.get(MANIFEST_KEYS[1]) != str(task).encode()
+            or meta.get(MANIFEST_KEYS[2]) != runs.encode()):
+        return "redo"
+    try:
+        table = pq.read_table(path)
+    except Exception:  # noqa: BLE001
+        return "redo"
+    return "done" if content_digest(table).encode() == meta.get(MANIFEST_KEYS[3]) else "redo"
 
 
 def table_columns(kernel, design: sweep_spec.Design) -> list[str]:
@@ -127,16 +183,19 @@ def check_part_columns(parts: Path, finished: list[int], expected: list[str], ou
                 "that started it, or run the spec into another --out")
 
 
-def prepare(spec: sweep_spec.Spec, out_dir: Path, resume: bool) -> Path:
+def prepare(spec: sweep_spec.Spec, out_dir: Path, resume: bool,
+            limit_bytes: float | None = None) -> Path:
     """Make ``out_dir`` and check it matches ``spec`` (resume) or holds no sweep yet."""
-    out_dir = Path(out_dir)
+    from verticality.io.paths import check_output_folder
+
+    out_dir = check_output_folder(out_dir, "--out")
     parts = out_dir / "parts"
     old_spec = out_dir / "spec.toml"
     if old_spec.exists():
         if not resume:
             raise InputError(f"{out_dir} already holds a sweep; use --resume to finish it or "
                              "another --out")
-        old = sweep_spec.parse(old_spec.read_text(encoding="utf-8"), str(old_spec))
+        old = sweep_spec.read(old_spec, limit_bytes)
         if replace(old, text="") != replace(spec, text=""):
             raise InputError(f"{out_dir} holds a sweep of another spec ({old_spec}); "
                              "cannot resume it with this one")
@@ -147,10 +206,12 @@ def prepare(spec: sweep_spec.Spec, out_dir: Path, resume: bool) -> Path:
 
 def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
         workers: int | None = None, resume: bool = False, progress: bool = True,
-        compile_cache: Path | str | None = None) -> Summary:
+        compile_cache: Path | str | None = None, limit_bytes: float | None = None) -> Summary:
     """Run the sweep ``spec`` into ``out_dir`` (see the module docstring). ``compile_cache``:
     JAX's persistent compilation cache folder for the workers (default: this process's, which
-    the ``verticality`` command sets)."""
+    the ``verticality`` command sets). A part already in ``out_dir/parts`` is kept only if its
+    manifest proves it is this task's of this spec (:func:`part_state`); one of another spec is
+    refused, one of this spec that is not what it claims is computed again."""
     require_engine()
     import jax
     import pyarrow as pa
@@ -161,11 +222,19 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     design = sweep_spec.design(spec)
     n_runs, size = design.n_runs, spec.runs_per_task
     n_tasks = sweep_spec.n_tasks(spec, n_runs)
-    parts = prepare(spec, out_dir, resume)
+    parts = prepare(spec, out_dir, resume, limit_bytes)
     bounds = [(t * size, min((t + 1) * size, n_runs)) for t in range(n_tasks)]
-    todo = [t for t, (a, b) in enumerate(bounds) if not part_complete(part_path(parts, t), b - a)]
-    check_part_columns(parts, [t for t in range(n_tasks) if t not in todo],
-                       table_columns(spec.kernel_value, design), out_dir)
+    digest = spec.digest
+    states = [part_state(part_path(parts, t), digest, t, runs_digest(design.rows(a, b), a))
+              for t, (a, b) in enumerate(bounds)]
+    readable = [t for t, s in enumerate(states) if s != "redo"]
+    check_part_columns(parts, readable, table_columns(spec.kernel_value, design), out_dir)
+    if "foreign" in states:
+        t = states.index("foreign")
+        raise InputError(f"{out_dir}: {part_path(parts, t).name} was written for another spec "
+                         "(or without a manifest); its results are not this sweep's: run the "
+                         "spec into another --out, or remove that folder's parts")
+    todo = [t for t, s in enumerate(states) if s != "done"]
     from verticality.report import provenance
 
     commit = provenance.git_commit()  # the code the tasks run, before they run
@@ -182,8 +251,9 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
         _compute(spec, design, bounds, todo, parts, scheduler, n_workers, progress,
                  str(cache) if cache else None)
     wall = time.perf_counter() - start
-    table = pa.concat_tables([pq.read_table(part_path(parts, t)) for t in range(n_tasks)])
-    pq.write_table(table, out_dir / "results.parquet")
+    table = pa.concat_tables([pq.read_table(part_path(parts, t)).replace_schema_metadata(None)
+                              for t in range(n_tasks)])
+    write_atomic(out_dir / "results.parquet", lambda tmp: pq.write_table(table, tmp))
     n_div = int(np.sum(table.column("diverged").to_numpy()))
     _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers, commit)
     return Summary(out_dir, n_runs, n_tasks, tuple(todo), wall, n_div)
@@ -191,7 +261,8 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
 
 def _compute(spec, design, bounds, todo, parts, scheduler, n_workers, progress, cache) -> None:
     calls = {f"sweep-task-{t}": (spec.kernel, spec.options, design.rows(*bounds[t]), t,
-                                 bounds[t][0], spec.batch, str(parts), cache) for t in todo}
+                                 bounds[t][0], spec.batch, str(parts), cache, spec.digest)
+             for t in todo}
     map_tasks(run_task, calls, scheduler=scheduler, workers=n_workers, progress=progress,
               description=f"sweep {spec.kernel}")
 

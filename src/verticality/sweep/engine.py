@@ -66,6 +66,26 @@ def write_atomic(final: Path, write: Callable[[Path], object]) -> Path:
 
 
 @contextmanager
+def workers_ignore_interrupt():
+    """Start worker processes inside this block with Ctrl-C (SIGINT) ignored: a terminal's Ctrl-C
+    reaches every process of its group, and a worker that took it would print its own traceback;
+    this process alone answers it (one line, exit status 130) and closes the cluster. A process
+    started with SIGINT ignored keeps it ignored (Python installs its KeyboardInterrupt handler
+    only over the default)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signal handlers belong to the main thread; nothing to change here
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+@contextmanager
 def connect(scheduler: str | None, n_workers: int):
     """A ``distributed.Client`` of the running scheduler at ``scheduler`` or of a new
     ``LocalCluster`` of ``n_workers`` worker processes (closed on exit)."""
@@ -78,15 +98,33 @@ def connect(scheduler: str | None, n_workers: int):
             raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
         cluster = None
     else:
-        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=":0")  # any free port: no clash warning
+        import dask
+
+        # the workers log only errors: a task's failure reaches this process as its exception,
+        # and the cancelled tasks of an interrupted run are not news
+        spawn_env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
+        spawn_env["DASK_LOGGING__DISTRIBUTED"] = "error"
+        with workers_ignore_interrupt(), dask.config.set(
+                {"distributed.nanny.pre-spawn-environ": spawn_env}):
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0")  # any free port: no clash warning
         client = Client(cluster)
+    import logging
+
+    log = logging.getLogger("distributed")
+    level = log.level
     try:
         yield client
+    except KeyboardInterrupt:
+        log.setLevel(logging.CRITICAL)  # closing an interrupted cluster: the one line is ours
+        raise
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        try:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        finally:
+            log.setLevel(level)
 
 
 @contextmanager

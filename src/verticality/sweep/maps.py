@@ -137,9 +137,26 @@ def read(out_dir: Path) -> tuple[Kernel, dict[str, np.ndarray]]:
     if not table.is_file() or not spec_path.is_file():
         raise InputError(f"{out_dir} holds no finished sweep (results.parquet and spec.toml)")
     spec = sweep_spec.read(spec_path)
-    t = pq.read_table(table)
-    return spec.kernel_value, {name: t.column(name).to_numpy(zero_copy_only=False)
-                               for name in t.column_names}
+    try:
+        t = pq.read_table(table)
+    except Exception as exc:  # noqa: BLE001 (pyarrow's errors for a torn or foreign file)
+        reason = " ".join(str(exc).split())[:100]
+        raise InputError(f"{table}: not a readable Parquet table ({reason}); rerun the sweep "
+                         f"with --resume to rebuild it from its parts") from None
+    kernel = spec.kernel_value
+    expected = ["run", *kernel.knobs, "seed", *kernel.metrics, "diverged"]
+    lacking = [c for c in expected if c not in t.column_names]
+    if lacking:
+        raise InputError(f"{table}: lacks the column(s) {', '.join(lacking)} of a "
+                         f"{kernel.name} sweep ({spec_path}); not this spec's table")
+    columns = {name: t.column(name).to_numpy(zero_copy_only=False) for name in t.column_names}
+    for name in (*[k for k in kernel.knobs if not kernel.knobs[k].choices], *kernel.metrics):
+        if columns[name].dtype.kind != "f":
+            raise InputError(f"{table}: column {name} holds {columns[name].dtype}, not numbers")
+    if columns["diverged"].dtype != bool:
+        raise InputError(f"{table}: column diverged holds {columns['diverged'].dtype}, not "
+                         "true/false")
+    return kernel, columns
 
 
 def write(out_dir: Path, x: str | None = None, y: str | None = None,

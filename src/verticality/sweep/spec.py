@@ -38,6 +38,7 @@ batches of 32, 2.2× in batches of 64, one core), and a batch of 64 takes twice 
 from __future__ import annotations
 
 import itertools
+import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,8 +51,22 @@ from verticality.sweep.kernels import Kernel
 from verticality.sweep.registry import KERNELS
 
 TOP_KEYS = ("kernel", "batch", "runs_per_task", "options", "design", "knobs", "seeds")
+# the schema of the top level: each key's type (TOML's: a string, an integer, a table)
+TOP_TYPES = {"kernel": (str, "a string"), "batch": (int, "an integer"),
+             "runs_per_task": (int, "an integer"), "options": (dict, "a table"),
+             "design": (dict, "a table"), "knobs": (dict, "a table"), "seeds": (dict, "a table")}
 MAX_SEED = 2**31 - 1
 DEFAULT_BATCH = 32
+# Memory a run takes, for the size of a spec before its design is built (``sizing``): the
+# design's building (a tuple per design point, a Python object per knob value) and the results
+# table held twice (the parts and their concatenation), 8 bytes a cell.
+DESIGN_RUN_BYTES = 128
+DESIGN_KNOB_BYTES = 40
+TABLE_CELL_BYTES = 16
+# A run's working memory inside a vmap batch: a bound, not a measurement (the kernels keep a
+# run's trajectory of up to 600 s at the observer's 25 ms, a few hundred kB); the batch is sized
+# with it, since a batch is computed at once even for a shorter design (its last runs padded).
+BATCH_RUN_BYTES = 2**20
 
 
 @dataclass(frozen=True)
@@ -73,6 +88,65 @@ class Spec:
     def kernel_value(self) -> Kernel:
         return KERNELS[self.kernel]
 
+    @property
+    def n_runs(self) -> int:
+        """The number of runs, without building the design."""
+        return n_points(self.design, self.knobs, self.n_draws) * len(self.seeds)
+
+    @property
+    def digest(self) -> str:
+        """SHA-256 of the validated spec (not of its text: comments and spacing do not count),
+        carried by every part of its sweep so that a resume keeps only its own parts."""
+        import hashlib
+        import json
+
+        fields = {"kernel": self.kernel, "options": self.options, "design": self.design,
+                  "knobs": self.knobs, "seeds": list(self.seeds),
+                  "runs_per_task": self.runs_per_task, "batch": self.batch,
+                  "n_draws": self.n_draws, "design_seed": self.design_seed}
+        text = json.dumps(fields, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
+class Size:
+    """What a spec asks for, before anything is built: runs, tasks and memory (bytes)."""
+
+    n_runs: int
+    n_tasks: int
+    table_bytes: float
+    batch_bytes: float
+
+    def line(self) -> str:
+        return (f"{self.n_runs} runs in {self.n_tasks} tasks, ~{self.table_bytes / 2**20:.3g} MiB "
+                f"for the design and table, ~{self.batch_bytes / 2**20:.3g} MiB per batch")
+
+
+def n_points(kind: str, knobs: dict[str, Any], n_draws: int) -> int:
+    """The design's points: a grid's product of the knobs' value counts, a random design's draws."""
+    if kind == "random":
+        return int(n_draws)
+    return math.prod(len(v) for v in knobs.values())
+
+
+def size(kernel: Kernel, kind: str, knobs: dict[str, Any], n_draws: int, n_seeds: int,
+         batch: int, runs_per_task: int, source: str = "spec",
+         limit_bytes: float | None = None) -> Size:
+    """The size of a spec (:class:`Size`), refused (one :class:`InputError` line, the option to
+    change named) above ``limit_bytes`` (default :data:`verticality.sizing.MAX_WORK_BYTES`)."""
+    from verticality.sizing import check_work_size
+
+    n_runs = n_points(kind, knobs, n_draws) * int(n_seeds)
+    n_knobs = len(kernel.knobs)
+    cells = n_knobs + 3 + len(kernel.drawn) + len(kernel.metrics)
+    per_run = DESIGN_RUN_BYTES + DESIGN_KNOB_BYTES * n_knobs + TABLE_CELL_BYTES * cells
+    advice = ("fewer seeds, knob values or draws (n), or a larger limit: --max-memory GIB")
+    table = check_work_size(n_runs, per_run, f"runs in {source}", advice, limit_bytes)
+    batch_bytes = check_work_size(batch, BATCH_RUN_BYTES, f"runs in one vmap batch ({source})",
+                                  "a smaller batch, or a larger limit: --max-memory GIB",
+                                  limit_bytes)
+    return Size(n_runs, -(-n_runs // runs_per_task), table, batch_bytes)
+
 
 @dataclass(frozen=True)
 class Design:
@@ -89,16 +163,23 @@ class Design:
         return Design({k: v[start:stop] for k, v in self.columns.items()}, self.seeds[start:stop])
 
 
-def read(path: Path) -> Spec:
+def read(path: Path, limit_bytes: float | None = None) -> Spec:
     """Read and validate the spec at ``path`` (:class:`InputError` on any problem)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"no sweep spec at {path}")
-    return parse(path.read_text(encoding="utf-8"), source=str(path))
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); expected a "
+                         "TOML sweep spec") from None
+    return parse(text, source=str(path), limit_bytes=limit_bytes)
 
 
-def parse(text: str, source: str = "spec") -> Spec:
-    """Validate the TOML ``text`` of a spec; every problem is one :class:`InputError` line."""
+def parse(text: str, source: str = "spec", limit_bytes: float | None = None) -> Spec:
+    """Validate the TOML ``text`` of a spec; every problem is one :class:`InputError` line. Its
+    size (:func:`size`) is checked before the seeds or the design are built, against
+    ``limit_bytes`` (default :data:`verticality.sizing.MAX_WORK_BYTES`)."""
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -106,6 +187,10 @@ def parse(text: str, source: str = "spec") -> Spec:
     unknown = sorted(set(raw) - set(TOP_KEYS))
     if unknown:
         raise InputError(f"{source}: unknown key(s) {', '.join(unknown)}; expected {', '.join(TOP_KEYS)}")
+    for key, (kind_, what) in TOP_TYPES.items():
+        value = raw.get(key)
+        if value is not None and (not isinstance(value, kind_) or isinstance(value, bool)):
+            raise InputError(f"{source}: {key} = {value!r} must be {what}")
     name = raw.get("kernel")
     if name not in KERNELS:
         raise InputError(f"{source}: kernel must be one of {', '.join(sorted(KERNELS))} (got {name!r})")
@@ -122,6 +207,8 @@ def parse(text: str, source: str = "spec") -> Spec:
     if not isinstance(design, dict):
         raise InputError(f"{source}: [design] must be a table")
     kind = design.get("kind", "grid")
+    if not isinstance(kind, str):
+        raise InputError(f"{source}: [design] kind = {kind!r} must be \"grid\" or \"random\"")
     extra = sorted(set(design) - {"kind", "n", "seed"})
     if kind not in ("grid", "random") or extra:
         raise InputError(f"{source}: [design] takes kind = \"grid\" or \"random\" (with n and seed); "
@@ -143,6 +230,8 @@ def parse(text: str, source: str = "spec") -> Spec:
     problem = kernel.check_knobs(_extents(kernel, knobs))
     if problem:
         raise InputError(f"{source}: [knobs] {problem}")
+    size(kernel, kind, knobs, n_draws, _seed_count(raw.get("seeds"), source), batch,
+         runs_per_task, source, limit_bytes)
     return Spec(kernel=name, options=options, design=kind, knobs=dict(knobs),
                 seeds=_seeds(raw.get("seeds"), source), runs_per_task=int(runs_per_task),
                 batch=int(batch), n_draws=int(n_draws), design_seed=int(design_seed), text=text)
@@ -188,11 +277,34 @@ def _options(kernel: Kernel, given, source: str) -> dict[str, Any]:
     if unknown:
         raise InputError(f"{source}: kernel {kernel.name} has no option(s) {', '.join(unknown)}; "
                          f"its options are {', '.join(kernel.options) or 'none'}")
+    for key, value in given.items():  # the schema: each option has its default's type
+        default = kernel.options[key]
+        if isinstance(default, bool):
+            ok = isinstance(value, bool)
+        elif isinstance(default, int | float):
+            ok = _is_number(value)
+        else:
+            ok = isinstance(value, type(default))
+        if not ok:
+            raise InputError(f"{source}: [options] {key} = {value!r} must be "
+                             f"{_type_name(default)} (like its default {default!r})")
     out = dict(kernel.options) | dict(given)
     problem = kernel.check_options(out)
     if problem:
         raise InputError(f"{source}: [options] {problem}")
     return out
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _type_name(default) -> str:
+    if isinstance(default, bool):
+        return "true or false"
+    if isinstance(default, int | float):
+        return "a finite number"
+    return "a string" if isinstance(default, str) else type(default).__name__
 
 
 def _check_knob(kernel: Kernel, knob: str, values, kind: str, source: str) -> None:
@@ -228,6 +340,20 @@ def _extents(kernel: Kernel, knobs: dict[str, Any]) -> dict[str, tuple[float, fl
         lo, hi = (v["min"], v["max"]) if isinstance(v, dict) else (min(v), max(v))
         out[name] = (float(lo), float(hi))
     return out
+
+
+def _seed_count(raw, source: str) -> int:
+    """How many seeds ``[seeds]`` asks for, without listing them (:func:`_seeds` checks them)."""
+    if isinstance(raw, dict) and "values" in raw and isinstance(raw["values"], list):
+        return len(raw["values"])
+    if isinstance(raw, dict) and _is_int(raw.get("count")):
+        count = raw["count"]
+        first = raw.get("first", 0)
+        if count >= 1 and _is_int(first) and not 0 <= first <= MAX_SEED - count + 1:
+            raise InputError(f"{source}: [seeds] first = {first} and count = {count} reach "
+                             f"beyond the seeds 0..{MAX_SEED}")
+        return max(count, 0)
+    return 0  # refused by _seeds, in its own words
 
 
 def _seeds(raw, source: str) -> tuple[int, ...]:

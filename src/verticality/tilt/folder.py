@@ -8,8 +8,10 @@ Each recording ``NAME.csv`` / ``NAME.hdf5`` gives ``OUT/NAME.csv``, written by
 it (bit for bit), and one row of the summary table ``OUT/summary.csv`` / ``OUT/summary.json``
 (:data:`SUMMARY_COLUMNS`). A recording that cannot be read or filtered is a row with its error
 (``status`` ``error``), not the end of the run. A task writes its row to ``OUT/rows/NAME.json``
-(temporary name, then renamed) after its output: with ``resume`` an input whose row says ``ok``
-and whose output exists is not computed again. ``OUT/folder.json`` holds the options, so that a
+(temporary name, then renamed) after its output, with the fingerprints (size, modification time,
+SHA-256) of the input it read and the output it wrote: with ``resume`` an input is not computed
+again only if its row says ``ok`` and both fingerprints still hold (a recording that grew or was
+edited after its estimate is estimated again). ``OUT/folder.json`` holds the options, so that a
 resumed run uses the ones the finished outputs were made with.
 """
 
@@ -31,6 +33,7 @@ SUMMARY_NAMES = ("summary.csv", "summary.json", "folder.json")  # in OUT beside 
 # suffixes of files, not folders: a new --out with one is a file name given by mistake
 FILE_SUFFIXES = (".csv", ".json", ".parquet", ".h5", ".hdf5", ".txt", ".png")
 ROWS_DIR = "rows"
+MANIFEST = "made_from"  # the row file's proof: the input's and the output's fingerprints
 # the summary's count of samples carrying each flag bit (tilt_flags), by column
 FLAG_COLUMNS = {bit: f"n_{key}" for bit, key in F.FLAG_KEYS.items()}
 SUMMARY_COLUMNS = (("file", "output", "status", "error", "rows", "duration_s", "share_flagged",
@@ -147,15 +150,20 @@ def estimate_one(path: str, out_path: str, row_path: str, options: dict,
     row = dict.fromkeys(SUMMARY_COLUMNS)
     row |= {"file": str(path), "output": Path(out_path).name, "status": "ok", "error": ""}
     start = time.perf_counter()
+    from verticality.io.paths import fingerprint
+
+    manifest = {}
     try:
+        source = fingerprint(path)  # before the read: a file changed meanwhile is redone later
         run = estimate_file(path, out_path, options["units"], options["columns"],
                             options["time_unit"], options["filter_name"], sigma=options["sigma"],
                             offline=options["offline"], ranges=options["ranges"])
         row |= run_summary(run)
+        manifest = {MANIFEST: {"input": source, "output": fingerprint(out_path)}}
     except Exception as exc:  # a bad recording is a row with its error, never the run's end
         row |= {"output": "", "status": "error", "error": error_message(exc)}
     row["wall_s"] = time.perf_counter() - start
-    write_atomic(Path(row_path), lambda tmp: tmp.write_text(json.dumps(row) + "\n",
+    write_atomic(Path(row_path), lambda tmp: tmp.write_text(json.dumps(row | manifest) + "\n",
                                                              encoding="utf-8"))
     return row
 
@@ -195,8 +203,12 @@ def prepare(out_dir: Path, options: dict, resume: bool, recordings: list[Path]) 
         if not resume:
             raise InputError(f"{out_dir} already holds estimates of a folder; use --resume to "
                              "finish it or another --out")
-        old = json.loads(record.read_text(encoding="utf-8"))
-        if old.get("options") != options:
+        try:
+            old = json.loads(record.read_text(encoding="utf-8"))
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise InputError(f"{record} is damaged ({str(exc)[:80]}); the options of the "
+                             "estimates there are unknown: use another --out") from None
+        if not isinstance(old, dict) or old.get("options") != options:
             raise InputError(f"{out_dir} holds estimates made with other options "
                              f"({old.get('options')}); cannot resume them with these")
     (out_dir / ROWS_DIR).mkdir(exist_ok=True)
@@ -204,13 +216,31 @@ def prepare(out_dir: Path, options: dict, resume: bool, recordings: list[Path]) 
     return out_dir
 
 
-def finished_row(row_path: Path, out_path: Path) -> dict | None:
-    """The row of a finished input (its row file says ``ok`` and its output exists), else None."""
+def finished_row(row_path: Path, out_path: Path, in_path: Path | None = None) -> dict | None:
+    """The row of a finished input, else None: its row file says ``ok``, and its manifest proves
+    that the output is the one written (size and SHA-256) from the input as it is now (size,
+    modification time and SHA-256; ``in_path`` None: not checked). A recording that grew or was
+    edited after its estimate, or an output replaced, is not finished."""
+    from verticality.io.paths import fingerprint
+
     try:
         row = json.loads(row_path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    return row if row.get("status") == "ok" and out_path.is_file() else None
+    if (not isinstance(row, dict) or row.get("status") != "ok" or not out_path.is_file()
+            or not set(SUMMARY_COLUMNS) <= set(row)):
+        return None
+    made = row.pop(MANIFEST, None)
+    if not isinstance(made, dict) or not isinstance(made.get("output"), dict):
+        return None  # no proof of what it was made from
+    try:
+        out_now = fingerprint(out_path)
+        in_now = fingerprint(in_path) if in_path is not None else made.get("input")
+    except OSError:
+        return None
+    same_out = {k: out_now[k] for k in ("size", "sha256")} == \
+        {k: made["output"].get(k) for k in ("size", "sha256")}
+    return row if same_out and in_now == made.get("input") else None
 
 
 def estimate_folder(inputs, out_dir, *, units=(), columns=None, time_unit=None,
@@ -244,8 +274,8 @@ def estimate_folder(inputs, out_dir, *, units=(), columns=None, time_unit=None,
     rows_dir = out_dir / ROWS_DIR
     done = {}
     if resume:
-        done = {n: r for n in names
-                if (r := finished_row(rows_dir / (n + ".json"), out_dir / n)) is not None}
+        done = {n: r for p, n in zip(recordings, names, strict=True)
+                if (r := finished_row(rows_dir / (n + ".json"), out_dir / n, p)) is not None}
     if compile_cache is None:
         import jax
 

@@ -37,8 +37,9 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
     written."""
     header = fh.readline().removeprefix("\ufeff")  # a byte-order mark, as files are read
     lay = imu_layout.locate(header.rstrip("\r\n"), columns, time_unit, source)
-    reader = RowReader(lay, source, warn_to=err)
-    head = imu.recording_from_rows(*reader.read_head(fh), lay, source, gyr_units, acc_units)
+    reader = RowReader(lay, source, warn_to=err, columns=columns, time_unit=time_unit)
+    rows, numbers = reader.read_head(fh)  # (a header among them: read in its order)
+    head = imu.recording_from_rows(rows, numbers, reader.lay, source, gyr_units, acc_units)
     reader.set_origin(head.t0_stamp, imu.GYR_UNITS[gyr_units or "rad/s"],
                       imu.ACC_UNITS[acc_units or "m/s2"])
     out.write(imu.estimate_header(sigma) + "\n")
