@@ -32,8 +32,8 @@ def register(sub):
 
 def run(args) -> int:
     from verticality.errors import InputError
-    from verticality.reporting import to_jsonable
     from verticality.io.paths import check_paths
+    from verticality.reporting import to_jsonable
     from verticality.sweep import curves, maps
 
     if args.out is not None:  # never over the sweep's own files (the table, the spec, a part)
