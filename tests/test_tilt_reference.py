@@ -1,6 +1,6 @@
 """The tilt filter's paths against each other, case by case: the JAX core's batch ``run``, its
 per-sample ``step`` under ``lax.scan`` (the sequential reference of ``run``), the packed real-time
-``Stepper``, and the plain-Python ``tilt_stream.Stream``, an independent implementation of the
+``Stepper``, and the plain-Python ``verticality.tilt.stream.Stream``, an independent implementation of the
 same filter (as PyVQF stands beside VQF's C++). The cases: a BROAD slice, NaNs in every channel,
 readings beyond any IMU, irregular Δt, gaps (two while one is pending), dropouts of either
 sensor, a start in motion, rest, rotations beyond the batch kernel's Taylor range, a given initial
