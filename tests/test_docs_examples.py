@@ -41,7 +41,7 @@ def test_example_runs_as_written(rel, index, tmp_path, monkeypatch):
     np.savetxt(tmp_path / "recording.csv", np.column_stack([t, gyr, acc]), delimiter=",",
                header=header, comments="")
     monkeypatch.chdir(tmp_path)
-    namespace = {"gyr_rad_s": gyr, "acc_m_s2": acc, "dt_s": dt_s,
+    namespace = {"gyr_rad_s": gyr, "acc_m_s2": acc, "dt_s": dt_s, "t_s": t,
                  "gyr": gyr[0], "acc": acc[0], "dt": dt_s}
     exec(compile(code, f"{rel}[{index}]", "exec"), namespace)  # noqa: S102
     if "out" in namespace and hasattr(namespace["out"], "roll_rad"):

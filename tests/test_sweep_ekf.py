@@ -92,7 +92,7 @@ def test_scaled_trajectories_go_through_the_trajectory_parameters():
     (("head = [\"fixed\", \"stabilized\"]", "frequency_scale = [4.0]"), "frequency_scale: 4.0"),
     (("head = [\"fixed\", \"stabilized\"]", "head_rate_sigma = [0.0]"), "outside (0.0, 1.0]"),
     (("head = [\"fixed\", \"stabilized\"]", "noise_std = [-0.02]"), "noise_std: -0.02"),
-    (("quick = true", "quick = 1"), "quick must be true or false"),
+    (("quick = true", "quick = 1"), "quick = 1 must be true or false"),
     (("quick = true", "duration_s = 3.0"), "has no option(s) duration_s"),
 ])
 def test_bad_knob_is_one_clear_error(change, words):

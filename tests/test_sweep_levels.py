@@ -134,6 +134,9 @@ def _made_up(n=600, seed=0):
     cols["diverged"][:3] = True  # diverged with a finite error: still left out of the median
     cols["max_error_deg"][:3] = 99.0
     cols["run"] = np.arange(n)
+    cols["seed"] = np.arange(n)  # the kernel's other columns, so that the table is its table
+    cols["rms_error_deg"] = cols["max_error_deg"] / 2.0
+    cols["converged_fraction"] = np.where(cols["diverged"], 0.0, 1.0)
     return cols
 
 
@@ -191,8 +194,10 @@ def test_sweep_plot_curve_command(tmp_path, capsys, monkeypatch):
     out = tmp_path / "sweep"
     out.mkdir()
     (out / "spec.toml").write_text('kernel = "newton-lissajous"\n[seeds]\ncount = 1\n')
-    pq.write_table(pa.table({k: cols[k] for k in ("run", *NEWTON_LISSAJOUS.knobs, "diverged",
-                                                   "max_error_deg")}), out / "results.parquet")
+    pq.write_table(pa.table({k: cols[k] for k in ("run", "seed", *NEWTON_LISSAJOUS.knobs,
+                                                   "diverged", "max_error_deg", "rms_error_deg",
+                                                   "converged_fraction")}),
+                   out / "results.parquet")
     assert main(["sweep-plot", str(out), "--curve", "error_level"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     png = out / "curve-error_level.png"

@@ -150,9 +150,10 @@ def test_clipping_is_never_inferred_on_clean_broad_data():
         assert np.all(lim.tilt_var_rad2 == 0)
         rows = tilt_limits.held_rows(trial.gyr_rad_s, trial.acc_m_s2)
         np.testing.assert_array_equal(lim.held, rows)
-        out = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s)
+        out = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, period_s=trial.dt_s)
         np.testing.assert_array_equal((out.flags & HELD) > 0, rows)
-        off = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, trial.dt_s, detect_clipping=False)
+        off = tilt.estimate(trial.gyr_rad_s, trial.acc_m_s2, period_s=trial.dt_s,
+                            detect_clipping=False)
         np.testing.assert_array_equal(out.quat_E_S, off.quat_E_S)
         assert not np.any(out.flags & CLIPPED)
         held += int(rows.sum())

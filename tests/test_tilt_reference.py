@@ -334,7 +334,7 @@ def test_reference_stream_clipping_and_held_rows_equal_core():
     assert np.count_nonzero(f & CLIPPED) > 40 and np.flatnonzero(f & HELD).tolist() == [900, 901,
                                                                                          902, 903]
     assert np.count_nonzero(f & CLIPPED) > 40 and not np.any(f & ACC_MISSING)  # (both kept)
-    s = Stream(**ranges)
+    s = Stream(**ranges, block=tilt.block_samples(tilt.DEFAULT_PARAMS, dts))  # as estimate
     rows, sigma = [], []
     for k in range(N):
         rows.append(s.step(gyr[k], acc[k], dts[k]))
@@ -346,14 +346,16 @@ def test_reference_stream_clipping_and_held_rows_equal_core():
     assert np.all(lim.tilt_var_rad2 >= 0) and lim.tilt_var_rad2.max() > 0
     assert np.all(lim.vel_var_m2_s2 >= 0) and lim.vel_var_m2_s2.max() > 0
 
+    filt = tilt.TiltFilter(block=tilt.block_samples(tilt.DEFAULT_PARAMS, dts))  # as estimate's
+
     @jax.jit
     def scan(state, gyr, acc, dts, var, vvar, flags):
         def one(state, xs):
             g, a, d, v, vv, fl = xs
-            return tilt_core.step(state, g, a, d, FILTER.params, FILTER.block, v, fl, vv)
+            return tilt_core.step(state, g, a, d, filt.params, filt.block, v, fl, vv)
         return jax.lax.scan(one, state, (gyr, acc, dts, var, vvar, flags))
 
-    _, ref = scan(FILTER.init(), gyr, acc, dts, lim.tilt_var_rad2, lim.vel_var_m2_s2, lim.flags)
+    _, ref = scan(filt.init(), gyr, acc, dts, lim.tilt_var_rad2, lim.vel_var_m2_s2, lim.flags)
     for field in tilt_core.TiltOutput._fields:
         np.testing.assert_allclose(np.asarray(getattr(out, field)),
                                    np.asarray(getattr(ref, field)), rtol=0, atol=1e-12,

@@ -277,7 +277,7 @@ def sweep(kind: str, theta0_deg, ref_deg, duration_s: float, walking_scale: floa
     return Series(*(np.asarray(v) for v in out))
 
 
-def _finite_or_none(v):
+def finite_or_none(v):
     v = float(v)
     return v if math.isfinite(v) else None
 
@@ -298,9 +298,9 @@ def summarize(s: Series, ref_deg, known: bool) -> list[dict]:
         acc_err = s.a_hat[i] - s.a_true[i]
         rows.append({
             "converged": converged,
-            "final_tilt_error_deg": _finite_or_none(est_err[last1].mean()),
-            "final_head_error_deg": _finite_or_none(head_err[last1].mean()),
-            "rms_acc_error_m_s2": None if known else _finite_or_none(
+            "final_tilt_error_deg": finite_or_none(est_err[last1].mean()),
+            "final_head_error_deg": finite_or_none(head_err[last1].mean()),
+            "rms_acc_error_m_s2": None if known else finite_or_none(
                 np.sqrt(np.mean(acc_err[after1] ** 2))),
         })
     return rows

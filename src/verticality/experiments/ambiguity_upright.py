@@ -181,7 +181,7 @@ def runs(feed: str, theta0_deg, ref_deg, pd_loop_rad_s, walking_scale, vertical_
 def summarize(s: LoopSummary, ref_deg) -> list[dict]:
     """Per run: converged (the sibling's rule), final tilt and head errors (deg), RMS error of the
     fed acceleration after the first second."""
-    from verticality.experiments.ambiguity import CONVERGED_DEG, _finite_or_none
+    from verticality.experiments.ambiguity import CONVERGED_DEG, finite_or_none
 
     n = s.theta_H.shape[1]
     last1 = np.arange(n) >= n - int(round(1.0 / (OUT_EVERY * DT_S)))
@@ -193,9 +193,9 @@ def summarize(s: LoopSummary, ref_deg) -> list[dict]:
         finite = all(np.all(np.isfinite(v[i])) for v in s)
         e, h = est[last1].mean(), head[last1].mean()
         rows.append({"converged": bool(finite and e <= CONVERGED_DEG and h <= CONVERGED_DEG),
-                     "final_tilt_error_deg": _finite_or_none(e),
-                     "final_head_error_deg": _finite_or_none(h),
-                     "rms_acc_error_m_s2": _finite_or_none(
+                     "final_tilt_error_deg": finite_or_none(e),
+                     "final_head_error_deg": finite_or_none(h),
+                     "rms_acc_error_m_s2": finite_or_none(
                          np.sqrt(np.mean((s.a_hat[i] - s.a_true[i])[after1] ** 2)))})
     return rows
 
