@@ -139,19 +139,39 @@ def _group_members(pgid: int, only: str = "") -> list[int]:
     return members
 
 
-@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc to see the workers")
-def test_ctrl_c_ends_the_workers_with_one_line_and_status_130(tmp_path):
+def _start_parallel_run(tmp_path) -> subprocess.Popen:
+    """`reproduce ekf-impact ekf-jump --jobs 2` (minutes each) in a session of its own, once its
+    two workers exist."""
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).parents[1] / "src"))
     proc = subprocess.Popen(
         [sys.executable, "-m", "verticality.cli", "reproduce", "ekf-impact", "ekf-jump",
          "--jobs", "2", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env=env, cwd=tmp_path, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while (len(_group_members(proc.pid, "spawn_main")) < 2 and proc.poll() is None
+           and time.monotonic() < deadline):
+        time.sleep(0.2)
+    if len(_group_members(proc.pid, "spawn_main")) != 2:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail("the two workers did not start")
+    return proc
+
+
+def _wait_group_gone(pgid: int, timeout_s: float = 20.0) -> list[int]:
+    deadline = time.monotonic() + timeout_s
+    while _group_members(pgid) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    return _group_members(pgid)
+
+
+needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
+                                reason="needs /proc to see the workers")
+
+
+@needs_proc
+def test_ctrl_c_ends_the_workers_with_one_line_and_status_130(tmp_path):
+    proc = _start_parallel_run(tmp_path)
     try:
-        deadline = time.monotonic() + 120
-        while (len(_group_members(proc.pid, "spawn_main")) < 2 and proc.poll() is None
-               and time.monotonic() < deadline):
-            time.sleep(0.2)  # the two workers (one per experiment)
-        assert len(_group_members(proc.pid, "spawn_main")) == 2, "the workers did not start"
         time.sleep(3.0)  # importing, compiling: well before either experiment ends
         os.killpg(proc.pid, signal.SIGINT)  # what a terminal does on Ctrl-C
         out, err = proc.communicate(timeout=60)
@@ -160,7 +180,17 @@ def test_ctrl_c_ends_the_workers_with_one_line_and_status_130(tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130
     assert err.splitlines()[-1] == "interrupted" and "Traceback" not in err and out == ""
-    deadline = time.monotonic() + 10
-    while _group_members(proc.pid) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert _group_members(proc.pid) == []  # no worker left behind
+    assert _wait_group_gone(proc.pid) == []  # no worker left behind
+
+
+@needs_proc
+def test_the_workers_end_when_the_command_is_killed(tmp_path):
+    proc = _start_parallel_run(tmp_path)
+    try:
+        proc.kill()  # the command only: no chance to end its workers itself
+        proc.wait(timeout=60)
+        assert _wait_group_gone(proc.pid) == []
+    finally:
+        for pid in _group_members(proc.pid):
+            os.kill(pid, signal.SIGKILL)
+        proc.communicate()

@@ -17,7 +17,10 @@ from pathlib import Path
 # Wall seconds of each experiment, one after the other in one process, cold (no compilation
 # cache), on a 2-core machine; only their ratios matter (the order and the time left).
 TYPICAL_WALL_S: dict[str, dict[str, float]] = {
-    "full": {},
+    "full": {"ekf-sensitivity": 90.0, "ekf-impact": 90.0, "ekf-jump": 90.0,
+             "ambiguity-initial-tilt": 55.0, "ambiguity-desired-tilt": 45.0, "observability": 46.0,
+             "ambiguity-known-acc": 15.0, "newton-uncertainty": 15.0, "newton-lissajous": 8.0,
+             "separation": 5.0},
     "quick": {},
 }
 

@@ -44,6 +44,7 @@ def _worker(inbox, outbox, quick: bool, out_dir: str | None, cache_dir: str | No
     import os
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _end_with_parent()
     import jax
 
     from verticality import experiments
@@ -62,6 +63,22 @@ def _worker(inbox, outbox, quick: bool, out_dir: str | None, cache_dir: str | No
         except BaseException:  # noqa: BLE001 (reported by the parent, which stops the run)
             outbox.put(("error", name, pid, traceback.format_exc()))
             return
+
+
+def _end_with_parent() -> None:
+    """End this worker as soon as the process that started it ends (killed, not only
+    interrupted), rather than finish its experiment for no one and wait on the queue for ever."""
+    import os
+
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+
+    def watch():
+        parent.join()
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="watch-parent").start()
 
 
 def run_pool(names: list[str], *, quick: bool, out_dir: Path | None, jobs: int,
