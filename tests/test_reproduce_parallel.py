@@ -94,16 +94,18 @@ def test_tracker_says_what_is_done_running_and_left():
     assert t.time_left() == 10.0
     t.stage("a", "running")
     t.stage("b", "running")
-    now[0] = 5.0
-    t.stage("b", "done")
+    now[0] = 6.0
+    t.stage("b", "done")  # 6 s where 4 were expected: the others will take 1.5 times theirs too
+    assert t.pace() == 1.5
     assert t.headline() == "reproduce: 1/3 done, 1 running"
-    assert t.done_line("b") == "done 1/3: b (5 s); about 5 s left"
+    assert t.time_left() == 9.0  # a: 15 - 6; c (3) on the free worker meanwhile
+    assert t.done_line("b") == "done 1/3: b (6 s); about 9 s left"
     t.stage("c", "running")
     now[0] = 75.0
     t.stage("a", "figures")
     t.stage("a", "done")
     t.stage("c", "done")
-    assert t.done_line("c") == "done 3/3: c (1 min 10 s)"
+    assert t.done_line("c") == "done 3/3: c (1 min 09 s)"
 
 
 @pytest.mark.parametrize("value", ["0", "-2", "two", "1.5", ""])

@@ -137,7 +137,8 @@ def _duration(seconds: float) -> str:
 
 class Tracker:
     """Which experiments are done, which run (since when) and which wait; the time left if each
-    takes its expected time (:mod:`verticality.experiment_costs`)."""
+    takes its expected time (:mod:`verticality.experiment_costs`) scaled by the pace of those
+    done."""
 
     def __init__(self, names: list[str], *, quick: bool, jobs: int, out_dir: Path | None = None,
                  clock=time.monotonic):
@@ -162,9 +163,17 @@ class Tracker:
         now = self.clock()
         return {n: now - t for n, t in self.started.items() if n not in self.finished}
 
+    def pace(self) -> float:
+        """How much longer than expected the finished experiments took (1 before any): this
+        machine's speed, applied to the others' expected times."""
+        expected = sum(self.expected[n] for n in self.finished)
+        return sum(self.finished.values()) / expected if expected > 0 else 1.0
+
     def time_left(self) -> float:
-        waiting = [n for n in self._costs.longest_first(self.expected) if n not in self.started]
-        return self._costs.time_left(self.expected, self.running(), waiting, self.jobs)
+        pace = self.pace()
+        expected = {n: e * pace for n, e in self.expected.items()}
+        waiting = [n for n in self._costs.longest_first(expected) if n not in self.started]
+        return self._costs.time_left(expected, self.running(), waiting, self.jobs)
 
     def headline(self) -> str:
         return (f"reproduce: {len(self.finished)}/{len(self.names)} done, "
