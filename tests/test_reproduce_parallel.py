@@ -91,21 +91,21 @@ def test_tracker_says_what_is_done_running_and_left():
     t = Tracker(names, quick=True, jobs=2, clock=lambda: now[0])
     t.expected = {"a": 10.0, "b": 4.0, "c": 2.0}
     assert t.headline() == "reproduce: 0/3 done, 0 running"
-    assert t.time_left() == 10.0
+    assert t.pace() == 1.0 and t.time_left() == 10.0
     t.stage("a", "running")
     t.stage("b", "running")
-    now[0] = 6.0
-    t.stage("b", "done")  # 6 s where 4 were expected: the others will take 1.5 times theirs too
+    now[0] = 8.0
+    t.stage("b", "done")  # 8 s where 4 were expected, with a typical one (4 s) at pace 1: 1.5
     assert t.pace() == 1.5
     assert t.headline() == "reproduce: 1/3 done, 1 running"
-    assert t.time_left() == 9.0  # a: 15 - 6; c (3) on the free worker meanwhile
-    assert t.done_line("b") == "done 1/3: b (6 s); about 9 s left"
+    assert t.time_left() == 7.0  # a: 15 - 8; c (3) on the free worker meanwhile
+    assert t.done_line("b") == "done 1/3: b (8 s); about 7 s left"
     t.stage("c", "running")
     now[0] = 75.0
     t.stage("a", "figures")
     t.stage("a", "done")
     t.stage("c", "done")
-    assert t.done_line("c") == "done 3/3: c (1 min 09 s)"
+    assert t.done_line("c") == "done 3/3: c (1 min 07 s)"
 
 
 @pytest.mark.parametrize("value", ["0", "-2", "two", "1.5", ""])

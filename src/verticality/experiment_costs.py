@@ -3,8 +3,9 @@ processes take them in (longest first, so that no long one starts last) and the 
 progress shows.
 
 An experiment's expected wall time is the one it took in the previous run of the same mode into the
-same results folder (its ``results.json``), else the stored table of typical costs below, else (an
-experiment added since the table was measured) the table's median.
+same results folder (its ``results.json``), else the stored table of typical costs below (full
+runs; also the order of a quick one), else (an experiment added since the table was measured) the
+table's median.
 """
 
 from __future__ import annotations
@@ -14,15 +15,17 @@ import statistics
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-# Wall seconds of each experiment, one after the other in one process, cold (no compilation
-# cache), on a 2-core machine; only their ratios matter (the order and the time left).
-TYPICAL_WALL_S: dict[str, dict[str, float]] = {
-    "full": {"ekf-sensitivity": 90.0, "ekf-impact": 90.0, "ekf-jump": 90.0,
-             "ambiguity-initial-tilt": 55.0, "ambiguity-desired-tilt": 45.0, "observability": 46.0,
-             "ambiguity-known-acc": 15.0, "newton-uncertainty": 15.0, "newton-lissajous": 8.0,
-             "separation": 5.0},
-    "quick": {},
+# Wall seconds of each experiment in a full run, one after the other in one process, cold (no
+# compilation cache), on a 2-core machine. Only their ratios matter: they set the order (a quick
+# run shortens the same experiments, so it keeps roughly the same order) and the progress scales
+# them by the pace of the experiments done for the time left.
+TYPICAL_WALL_S: dict[str, float] = {
+    "ekf-sensitivity": 90.0, "ekf-impact": 90.0, "ekf-jump": 90.0,
+    "ambiguity-initial-tilt": 55.0, "ambiguity-desired-tilt": 45.0, "observability": 46.0,
+    "ambiguity-known-acc": 15.0, "newton-uncertainty": 15.0, "newton-lissajous": 8.0,
+    "separation": 5.0,
 }
+
 
 def _mode(quick: bool) -> str:
     return "quick" if quick else "full"
@@ -49,7 +52,7 @@ def expected_wall_s(names: Iterable[str], quick: bool, out_dir: Path | None = No
     """``{name: expected wall seconds}``: the previous run's into ``out_dir``, else the table's,
     else the table's median (1 s for an empty table)."""
     previous = previous_runtimes(out_dir, quick)
-    table = TYPICAL_WALL_S[_mode(quick)] if table is None else table
+    table = TYPICAL_WALL_S if table is None else table
     typical = statistics.median(table.values()) if table else 1.0
     return {n: float(previous.get(n, table.get(n, typical))) for n in names}
 

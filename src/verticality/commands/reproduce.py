@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -164,10 +165,12 @@ class Tracker:
         return {n: now - t for n, t in self.started.items() if n not in self.finished}
 
     def pace(self) -> float:
-        """How much longer than expected the finished experiments took (1 before any): this
-        machine's speed, applied to the others' expected times."""
-        expected = sum(self.expected[n] for n in self.finished)
-        return sum(self.finished.values()) / expected if expected > 0 else 1.0
+        """How much longer than expected the finished experiments took: this machine's speed,
+        applied to the others' expected times. A typical experiment's worth of pace 1 weighs in,
+        so that one short experiment done does not set it alone."""
+        prior = statistics.median(self.expected.values()) if self.expected else 0.0
+        expected = sum(self.expected[n] for n in self.finished) + prior
+        return (sum(self.finished.values()) + prior) / expected if expected > 0 else 1.0
 
     def time_left(self) -> float:
         pace = self.pace()
