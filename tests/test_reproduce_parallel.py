@@ -196,3 +196,14 @@ def test_the_workers_end_when_the_command_is_killed(tmp_path):
         for pid in _group_members(proc.pid):
             os.kill(pid, signal.SIGKILL)
         proc.communicate()
+
+
+def test_default_jobs_one_per_core_as_memory_allows(monkeypatch):
+    from verticality import experiment_pool
+
+    monkeypatch.setattr(experiment_pool.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3},
+                        raising=False)
+    gib = 2**30
+    for available, jobs in ((64 * gib, 4), (9 * gib, 2), (5 * gib, 1), (1 * gib, 1), (None, 4)):
+        monkeypatch.setattr(experiment_pool, "_available_memory_bytes", lambda a=available: a)
+        assert experiment_pool.default_jobs() == jobs

@@ -12,6 +12,7 @@ ignore the interrupt themselves, so that only this process reports it).
 from __future__ import annotations
 
 import multiprocessing
+import os
 import queue
 import signal
 import threading
@@ -23,6 +24,34 @@ from pathlib import Path
 from verticality import experiment_costs
 
 _POLL_S = 0.5  # how often the waiting process looks at its workers when no message comes
+# Memory set aside per worker for the default number of workers: a worker holds one experiment at
+# a time, and the largest worker of a full run peaked at WORKER_PEAK_RSS (see docs/reproduction.md).
+WORKER_MEMORY_BYTES = 4 * 2**30
+
+
+def _available_memory_bytes() -> int | None:
+    """The memory the kernel says new processes can use (Linux's MemAvailable), or None."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def default_jobs() -> int:
+    """One worker per core this process may use, no more than the available memory holds at
+    :data:`WORKER_MEMORY_BYTES` each (at least one)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # no affinity on this platform
+        cores = os.cpu_count() or 1
+    memory = _available_memory_bytes()
+    if memory is not None:
+        cores = min(cores, memory // WORKER_MEMORY_BYTES)
+    return max(int(cores), 1)
 
 
 class WorkerFailed(RuntimeError):
@@ -41,8 +70,6 @@ def _worker(inbox, outbox, quick: bool, out_dir: str | None, cache_dir: str | No
     """A worker process: run the experiments named on ``inbox`` until ``None``, telling
     ``outbox`` ``(stage, name, pid, payload)`` for each stage, its entry when done, or the
     traceback of its error."""
-    import os
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _end_with_parent()
     import jax
@@ -68,8 +95,6 @@ def _worker(inbox, outbox, quick: bool, out_dir: str | None, cache_dir: str | No
 def _end_with_parent() -> None:
     """End this worker as soon as the process that started it ends (killed, not only
     interrupted), rather than finish its experiment for no one and wait on the queue for ever."""
-    import os
-
     parent = multiprocessing.parent_process()
     if parent is None:
         return

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import statistics
 import sys
 import time
@@ -15,6 +14,7 @@ from rich.table import Table
 from rich.text import Text
 
 from verticality.errors import InputError
+from verticality.experiment_pool import default_jobs
 from verticality.reporting import flatten, format_value
 
 DEFAULT_OUT = Path("verticality-results")
@@ -36,21 +36,13 @@ def register(sub):
                    help="do not write report.html beside results.json")
     p.add_argument("--jobs", default=None, metavar="N",
                    help="experiments run at once, each in its own worker process (default: one "
-                        f"per core, here {default_jobs()}); 1 runs them one after the other in "
-                        "this process")
+                        f"per core as memory allows, here {default_jobs()}); 1 runs them one after "
+                        "the other in this process")
     p.set_defaults(func=run)
 
 
-def default_jobs() -> int:
-    """One worker per core this process may use."""
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # no affinity on this platform
-        return max(os.cpu_count() or 1, 1)
-
-
 def parse_jobs(text: str | None) -> int:
-    """``--jobs``: a whole number ≥ 1 (default :func:`default_jobs`)."""
+    """``--jobs``: a whole number ≥ 1 (default :func:`~verticality.experiment_pool.default_jobs`)."""
     if text is None:
         return default_jobs()
     try:
