@@ -25,7 +25,7 @@ from verticality import experiment_costs
 
 _POLL_S = 0.5  # how often the waiting process looks at its workers when no message comes
 # Memory set aside per worker for the default number of workers: a worker holds one experiment at
-# a time, and the largest worker of a full run peaked at WORKER_PEAK_RSS (see docs/reproduction.md).
+# a time, and the largest of a full run's two peaked at 2.9 GB of RSS (docs/reproduction.md).
 WORKER_MEMORY_BYTES = 4 * 2**30
 
 
