@@ -71,41 +71,36 @@ def format_value(v: Any) -> str:
 
 
 def run_experiments(names: list[str] | None, *, quick: bool = False, out_dir: Path | None = None,
-                    on_stage: Callable[[str, str], None] | None = None) -> dict:
+                    on_stage: Callable[[str, str], None] | None = None, jobs: int = 1) -> dict:
     """Run the named experiments (all registered ones when ``names`` is empty) and return the
     results object of docs/reproduction.md: ``{"experiments": {NAME: {"metrics", "paper",
     "runtime", "figures"?}}, "registry": {NAME: {"title", "source"}}, "provenance": {...}}``.
     With ``out_dir``, each experiment's figures go to ``out_dir/NAME/`` and the object to
-    ``out_dir/results.json``. ``on_stage(name, stage)`` is told ``"running"`` and ``"figures"``.
+    ``out_dir/results.json``. ``on_stage(name, stage)`` is told ``"running"``, ``"figures"`` and
+    ``"done"``. ``jobs`` > 1 runs them in that many worker processes at once, longest first
+    (:mod:`verticality.experiment_pool`); the object is the same, in the same order, as with
+    ``jobs=1`` (one after the other in this process).
     An unknown name raises :class:`~verticality.errors.InputError` before anything runs."""
-    from verticality import experiments
+    from verticality import experiment_pool, experiments
     from verticality.report import provenance
 
     registry = experiments.discover()
-    chosen = list(names) if names else sorted(registry)
+    chosen = chosen_names(names)
     exps = [experiments.get(n) for n in chosen]
     results: dict = {"experiments": {},
                      "registry": {n: {"title": e.title, "source": e.source}
                                   for n, e in sorted(registry.items())},
                      "provenance": provenance.collect(quick=quick, names=list(names or []))}
-    for exp in exps:
-        if on_stage is not None:
-            on_stage(exp.name, "running")
-        t0 = time.perf_counter()
-        result = exp.run(quick=quick)
-        wall = time.perf_counter() - t0
-        entry = {
-            "metrics": to_jsonable(result.metrics),
-            "paper": to_jsonable(result.paper),
-            "runtime": {"wall_s": wall, "simulated_s": float(result.simulated_s)},
-        }
-        if out_dir is not None and exp.figures is not None:
+    if jobs > 1 and len(exps) > 1:
+        entries = experiment_pool.run_pool(chosen, quick=quick, out_dir=out_dir, jobs=jobs,
+                                           on_stage=on_stage)
+    else:
+        entries = {}
+        for exp in exps:
+            entries[exp.name] = run_one(exp, quick=quick, out_dir=out_dir, on_stage=on_stage)
             if on_stage is not None:
-                on_stage(exp.name, "figures")
-            fig_dir = Path(out_dir) / exp.name
-            fig_dir.mkdir(parents=True, exist_ok=True)
-            entry["figures"] = [str(p) for p in exp.figures(result, fig_dir)]
-        results["experiments"][exp.name] = entry
+                on_stage(exp.name, "done")
+    results["experiments"] = {n: entries[n] for n in chosen}
     if out_dir is not None:
         write_results(out_dir, results)
     return results
@@ -157,6 +152,40 @@ def write_results(out_dir: Path, results: dict) -> Path:
     text = json.dumps(merged, indent=2)
     return write_atomic(out_dir / RESULTS_NAME,
                         lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def chosen_names(names: list[str] | None) -> list[str]:
+    """The experiments a run of ``names`` runs, in the order of its results: those named, else
+    every registered one by name. An unknown name raises
+    :class:`~verticality.errors.InputError`."""
+    from verticality import experiments
+
+    for name in names or ():
+        experiments.get(name)
+    return list(names) if names else sorted(experiments.discover())
+
+
+def run_one(exp, *, quick: bool = False, out_dir: Path | None = None,
+            on_stage: Callable[[str, str], None] | None = None) -> dict:
+    """One experiment's entry of the results object (its figures drawn under ``out_dir/NAME/``
+    with ``out_dir``); the same function in this process and in a worker process."""
+    if on_stage is not None:
+        on_stage(exp.name, "running")
+    t0 = time.perf_counter()
+    result = exp.run(quick=quick)
+    wall = time.perf_counter() - t0
+    entry = {
+        "metrics": to_jsonable(result.metrics),
+        "paper": to_jsonable(result.paper),
+        "runtime": {"wall_s": wall, "simulated_s": float(result.simulated_s)},
+    }
+    if out_dir is not None and exp.figures is not None:
+        if on_stage is not None:
+            on_stage(exp.name, "figures")
+        fig_dir = Path(out_dir) / exp.name
+        fig_dir.mkdir(parents=True, exist_ok=True)
+        entry["figures"] = [str(p) for p in exp.figures(result, fig_dir)]
+    return entry
 
 
 def failed_checks(results: dict) -> list[str]:
