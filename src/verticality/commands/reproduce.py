@@ -13,6 +13,7 @@ from rich.progress import Progress, ProgressColumn, SpinnerColumn, TextColumn, T
 from rich.table import Table
 from rich.text import Text
 
+from verticality.commands import print_table
 from verticality.errors import InputError
 from verticality.experiment_pool import default_jobs
 from verticality.reporting import flatten, format_value
@@ -123,7 +124,7 @@ def _print_tables(results: dict, out_dir: Path | None) -> None:
         paper = flatten(entry["paper"])
         for key, value in flatten(entry["metrics"]).items():
             table.add_row(key, format_value(value), format_value(paper.get(key, "")))
-        console.print(table)
+        print_table(table, console)
     if out_dir is not None:
         console.print(f"figures and results.json written under {out_dir}/")
 
