@@ -42,6 +42,7 @@ from test_reliability import (
     run_cli,
     violations,
 )
+from test_sweep import TINY  # the same tiny sweep: 8 runs of 1.5 s
 from verticality.errors import InputError
 
 SEEDS = st.integers(min_value=0, max_value=2**31 - 1)
@@ -57,17 +58,6 @@ def one_line_refusal(code, err: str) -> bool:
 
 
 # ------------------------------------------------------------------------------- sweep specs
-TINY = """kernel = "newton-lissajous"
-batch = 2
-runs_per_task = 2
-[options]
-duration_s = 1.5
-[knobs]
-head = ["fixed", "stabilized"]
-K_rel_error = [-0.2, 0.3]
-[seeds]
-values = [3, 5]
-"""
 WRONG_VALUES = ['"10"', "true", "[1, 2]", "{a = 1}", "1e308", "-1", "0", '"fixed"', "[]",
                 '[["a"]]', "nan", "inf", "1979-05-27", '[1, "a"]', '{min = "a", max = 1}',
                 '{min = 1, max = "b"}', "2147483648", "-5", "1.5", '"random"', "[nan]",
