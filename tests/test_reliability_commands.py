@@ -291,7 +291,8 @@ def test_a_rerun_into_a_results_folder_merges_and_drops_nothing(tmp_path, monkey
     ran: set[str] = set()
     for _ in range(4):
         chosen = rng.sample(names, rng.randint(1, 2))
-        code, _, err = run_cli(["reproduce", *chosen, "--quick", "--out", str(out)])
+        # (--jobs 1: the stand-in experiments are registered in this process only)
+        code, _, err = run_cli(["reproduce", *chosen, "--quick", "--jobs", "1", "--out", str(out)])
         assert code == 1, err  # the stand-ins' failing check
         ran |= set(chosen)
         data = json.loads((out / "results.json").read_text())
@@ -301,14 +302,15 @@ def test_a_rerun_into_a_results_folder_merges_and_drops_nothing(tmp_path, monkey
         assert page.count("'3'>not in this results folder") == len(set(names) - ran)
     assert len(data["provenance"]["earlier"]) == 3
     # a full run into a folder of quick results is refused before it runs, in one line
-    code, _, err = run_cli(["reproduce", "alpha", "--out", str(out)])
+    code, _, err = run_cli(["reproduce", "alpha", "--jobs", "1", "--out", str(out)])
     assert one_line_refusal(code, err) and "quick" in err
 
 
 def valid_results(tmp_path: Path, monkeypatch) -> Path:
     fake_experiments(monkeypatch, ["alpha", "beta"])
     out = tmp_path / "res"
-    code, _, err = run_cli(["reproduce", "--quick", "--no-report", "--out", str(out)])
+    code, _, err = run_cli(["reproduce", "--quick", "--jobs", "1", "--no-report", "--out",
+                            str(out)])
     assert code == 1, err
     return out
 

@@ -181,7 +181,8 @@ def test_ctrl_c_ends_the_workers_with_one_line_and_status_130(tmp_path):
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130
-    assert err.splitlines()[-1] == "interrupted" and "Traceback" not in err and out == ""
+    assert err.splitlines()[-1] == "verticality reproduce: interrupted"  # the CLI's one line
+    assert "Traceback" not in err and out == ""
     assert _wait_group_gone(proc.pid) == []  # no worker left behind
 
 
