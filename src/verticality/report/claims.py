@@ -299,8 +299,9 @@ CLAIMS: dict[str, Claim] = {
         source="P11 §V–VI, Fig. 4–7; F §4.3.2",
         claim="A Newton (moving-window) observer recovers the head's tilt from a damped "
               "inclinometer while the trunk follows a fast Lissajous motion. Under P11's own "
-              "observer model (forward Euler at 1 ms) the stabilized head's error is 13–15 times "
-              "smaller (84 times after its start-up), as P11 finds: a coarse model is accurate when "
+              "observer model (forward Euler at 1 ms) the stabilized head's error is 12.7–15 times "
+              "smaller (84 times after its start-up; P11: “almost two orders of magnitude”): a coarse "
+              "model is accurate when "
               "the head turns slowly. With our near-exact discretization both heads are ~1e-5° "
               "with the exact model; the benefit remains with the 10 % wrong model.",
         settings=("planar head and pendulum: m = 50 g, l = 0.1 m, J = m l², b = 0.005 N·m·s, "
@@ -561,7 +562,8 @@ CLAIMS: dict[str, Claim] = {
         claim="With the head's acceleration read from the otolith under the assumption that the "
               "head is upright (the Fig. 4.12 caption), the observer-fed loop stabilizes the head "
               "upright from an initial tilt of 12° and fails from 25°. We find the same outcomes "
-              "under that reading, and show how the boundary moves with the PD bandwidth and the "
+              "under that reading (failing already from 16°), in a region of PD bandwidths and "
+              "walking phases that F does not give, and show how the boundary moves with the PD bandwidth and the "
               "walking's amplitude, phase and harmonics; F's text also describes the "
               "reconstruction with the estimated tilt (F 3.17), which fails under walking.",
         settings=AMBIGUITY_SETTINGS,
