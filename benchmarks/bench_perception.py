@@ -23,11 +23,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import perception as pc
-from verticality import perception_paradigms as pp
-from verticality.estimators.laurens import laurens_angelaki
-from verticality.estimators.merfeld import MerfeldZupan
-from verticality.perception_params import LAURENS_PRESETS, MERFELD_PRESETS
+from verticality.perception import paradigms as pp
+from verticality.perception import perceive as pc
+from verticality.perception.laurens import laurens_angelaki
+from verticality.perception.merfeld import MerfeldZupan
+from verticality.perception.params import LAURENS_PRESETS, MERFELD_PRESETS
 
 
 def _best(f, repeats):

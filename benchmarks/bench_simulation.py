@@ -25,10 +25,10 @@ import dataclasses  # noqa: E402
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
-from verticality import simulation as sim  # noqa: E402
-from verticality import trajectories as tr  # noqa: E402
-from verticality.integrate import rk4_step_staged  # noqa: E402
+from verticality.core.integrate import rk4_step_staged  # noqa: E402
 from verticality.models.gimbal import GimbalInput  # noqa: E402
+from verticality.simulation import closed_loop as sim
+from verticality.simulation import trajectories as tr
 
 
 def timed(fn, *args, repeat=3):

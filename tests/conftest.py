@@ -42,7 +42,7 @@ def _swinging_imu(n=1500, dt_s=0.01, seed=0):
     """A tilted sensor swinging about its x axis (±40°, 0.5 Hz), SI units, t from 0."""
     import numpy as np
 
-    from verticality import so3
+    from verticality.core import so3
     from verticality.io import imu
 
     rng = np.random.default_rng(seed)

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from verticality import so3
+from verticality.core import so3
 from verticality.tilt.evaluation.faults import fast_roll  # noqa: F401  (shared)
 
 G = 9.81

@@ -10,14 +10,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality import so3
 from verticality.analysis import ambiguity as am
+from verticality.core import so3
 from verticality.models.base import simulate
 from verticality.models.kinematics import RigidMotion
+from verticality.models.params import G_M_S2, P13_PENDULUM
 from verticality.models.pendulum import Pendulum, PendulumState
 from verticality.models.planar import FrameMotion, PlanarPendulum, head_frame_to_inertial
 from verticality.models.planar import PendulumState as PlanarPendulumState
-from verticality.params import G_M_S2, P13_PENDULUM
 
 G = G_M_S2
 TILTS_DEG = (-60.0, -30.0, 0.0, 20.0, 45.0, 60.0)

@@ -5,10 +5,11 @@ import math
 
 import numpy as np
 
-from verticality import cli, so3
+from verticality import cli
 from verticality.analysis.ambiguity_replay import upright_reading
+from verticality.core import so3
 from verticality.io import motion as io
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
 
 
 def _still(R_I_H, a_I=(0.0, 0.0, 0.0), n=201, dt=0.01):

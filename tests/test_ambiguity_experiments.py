@@ -10,6 +10,7 @@ import numpy as np
 from verticality.analysis import ambiguity as am
 from verticality.experiments import ambiguity as ex
 from verticality.models.linearize import linearize
+from verticality.models.params import G_M_S2
 from verticality.models.planar import (
     AccelerationState,
     HeadInput,
@@ -17,7 +18,6 @@ from verticality.models.planar import (
     TorqueAndVertical,
     WithAccelerationState,
 )
-from verticality.params import G_M_S2
 
 
 def test_known_acceleration_observer_converges_from_every_sweep_value():

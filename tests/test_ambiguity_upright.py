@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 
-from verticality import trajectories as tr
 from verticality.experiments import ambiguity_upright as au
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
+from verticality.simulation import trajectories as tr
 
 
 def test_walking_without_harmonics_is_the_step_frequency_a_quarter_step_apart():

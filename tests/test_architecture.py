@@ -19,11 +19,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import simulation as sim
-from verticality import so3
-from verticality import trajectories as tr
 from verticality.analysis import model_checks as mc
 from verticality.analysis import observability as obs
+from verticality.core import so3
 from verticality.estimators import ekf
 from verticality.estimators.newton import NewtonConfig, NewtonObserver
 from verticality.models import otolith_head
@@ -32,8 +30,10 @@ from verticality.models.gimbal import GimbalHead
 from verticality.models.gimbal_plant import GimbalPlant
 from verticality.models.head import HeadInput, HeadState
 from verticality.models.linearize import linearize, to_statespace
+from verticality.models.params import G_M_S2, P13_HEAD, P13_PENDULUM
 from verticality.models.pendulum import PendulumState
-from verticality.params import G_M_S2, P13_HEAD, P13_PENDULUM
+from verticality.simulation import closed_loop as sim
+from verticality.simulation import trajectories as tr
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src" / "verticality"

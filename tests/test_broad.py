@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from broad_slices import FAST_TRANSLATION, SLOW_ROTATION
-from verticality import cli, so3, tilt
-from verticality.errors import InputError
+from verticality import cli, tilt
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.io import broad
 from verticality.tilt.evaluation.broad import evaluate_trials
 

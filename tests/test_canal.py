@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.models import canal
 from verticality.models.base import simulate
 from verticality.models.linearize import linearize, to_statespace

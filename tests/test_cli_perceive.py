@@ -6,9 +6,9 @@ import json
 import numpy as np
 
 from verticality import cli
-from verticality import perception_paradigms as pp
 from verticality.experiments import perception as exp
 from verticality.io.motion import read_otolith_csv, write_motion_csv
+from verticality.perception import paradigms as pp
 
 
 def test_perceive_on_the_paradigm_file_equals_the_experiment(tmp_path):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from verticality import cli, experiments
-from verticality.reporting import flatten, format_value, to_jsonable
+from verticality.report.runs import flatten, format_value, to_jsonable
 
 
 def test_reproduce_json_contract_and_figures(tmp_path, capsys):

@@ -13,7 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from verticality import cli, experiments
-from verticality.commands import list_experiments, print_table
+from verticality.cli.commands import list_experiments, print_table
 
 
 def _names_in_first_column(text: str) -> list[str]:
@@ -78,7 +78,7 @@ def test_a_table_narrower_than_its_cells_folds_them_instead_of_cutting():
 def _trial(path, n=600):
     """A BROAD-layout trial: a sensor turning about x from 25° off the vertical."""
     from imu_cases import tumbling
-    from verticality import so3
+    from verticality.core import so3
 
     gyr, acc, _ = tumbling(np.zeros(3), n, dt=0.01)
     angle = 0.4 * np.arange(n) * 0.01

@@ -4,9 +4,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
 from verticality.analysis.model_checks import nonlinear_loop_jacobian
-from verticality.control import (
+from verticality.core import so3
+from verticality.core.integrate import rk4_step
+from verticality.models import gimbal
+from verticality.models.head import FreeHead, HeadInput, HeadState
+from verticality.models.params import P13_HEAD
+from verticality.simulation.control import (
     global_stabilizer,
     head_torque_from_motor_torques,
     omega_map,
@@ -14,10 +18,6 @@ from verticality.control import (
     tilt_pd_closed_loop_matrix,
     tilt_pd_linearized,
 )
-from verticality.integrate import rk4_step
-from verticality.models import gimbal
-from verticality.models.head import FreeHead, HeadInput, HeadState
-from verticality.params import P13_HEAD
 
 
 def test_omega_map_is_vee_of_skew_part():
@@ -85,7 +85,7 @@ def test_head_torque_from_motor_torques_is_consistent():
 
 
 def test_desired_joint_rates_match_finite_differences_and_trunk_rate_inverts_head_rate():
-    from verticality import control
+    from verticality.simulation import control
 
     R_I_T = so3.exp(jnp.array([0.2, -0.3, 0.5]))
     omega_T = jnp.array([0.7, -1.1, 0.4])

@@ -5,14 +5,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality import so3
-from verticality.errors import InputError
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.estimators import base, ekf, ekf_stacked
 from verticality.models.base import EuclideanState, model_dataclass
 from verticality.models.head import HeadInput, HeadState
 from verticality.models.otolith_head import OtolithHeadState
+from verticality.models.params import P13_EKF_HEAD, P13_EKF_PENDULUM
 from verticality.models.pendulum import PendulumState
-from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM
 
 
 @model_dataclass
@@ -228,11 +228,11 @@ def test_stacked_model_is_the_same_model(medial):
 # ------------------------------------------------------------------ experiment readings (ekf-*)
 def test_head_frame_acceleration_input_is_the_same_model(medial):
     """F §4.2.1's u = (ᴴa, ᴴτ): the model rotating ᴴa with its own R̂_IH equals the ᴵa model."""
-    from verticality import simulation as sim
     from verticality.experiments import ekf as exp
     from verticality.models.head import FreeHead
     from verticality.models.kinematics import RigidMotion
     from verticality.models.otolith_head import HeadFrameAcceleration, HeadFrameInput
+    from verticality.simulation import closed_loop as sim
 
     filt, x = medial
     x = x._replace(head=x.head._replace(omega_H_rad_s=jnp.zeros(3)))  # a head at rest: R_IH

@@ -11,25 +11,25 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality import so3
+from verticality.core import so3
 from verticality.estimators import base, disturbance, ekf, luenberger, newton, otolith_canal
 from verticality.estimators.kalman import (
     continuous_observer,
     kalman_filter,
     steady_state_kalman_filter,
 )
-from verticality.estimators.laurens import laurens_angelaki
-from verticality.estimators.merfeld import MerfeldZupan
 from verticality.experiments.separation import linear_model
 from verticality.models import head
 from verticality.models import lissajous_plant as lp
 from verticality.models.body import HUMAN_TWO_SEGMENT, upright
 from verticality.models.linearize import linearize
 from verticality.models.otolith_head import OtolithHeadState
+from verticality.models.params import P13_EKF_HEAD, P13_EKF_PENDULUM
 from verticality.models.pendulum import PendulumState
 from verticality.models.planar import HeadInput, PlanarState
-from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM
-from verticality.perception_params import LAURENS_PRESETS, MERFELD_PRESETS
+from verticality.perception.laurens import laurens_angelaki
+from verticality.perception.merfeld import MerfeldZupan
+from verticality.perception.params import LAURENS_PRESETS, MERFELD_PRESETS
 from verticality.tilt import TiltFilter
 
 DT = 0.01

@@ -14,7 +14,7 @@ import pytest
 
 from imu_cases import tumbling
 from verticality import cli
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io import imu
 from verticality.tilt import folder
 from verticality.tilt.evaluation.broad import evaluate_trials
@@ -190,7 +190,7 @@ def test_engine_turns_a_failed_task_into_on_error():
 def _broad_trial(path, n, seed):
     """A BROAD-layout trial: a sensor turning about x from 25° off the vertical, its optical
     orientation the truth, the second half scored."""
-    from verticality import so3
+    from verticality.core import so3
 
     gyr, acc, _ = tumbling(np.array([0.005, 0.0, 0.0]), n, seed=seed)
     t = np.arange(n) * 0.01

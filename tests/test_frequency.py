@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from verticality import trajectories as tr
 from verticality.analysis import frequency
-from verticality.errors import InputError
+from verticality.core.errors import InputError
+from verticality.simulation import trajectories as tr
 
 
 def test_prts_is_a_balanced_antisymmetric_m_sequence():

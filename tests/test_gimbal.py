@@ -6,14 +6,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
-from verticality.control import joint_space_pd, trunk_orientation_estimate
-from verticality.integrate import rk4_step
+from verticality.core import so3
+from verticality.core.integrate import rk4_step
 from verticality.models import base, gimbal
 from verticality.models.gimbal import GimbalHead, GimbalInput
 from verticality.models.head import FreeHead
 from verticality.models.kinematics import RigidMotion, still
-from verticality.params import P13_HEAD, P13_KD_NMS_RAD, P13_KP_NM_RAD
+from verticality.models.params import P13_HEAD, P13_KD_NMS_RAD, P13_KP_NM_RAD
+from verticality.simulation.control import joint_space_pd, trunk_orientation_estimate
 
 DT = 1e-3
 
@@ -116,7 +116,7 @@ def test_joint_space_pd_zero_at_target():
 def test_closed_forms_equal_their_definitions():
     """Λ entry by entry equals Ry·Rx; E equals vee(Λᵀ∂Λ/∂θ) by autodiff; the driven head's θ̈
     equals a general linear solve of the joint-space equation."""
-    from verticality import trajectories as tr
+    from verticality.simulation import trajectories as tr
 
     theta = jnp.array([0.3, -0.7])
     np.testing.assert_allclose(gimbal.Lambda(theta), so3.rot_y(0.3) @ so3.rot_x(-0.7), atol=1e-15)

@@ -8,7 +8,7 @@ import pytest
 
 from broad_slices import SLOW_ROTATION
 from verticality import cli
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io import broad, imu, imu_layout
 
 G = 9.81

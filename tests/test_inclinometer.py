@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.models import inclinometer as incl
 from verticality.models import planar
 from verticality.models.planar import FrameMotion, PendulumState

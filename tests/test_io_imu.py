@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from verticality import cli, tilt
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io import imu
 
 G = 9.81

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io import motion as io
 
 HEADER = "t,qw,qx,qy,qz,wx,wy,wz,ax,ay,az\n"

@@ -4,7 +4,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.estimators import otolith_canal
 from verticality.estimators.kalman import (
     continuous_observer,

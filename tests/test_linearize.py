@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from verticality import so3
-from verticality.errors import InputError
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.experiments.separation import linear_model, plant
 from verticality.models import planar
 from verticality.models.base import EuclideanState, model_dataclass

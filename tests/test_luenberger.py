@@ -8,7 +8,7 @@ import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.estimators import luenberger as lu
 from verticality.experiments.separation import linear_model
 from verticality.models.linearize import LinearModel, discretize_zoh

@@ -6,8 +6,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality import experiments, so3
+from verticality import experiments
 from verticality.analysis import model_checks as mc
+from verticality.core import so3
 from verticality.experiments import Result
 from verticality.experiments import model_checks as exp
 from verticality.models.head import FreeHead, HeadInput, HeadState

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from verticality.experiments import model_verification as M
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
 
 
 def test_otolith_is_critically_damped_at_300_hz():

@@ -8,8 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality import so3
-from verticality.errors import InputError
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.estimators import newton
 from verticality.models import lissajous_plant as lp
 from verticality.models.base import EuclideanState, model_dataclass

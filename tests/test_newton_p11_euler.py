@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.experiments import newton as E
 from verticality.models import lissajous_plant as lp
 from verticality.models.base import Discretized

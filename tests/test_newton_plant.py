@@ -6,11 +6,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality import trajectories as tr
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.models import lissajous_plant as lp
 from verticality.models.base import step_rk4
 from verticality.models.planar import HeadInput, PlanarState
+from verticality.simulation import trajectories as tr
 
 P = lp.p11_head()
 

@@ -12,7 +12,7 @@ from verticality.analysis import observability as ob
 from verticality.analysis import observability_examples as ex
 from verticality.analysis.observability_exact import exact_rank
 from verticality.analysis.observability_taylor import taylor
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.models.base import EuclideanState, model_dataclass
 
 
@@ -132,7 +132,7 @@ def test_layout_reads_the_model_retraction():
 def test_curve_direction_of_yaw_is_the_null_space():
     """Turning the body about gravity (R → Rz(ε) R) is the accelerometer's hidden direction,
     found through the model's retraction; a roll is not hidden."""
-    from verticality import so3
+    from verticality.core import so3
 
     prob = ex.accelerometer()
     res = ob.analyze(prob, points=2)

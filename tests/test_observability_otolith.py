@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality import so3
 from verticality.analysis import otolith_observability as oo
-from verticality.errors import InputError
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.models.head import HeadInput, HeadState
 
 
@@ -91,8 +91,8 @@ def test_head_yaw_changes_the_tilt_but_not_the_outputs(table):
 def test_problem_consumes_the_otolith_head_value():
     """The problem's vector field is the model value's dynamics under the declared input, and
     the 'thesis' output is the model's own output."""
-    from verticality.control import global_stabilizer
     from verticality.models import otolith_head
+    from verticality.simulation.control import global_stabilizer
 
     prob = oo.problem_for("lateral")
     assert isinstance(prob.model, otolith_head.OtolithHead) and len(prob.model.pendula) == 2

@@ -4,9 +4,10 @@ import math
 
 import numpy as np
 
-from verticality import cli, so3
+from verticality import cli
+from verticality.core import so3
 from verticality.io import motion as io
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
 
 
 def test_recorded_impact_medial_lateral_and_refusals(tmp_path, capsys):
@@ -87,8 +88,8 @@ def test_otolith_presets_and_their_checks():
     pivots at ±r, and one-line refusals."""
     import pytest
 
-    from verticality.errors import InputError
-    from verticality.params import P13_PENDULUM, otolith_pendula
+    from verticality.core.errors import InputError
+    from verticality.models.params import P13_PENDULUM, otolith_pendula
 
     (med,), sfx = otolith_pendula("medial")
     assert sfx == ("",)

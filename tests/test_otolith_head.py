@@ -9,13 +9,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality import so3
+from verticality.core import so3
 from verticality.models import base, planar
 from verticality.models import otolith_head as oh
 from verticality.models.head import FreeHead, HeadInput, HeadState
 from verticality.models.kinematics import RigidMotion, still
-from verticality.models.pendulum import Pendulum, PendulumState
-from verticality.params import (
+from verticality.models.params import (
     G_M_S2,
     LATERAL_R_M,
     P13_EKF_HEAD,
@@ -25,6 +24,7 @@ from verticality.params import (
     HeadParams,
     lateral_pendulums,
 )
+from verticality.models.pendulum import Pendulum, PendulumState
 
 RNG = np.random.default_rng(7)
 
@@ -205,7 +205,7 @@ def _motion(t):
 def _rk4(model, x0, u_of_t, n, dt=DT):
     """RK4 with the input evaluated at every stage time (a time-varying drive); states after each
     step."""
-    from verticality.integrate import rk4_step
+    from verticality.core.integrate import rk4_step
 
     def body(x, k):
         x = rk4_step(lambda t, xx: model.dynamics(xx, u_of_t(t)), k * dt, x, dt, project=model.project)

@@ -4,7 +4,7 @@ line, and the check leaves nothing behind."""
 import pytest
 
 from verticality import cli
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io.paths import check_writable_file
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from verticality import so3
+from verticality.core import so3
 from verticality.models.pendulum import otolith_angles, p13_inclinometer_angles
 
 

@@ -3,12 +3,12 @@
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
+from verticality.core import so3
 from verticality.estimators import ekf, parameter_noise
 from verticality.models.head import HeadInput, HeadState
 from verticality.models.otolith_head import OtolithHeadState, medial
+from verticality.models.params import P13_EKF_HEAD, P13_EKF_PENDULUM, PendulumParams
 from verticality.models.pendulum import PendulumState
-from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM, PendulumParams
 
 DT = 0.02
 MODEL = medial(P13_EKF_PENDULUM, P13_EKF_HEAD, gyro=True)

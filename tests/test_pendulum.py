@@ -6,10 +6,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
+from verticality.core import so3
 from verticality.models import base, pendulum
 from verticality.models.kinematics import RigidMotion, from_functions, still
-from verticality.params import G_M_S2, P13_PENDULUM
+from verticality.models.params import G_M_S2, P13_PENDULUM
 
 motion_of = from_functions
 

@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from verticality import perception as pc
-from verticality import perception_paradigms as pp
-from verticality.errors import InputError
-from verticality.estimators.laurens import steady_gain, tilt_model, yaw_model
+from verticality.core.errors import InputError
 from verticality.io.motion import MotionRecord
-from verticality.perception_params import LAURENS_PRESETS, MERFELD_PRESETS, perception_params
+from verticality.perception import paradigms as pp
+from verticality.perception import perceive as pc
+from verticality.perception.laurens import steady_gain, tilt_model, yaw_model
+from verticality.perception.params import LAURENS_PRESETS, MERFELD_PRESETS, perception_params
 
 
 def _fit_tau(t, y):
@@ -20,7 +20,7 @@ def _fit_tau(t, y):
 
 
 def _still(R_I_H, seconds=30.0, dt=0.01):
-    from verticality import so3
+    from verticality.core import so3
 
     t = np.arange(int(seconds / dt) + 1) * dt
     q = np.broadcast_to(np.asarray(so3.quat_from_matrix(R_I_H)), (t.size, 4))
@@ -39,7 +39,7 @@ def test_still_upright_head_perceives_nothing(model):
 @pytest.mark.parametrize("model", ["merfeld", "laurens"])
 @pytest.mark.parametrize("otolith", ["unity", "pendulum"])
 def test_held_tilt_is_perceived_in_steady_state(model, otolith):
-    from verticality import so3
+    from verticality.core import so3
 
     R = np.asarray(so3.exp(np.array([0.3, -0.2, 0.5])))  # roll, pitch and yaw together
     r = pc.perceive(_still(R, 90.0), model, otolith=otolith)
@@ -124,8 +124,8 @@ def test_parameters_and_options_are_checked():
 
 
 def test_stabilized_head_keeps_heading_and_acceleration_and_is_upright():
-    from verticality import so3
-    from verticality.recorded_trajectory import built_in_motion
+    from verticality.core import so3
+    from verticality.simulation.recorded import built_in_motion
 
     rec, _ = built_in_motion("walking", 100.0, 0.0, 3.0)
     st = pp.stabilized(rec)
@@ -138,7 +138,7 @@ def test_stabilized_head_keeps_heading_and_acceleration_and_is_upright():
 
 
 def test_centrifuge_gif_rolls_by_atan_omega2_r_over_g_while_the_head_stays_upright():
-    from verticality.params import G_M_S2
+    from verticality.models.params import G_M_S2
 
     rec = pp.centrifuge(radius_m=1.5, omega_deg_s=120.0, ramp_s=5.0, on_s=10.0)
     f = pc.otolith_signals(rec)
@@ -174,7 +174,7 @@ def test_post_rotatory_tilt_and_ovar_experiments_pass_their_checks():
 def test_roll_swing_acceleration_is_the_second_derivative_of_the_head_position():
     """y-null: the head 1.22 m below the axis, p = −r z_H; its acceleration by central differences
     equals the record's a_I (the generator's analytic derivatives)."""
-    from verticality import so3
+    from verticality.core import so3
 
     rec = pp.roll_swing("y-null", on_s=8.0, dt_s=0.001)
     R = np.asarray(so3.matrix_from_quat(rec.q_I_H_wxyz))

@@ -7,7 +7,7 @@ import pytest
 
 from verticality.experiments import platform as exp
 from verticality.models import platform as pf
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
 
 
 def _axis_state(v):

@@ -5,7 +5,7 @@ readings clip at the range, and a recording is a pure function of its seed."""
 import numpy as np
 import pytest
 
-from verticality import so3
+from verticality.core import so3
 from verticality.tilt.evaluation import realistic as rr
 
 

@@ -308,7 +308,7 @@ def api_violations(seed: int) -> list[str]:
     raised, or refuse with an InputError; ``tilt.smooth`` gives the filter's rows and flags,
     finite wherever the filter's estimate is."""
     from verticality import tilt
-    from verticality.errors import InputError
+    from verticality.core.errors import InputError
 
     rng = np.random.default_rng(seed)
     n = int(rng.choice([0, 1, 2, 40, 300]))

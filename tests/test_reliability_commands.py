@@ -43,7 +43,7 @@ from test_reliability import (
     violations,
 )
 from test_sweep import TINY  # the same tiny sweep: 8 runs of 1.5 s
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 
 SEEDS = st.integers(min_value=0, max_value=2**31 - 1)
 FEW = settings(max_examples=12, deadline=None, derandomize=True,

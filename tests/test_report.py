@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from verticality import cli, experiments, report  # noqa: E402
-from verticality.errors import InputError  # noqa: E402
+from verticality.core.errors import InputError  # noqa: E402
 from verticality.report import compare, provenance  # noqa: E402
 from verticality.report.claims import CLAIMS, DIFFERENCES, PENDING, Published  # noqa: E402
 from verticality.report.html import anchor  # noqa: E402

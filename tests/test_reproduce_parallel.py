@@ -13,9 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from verticality import cli, experiment_costs
-from verticality.commands.reproduce import Tracker
-from verticality.reporting import run_experiments
+from verticality import cli
+from verticality.cli.commands.reproduce import Tracker
+from verticality.report import costs as experiment_costs
+from verticality.report.runs import run_experiments
 
 CHEAP = ["tahboub-step", "tahboub-gains", "perception-yaw"]  # deliberately not in registry order
 
@@ -200,7 +201,7 @@ def test_the_workers_end_when_the_command_is_killed(tmp_path):
 
 
 def test_default_jobs_one_per_core_as_memory_allows(monkeypatch):
-    from verticality import experiment_pool
+    from verticality.report import pool as experiment_pool
 
     monkeypatch.setattr(experiment_pool.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3},
                         raising=False)

@@ -4,9 +4,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import sensors, so3
+from verticality.core import so3
 from verticality.models.kinematics import RigidMotion, still
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
+from verticality.sensors import readings as sensors
 
 
 def test_gyro_white_noise_and_random_walk_bias():

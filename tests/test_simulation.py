@@ -7,14 +7,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import simulation as sim
-from verticality import so3
-from verticality import trajectories as tr
+from verticality.core import so3
 from verticality.models import gimbal
 from verticality.models.gimbal_plant import gimbal_plant
 from verticality.models.head import HeadInput
+from verticality.models.params import P13_HEAD, P13_PENDULUM, PendulumParams, lateral_pendulums
 from verticality.models.pendulum import Pendulum
-from verticality.params import P13_HEAD, P13_PENDULUM, PendulumParams, lateral_pendulums
+from verticality.simulation import closed_loop as sim
+from verticality.simulation import trajectories as tr
 
 
 class Probe(NamedTuple):
@@ -100,7 +100,7 @@ def test_sensors_draw_the_documented_random_numbers():
     """The measurements are the sensors module's readings with the keys of the simulator's scheme:
     per estimator tick k, ``k_ctrl, key_k = split(fold_in(key, k))`` (the control ticks' gyro
     noise from k_ctrl, drawn at once), ``k_phi, k_gyro, k_bias = split(key_k, 3)``."""
-    from verticality import sensors
+    from verticality.sensors import readings as sensors
 
     traj = tr.impact(duration_s=0.2)
     noise = sim.NoiseParams(otolith_std_rad=0.02,

@@ -1,11 +1,11 @@
-"""Group laws and round trips of verticality.so3 (property tests)."""
+"""Group laws and round trips of verticality.core.so3 (property tests)."""
 
 import jax.numpy as jnp
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from verticality import so3
+from verticality.core import so3
 
 finite = st.floats(-3.0, 3.0, allow_nan=False)
 vec3 = st.tuples(finite, finite, finite).map(np.array)

@@ -6,11 +6,12 @@ import jax
 import numpy as np
 import pytest
 
-from verticality import cli, trajectories
-from verticality.errors import InputError
+from verticality import cli
+from verticality.core.errors import InputError
 from verticality.experiments import ekf as ekf_exp
 from verticality.io import motion as io
-from verticality.recorded_trajectory import from_record, rate_mismatch, record_of, rpy_rates
+from verticality.simulation import trajectories
+from verticality.simulation.recorded import from_record, rate_mismatch, record_of, rpy_rates
 
 
 def _record(traj, rate_hz):
@@ -167,7 +168,7 @@ def test_stabilize_reads_a_broad_recording_window(tmp_path, capsys):
 
 
 def test_whole_periods_and_option_checks():
-    from verticality import stabilization as st
+    from verticality.simulation import stabilization as st
 
     assert st.whole_periods(2.994) == pytest.approx(2.98)
     assert st.whole_periods(3.0) == pytest.approx(3.0)

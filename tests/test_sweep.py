@@ -11,7 +11,7 @@ import pyarrow.parquet as pq  # the extra 'sweep' is part of the test extra: mis
 import pytest
 
 from verticality.cli import main
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.experiments import newton as E
 from verticality.sweep import distribute, maps
 from verticality.sweep import spec as S

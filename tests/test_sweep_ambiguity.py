@@ -6,7 +6,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.experiments import ambiguity as E
 from verticality.sweep import distribute
 from verticality.sweep import spec as S

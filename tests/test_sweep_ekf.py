@@ -10,9 +10,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from verticality import trajectories
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.experiments import ekf as E
+from verticality.simulation import trajectories
 from verticality.sweep import distribute
 from verticality.sweep import spec as S
 from verticality.sweep.ekf_kernels import EKF_IMPACT, EKF_JUMP

@@ -10,12 +10,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.experiments import newton as E
 from verticality.models import lissajous_plant as lp
+from verticality.simulation.trajectories import lissajous_trunk
 from verticality.sweep import kernels as K
 from verticality.sweep import spec as S
-from verticality.trajectories import lissajous_trunk
 
 KERNEL = K.NEWTON_LISSAJOUS
 DURATION_S = 1.5  # 60 observer samples, the shortest run the kernel allows

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from verticality.cli import main
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.sweep import curves, distribute, maps
 from verticality.sweep import kernels as K
 from verticality.sweep import spec as S

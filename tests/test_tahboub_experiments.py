@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from verticality import cli, experiments, so3
+from verticality import cli, experiments
+from verticality.core import so3
 from verticality.experiments import ground, tahboub
 from verticality.io.motion import read_motion_csv
 

@@ -9,8 +9,9 @@ import pytest
 
 from imu_cases import G, tumbling
 from imu_cases import up_S as _up_S
-from verticality import so3, tilt
-from verticality.errors import InputError
+from verticality import tilt
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.tilt import estimator
 from verticality.tilt.core import TiltOutput, quat_from_acc
 from verticality.tilt.params import BLOCK

@@ -10,7 +10,7 @@ import pytest
 
 from imu_cases import tumbling
 from verticality import tilt
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io.imu import dt_from_t
 from verticality.tilt import estimator, flags
 

@@ -8,7 +8,7 @@ import pytest
 from broad_slices import ALL
 from imu_cases import G, fast_roll
 from verticality import tilt
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.tilt import limits as tilt_limits
 from verticality.tilt.flags import ACC_MISSING, CLIPPED, HELD
 

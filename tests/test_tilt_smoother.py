@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from verticality import cli, tilt
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.tilt import batch as tilt_batch
 from verticality.tilt import estimator
 from verticality.tilt import smoother as tilt_smoother
@@ -193,17 +193,17 @@ def test_backward_pass_equals_the_dense_batch_solution(seed):
 
 
 def test_a_recording_beyond_memory_is_refused(monkeypatch):
-    import verticality.sizing
+    import verticality.core.sizing
 
     gyr, acc, dt, _ = fault_recording("clean", n=1000, seed=0)
-    monkeypatch.setattr(verticality.sizing, "MAX_WORK_BYTES",
+    monkeypatch.setattr(verticality.core.sizing, "MAX_WORK_BYTES",
                         999 * tilt_smoother.BYTES_PER_SAMPLE)
     with pytest.raises(InputError, match="offline smoother"):
         tilt.smooth(gyr, acc, period_s=dt)
 
 
 def test_estimate_offline_command(tmp_path, capsys, monkeypatch):
-    import verticality.sizing
+    import verticality.core.sizing
     from verticality.io import imu
     from verticality.io.recording import load_imu
 
@@ -222,7 +222,7 @@ def test_estimate_offline_command(tmp_path, capsys, monkeypatch):
     assert cli.main(["estimate", str(path), "--out", str(tmp_path / "e2.csv"), "--offline",
                      "--filter", "vqf"]) != 0
     assert "offline smoother" in capsys.readouterr().err
-    monkeypatch.setattr(verticality.sizing, "MAX_WORK_BYTES", 1000 * tilt_smoother.BYTES_PER_SAMPLE)
+    monkeypatch.setattr(verticality.core.sizing, "MAX_WORK_BYTES", 1000 * tilt_smoother.BYTES_PER_SAMPLE)
     assert cli.main(["estimate", str(path), "--out", str(tmp_path / "e3.csv"), "--offline"]) != 0
     assert "offline smoother" in capsys.readouterr().err and not (tmp_path / "e3.csv").exists()
 

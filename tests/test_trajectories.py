@@ -6,9 +6,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
-from verticality import trajectories as tr
-from verticality.params import G_M_S2
+from verticality.core import so3
+from verticality.models.params import G_M_S2
+from verticality.simulation import trajectories as tr
 
 
 def _finite_difference_check(traj, times, h=1e-4):

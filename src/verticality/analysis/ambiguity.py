@@ -74,7 +74,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
 
 
 def up_H(theta_x_rad, theta_y_rad):

@@ -1,7 +1,7 @@
 """How far the tilt–translation ambiguity bites on a recorded head motion (F §3.2).
 
 For a head motion (MOTION.csv, :mod:`verticality.io.motion`) the otolith pendulum is replayed
-(:func:`verticality.simulation.otolith_replay`, the project's pendulum model value) and its angles
+(:func:`verticality.simulation.closed_loop.otolith_replay`, the project's pendulum model value) and its angles
 are read as an accelerometer under the **upright assumption** (F 3.14–3.15, the head's tilt taken
 as zero, the vertical head-frame acceleration ``a_z`` known from the saccule):
 :func:`verticality.analysis.ambiguity.head_acceleration`. The indicated horizontal acceleration is
@@ -22,11 +22,11 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
 from verticality.analysis import ambiguity as am
-from verticality.errors import InputError
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.io.motion import MotionRecord
-from verticality.params import (
+from verticality.models.params import (
     F452_OTOLITH_DAMPING_RATIO,
     F452_OTOLITH_NATURAL_HZ,
     G_M_S2,
@@ -48,7 +48,7 @@ class UprightReading(NamedTuple):
 
 
 def otolith_overrides(otolith: str) -> list[str]:
-    """``NAME=VALUE`` overrides of :func:`verticality.params.otolith_pendula` for ``otolith``."""
+    """``NAME=VALUE`` overrides of :func:`verticality.models.params.otolith_pendula` for ``otolith``."""
     if otolith not in OTOLITHS:
         raise InputError(f"otolith must be one of {', '.join(OTOLITHS)}, not {otolith!r}")
     if otolith == "p13":
@@ -65,7 +65,7 @@ def otolith_overrides(otolith: str) -> list[str]:
 
 def upright_reading(record: MotionRecord, otolith: str = "f452", progress=None) -> UprightReading:
     """The acceleration the otolith indicates under the upright assumption, against the truth."""
-    from verticality import simulation
+    from verticality.simulation import closed_loop as simulation
 
     pendula, _ = otolith_pendula("medial", otolith_overrides(otolith))
     max_substep = 1e-4 if otolith == "f452" else 1e-3
@@ -110,7 +110,7 @@ def columns(r: UprightReading) -> dict:
 
 def plot(r: UprightReading, path) -> None:
     """True and indicated accelerations, their error and the head's tilt against time."""
-    from verticality.plots import new_figure, save
+    from verticality.core.plots import new_figure, save
 
     fig, axes = new_figure(3, 1, width=10)
     for i, k in enumerate("xy"):

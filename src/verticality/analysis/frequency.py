@@ -3,7 +3,7 @@ Peterka 2002 J Neurophysiol 88:1097).
 
 The PRTS stimulus itself (the 242-long pseudorandom ternary sequence, velocity held for
 Δt = 0.25 s per element, integrated to a lean) is a trajectory:
-:func:`verticality.trajectories.prts_stimulus` and :func:`verticality.trajectories.prts`.
+:func:`verticality.simulation.trajectories.prts_stimulus` and :func:`verticality.simulation.trajectories.prts`.
 
 * :func:`prts_frequencies` — the odd harmonics of the cycle, where a PRTS has power.
 * :func:`cycle_transfer_function` — Peterka's method for a periodic stimulus: one FFT per stimulus
@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal
 
-from verticality.errors import InputError
-from verticality.trajectories import PRTS_DT_S, PRTS_LENGTH
+from verticality.core.errors import InputError
+from verticality.simulation.trajectories import PRTS_DT_S, PRTS_LENGTH
 
 
 def prts_frequencies(cycle_s: float = PRTS_LENGTH * PRTS_DT_S, f_max_hz: float = 2.0) -> np.ndarray:
@@ -99,7 +99,7 @@ def band_summary(f_hz, H, coh, f_lo: float = 0.05, f_hi: float = 1.0) -> dict:
 def bode_figure(f_hz, gain, phase_deg, coherence, title: str = "", band=(0.05, 1.0),
                 published_gain: float | None = 1.0, published_phase_deg: float | None = 0.0):
     """Gain, phase and coherence on a log frequency axis; dashed lines at the published values."""
-    from verticality.plots import new_figure, published_line
+    from verticality.core.plots import new_figure, published_line
 
     fig, axes = new_figure(3, 1, width=7.0, height_per_row=2.2)
     ax_g, ax_p, ax_c = axes[:, 0]

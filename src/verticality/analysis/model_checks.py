@@ -29,7 +29,7 @@ The checks and the readings they fix:
   ``E(10 s) − E(0)`` against ``−∫ β |ω_S|² dt`` (Simpson on the 1 ms samples), relative to the
   dissipated energy.
 * SO(3) drift (:func:`so3_drift_medial`, :func:`so3_drift_lateral_free_head`): the pendulum driven
-  kinematically by the P13 impact motion (:func:`verticality.trajectories.impact`, 60 s; the trunk
+  kinematically by the P13 impact motion (:func:`verticality.simulation.trajectories.impact`, 60 s; the trunk
   stops after ~6 s), max over the run of ``‖R_ISᵀ R_IS − I‖_F`` with and without the projection;
   the lateral model with a free head under the global stabilizer (F 2.20) and the impact's
   acceleration, 60 s, max over R_IL, R_IR, R_IH.
@@ -53,7 +53,7 @@ The checks and the readings they fix:
   (J_H = 0.125, gyroscopic term on) released at rest from a 2.5 rad rotation about
   (1, 1, 0.3)/‖·‖, under F 2.20 with K_p = 16, K_d = 4 (critically damped at upright:
   J θ̈ = −2K_p θ − K_d θ̇), rotation angle of R_IH after 5 s; closed-loop poles of the head under
-  the linearized tilt PD (F 4.8–4.9; :func:`verticality.control.tilt_pd_closed_loop_matrix`)
+  the linearized tilt PD (F 4.8–4.9; :func:`verticality.simulation.control.tilt_pd_closed_loop_matrix`)
   against the eigenvalues of the ``jacfwd`` linearization (:func:`nonlinear_loop_jacobian`, in
   exponential coordinates) of the nonlinear loop with F 4.6–4.7, and against the analytic roots of
   ``J s² + k_d s + k_p``; k_p = 32, k_d = 5, k_{d,z} = 1.
@@ -69,24 +69,24 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
-from verticality.control import (
-    global_stabilizer,
-    tilt_pd,
-    tilt_pd_closed_loop_matrix,
-    tilt_pd_linearized,
-)
-from verticality.integrate import rk4_step
+from verticality.core import so3
+from verticality.core.integrate import rk4_step
 from verticality.models import otolith_head, planar
 from verticality.models.head import FreeHead, HeadInput, HeadState
 from verticality.models.kinematics import RigidMotion, tabulate
+from verticality.models.params import G_M_S2, LATERAL_R_M, P13_HEAD, P13_PENDULUM, lateral_pendulums
 from verticality.models.pendulum import (
     R_H_S,
     Pendulum,
     PendulumState,
     p13_inclinometer_angles,
 )
-from verticality.params import G_M_S2, LATERAL_R_M, P13_HEAD, P13_PENDULUM, lateral_pendulums
+from verticality.simulation.control import (
+    global_stabilizer,
+    tilt_pd,
+    tilt_pd_closed_loop_matrix,
+    tilt_pd_linearized,
+)
 
 DT_S = 1e-3
 T_SHORT_S = 10.0
@@ -309,7 +309,7 @@ def still_tilt_errors_rad(axis: str) -> StillTilt:
 @functools.lru_cache(maxsize=1)
 def impact_table():
     """The P13 impact motion (60 s) sampled at every RK4 stage time, shared by the impact runs."""
-    from verticality import trajectories
+    from verticality.simulation import trajectories
 
     return tabulate(trajectories.impact(duration_s=T_LONG_S).motion, DT_S, _steps(T_LONG_S))
 

@@ -59,7 +59,7 @@ import numpy as np
 from jax.experimental.jet import jet
 
 from verticality.analysis.observability_taylor import taylor
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_QTOL = 1e-6

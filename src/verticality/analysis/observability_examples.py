@@ -17,12 +17,12 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
 from verticality.analysis.observability import Problem, random_rotation
+from verticality.core import so3
 from verticality.models import planar
 from verticality.models.base import EuclideanState, model_dataclass, static_field
 from verticality.models.kinematics import rotation_difference, rotation_retract
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
 
 
 def kalman_rank(A, C) -> int:

@@ -18,7 +18,7 @@ input ``HeadInput(τ_H, a_I)``::
 Motion ``rot``: ``a = 0``; ``rot+trans``: ``H a`` a constant unknown (F §3.1.2 defines the head-frame
 acceleration as a symbolic parameter). Control: ``zero`` (τ = 0), ``unknown`` (τ a constant unknown
 parameter), ``known`` (τ a known input with free derivatives, not stabilized), ``stabilized`` (the
-feedback of F 2.20–2.21, :func:`verticality.control.global_stabilizer`: the stabilizing sign,
+feedback of F 2.20–2.21, :func:`verticality.simulation.control.global_stabilizer`: the stabilizing sign,
 ``τ = K_p Σ_i e_i × (R_IHᵀ e_i) − K_d ω_H``; the sign does not change the generic rank).
 
 Quantities asked: ``tilt`` = ``R_IHᵀ e3`` (gravity's up direction in the head frame, which fixes
@@ -40,7 +40,6 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
 from verticality.analysis.observability import (
     ObservabilityResult,
     Problem,
@@ -48,11 +47,11 @@ from verticality.analysis.observability import (
     curve_directions,
     random_rotation,
 )
-from verticality.control import global_stabilizer
-from verticality.errors import InputError
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.models import otolith_head, pendulum
 from verticality.models.head import HeadInput, HeadState
-from verticality.params import (
+from verticality.models.params import (
     LATERAL_R_M,
     P13_HEAD,
     P13_KD_NMS_RAD,
@@ -61,6 +60,7 @@ from verticality.params import (
     HeadParams,
     PendulumParams,
 )
+from verticality.simulation.control import global_stabilizer
 
 MODELS = ("medial", "lateral")
 MOTIONS = ("rot", "rot+trans")

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.estimators.kalman import ContinuousObserver, continuous_observer
 from verticality.models.linearize import LinearModel
 

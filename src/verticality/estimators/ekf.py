@@ -42,11 +42,11 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.estimators.base import keep_finite, scan_steps, split_measurement
 from verticality.models.base import Discretized, model_dataclass, static_field
 from verticality.models.otolith_head import OtolithHeadState, medial
-from verticality.params import HeadParams, PendulumParams
+from verticality.models.params import HeadParams, PendulumParams
 
 
 class EKFState(NamedTuple):

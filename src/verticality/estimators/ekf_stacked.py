@@ -11,7 +11,7 @@ leave SO(3); that is the point of the comparison. The same
 the covariance update Joseph form here too; Q = σ_w² I₂₄ (P13 §5).
 
 The tilt read from it uses the third row of the estimated ``R_IH`` (the world up axis in the head
-frame); :func:`verticality.so3.tilt_error_rad` is invariant to its length, and the controller's
+frame); :func:`verticality.core.so3.tilt_error_rad` is invariant to its length, and the controller's
 Λ⁻¹ normalizes it, so no re-orthonormalization is needed downstream.
 """
 
@@ -25,8 +25,8 @@ from verticality.estimators import ekf
 from verticality.models.base import Discretized, EuclideanState, OnModel, model_dataclass
 from verticality.models.head import HeadState
 from verticality.models.otolith_head import OtolithHeadState, medial
+from verticality.models.params import HeadParams, PendulumParams
 from verticality.models.pendulum import PendulumState
-from verticality.params import HeadParams, PendulumParams
 
 N_STATE = 24
 

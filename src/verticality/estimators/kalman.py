@@ -36,9 +36,9 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
+from verticality.core.integrate import zoh
 from verticality.estimators.base import keep_finite, scan_steps, split_measurement
-from verticality.integrate import zoh
 from verticality.models.base import model_dataclass
 
 
@@ -94,7 +94,7 @@ def van_loan(A, B, Q, dt):
     """Exact discretization over ``dt`` (JAX; Van Loan 1978).
 
     Returns ``(Phi, Gamma, Qd)``: ``Phi = e^{A dt}``, ``Gamma = ∫₀^dt e^{A s} ds B`` (input held,
-    :func:`verticality.integrate.zoh`), ``Qd = ∫₀^dt e^{A s} Q e^{Aᵀ s} ds`` — from one matrix
+    :func:`verticality.core.integrate.zoh`), ``Qd = ∫₀^dt e^{A s} Q e^{Aᵀ s} ds`` — from one matrix
     exponential of the block matrix ``[[−A, Q], [0, Aᵀ]]``.
     """
     A = jnp.asarray(A)

@@ -64,7 +64,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.estimators.base import all_finite, keep_finite, scan_steps
 from verticality.models.base import model_dataclass, static_field
 

@@ -66,7 +66,7 @@ def discover() -> dict[str, Experiment]:
 def get(name: str) -> Experiment:
     reg = discover()
     if name not in reg:
-        from verticality.errors import InputError
+        from verticality.core.errors import InputError
 
         known = ", ".join(sorted(reg))
         raise InputError(f"unknown experiment {name!r}; known: {known}")

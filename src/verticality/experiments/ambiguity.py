@@ -4,11 +4,11 @@ known (Fig. 4.11, 4.14) or reconstructed from the otolith (Fig. 4.12, 4.15, 4.16
 Plant (truth): the planar head carrying the medial otolith, :class:`~verticality.models.planar.PlanarHead`
 driven through :class:`~verticality.models.planar.WithHeadFrameInput` (torque and head-frame
 acceleration), nonlinear, RK4 with 4 sub-steps per 1 ms sample. Parameters (F §4.5.2,
-:mod:`verticality.params`): otolith critically damped at 300 Hz (``g/l = (2π·300)²``,
+:mod:`verticality.models.params`): otolith critically damped at 300 Hz (``g/l = (2π·300)²``,
 ``β/(m l²) = 2·2π·300``; only the ratios matter), head inertia 0.0174 kg·m². Sagittal plane: the
 planar model's rotation is about the head's y axis with ``h = −x`` (:mod:`verticality.models.planar`),
 so a forward head acceleration is ``a_h = −a_x``. Walking: the built-in
-:func:`verticality.trajectories.walking` (F Fig. 4.13, after Menz, Lord & Fitzpatrick 2003); its
+:func:`verticality.simulation.trajectories.walking` (F Fig. 4.13, after Menz, Lord & Fitzpatrick 2003); its
 forward and vertical accelerations drive the head as head-frame components ``ᴴa`` (F's input;
 head-mounted accelerometers measure in the head frame), sampled at every RK4 stage time.
 
@@ -69,16 +69,21 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import trajectories as tr
 from verticality.analysis import ambiguity as am
-from verticality.errors import InputError
+from verticality.core.errors import InputError
+from verticality.core.integrate import rk4_step_staged
 from verticality.estimators import luenberger as lu
 from verticality.estimators.ekf import ExtendedKalmanFilter
 from verticality.experiments import Result, check, register
 from verticality.experiments import ambiguity_upright as au
-from verticality.integrate import rk4_step_staged
 from verticality.models.base import Discretized
 from verticality.models.linearize import LinearModel, linearize, select_inputs
+from verticality.models.params import (
+    F452_HEAD_INERTIA_KG_M2,
+    F452_OTOLITH_DAMPING_RATIO,
+    F452_OTOLITH_NATURAL_HZ,
+    G_M_S2,
+)
 from verticality.models.planar import (
     AccelerationState,
     HeadInput,
@@ -88,12 +93,7 @@ from verticality.models.planar import (
     WithHeadFrameInput,
 )
 from verticality.models.platform import f44_platform
-from verticality.params import (
-    F452_HEAD_INERTIA_KG_M2,
-    F452_OTOLITH_DAMPING_RATIO,
-    F452_OTOLITH_NATURAL_HZ,
-    G_M_S2,
-)
+from verticality.simulation import trajectories as tr
 
 DT_S = 1e-4
 SUBSTEPS = 1
@@ -492,7 +492,7 @@ def _relation_maps(fig, axes, rows, sweep_values):
 
 
 def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
-    from verticality.plots import new_figure, save
+    from verticality.core.plots import new_figure, save
 
     s = result.series
     t = s["t"]
@@ -571,7 +571,7 @@ _GRID_LABELS = {"pd_loop_rad_s": "PD bandwidth [rad/s]", "walking_scale": "walki
 def _upright_figure(result: Result, out_dir: Path, name: str) -> Path:
     """The Fig. 4.12 caption's reading: time courses at the nominal setting and how the boundary
     (largest converging, smallest failing value) moves with each parameter of the grid."""
-    from verticality.plots import new_figure, save
+    from verticality.core.plots import new_figure, save
 
     swept = "initial_tilt" if name == "ambiguity-initial-tilt" else "desired_tilt"
     m, s = result.metrics["upright_assumption"], result.series

@@ -20,7 +20,7 @@ The head, otolith, internal model, observer and walking are those of
 - **A soft PD.** F gives no gains; the head's loop is critically damped at 4 rad/s
   (:data:`PD_LOOP_RAD_S`, the middle of 3–5 rad/s) instead of the sibling's 10 rad/s; the grid of
   :func:`sweeps` reports how the outcome moves with it.
-- **Walking at the step frequency** (``harmonics=0`` of :func:`verticality.trajectories.walking`):
+- **Walking at the step frequency** (``harmonics=0`` of :func:`verticality.simulation.trajectories.walking`):
   0.32 g vertical, 0.16 g fore–aft at 2 steps/s, the bounce a quarter step behind the forward sway;
   F Fig. 4.13 gives no numbers, and the built-in walking's 2nd harmonics are a grid parameter.
 
@@ -39,11 +39,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import trajectories as tr
 from verticality.analysis import ambiguity as am
+from verticality.core.integrate import rk4_step_staged
 from verticality.estimators import luenberger as lu
-from verticality.integrate import rk4_step_staged
 from verticality.models.planar import HeadInput, PlanarState
+from verticality.simulation import trajectories as tr
 
 DT_S = 1e-4
 DURATION_S = 20.0

@@ -1,11 +1,11 @@
 """`ekf-impact` and `ekf-jump`: the EKF on the gimbal head, fixed versus stabilized (P13 §5, F §4.2.2).
 
-Plant (truth, :mod:`verticality.simulation`): the head on the 2-DOF gimbal over the moving trunk,
+Plant (truth, :mod:`verticality.simulation.closed_loop`): the head on the 2-DOF gimbal over the moving trunk,
 carrying the otolith pendulum, P13's true parameters (m = 50 g, l = 0.06 m, J_H = 0.125 I,
 β = 0.001), fixed-step RK4 at 1 ms; the joint-space PD of P13 §3 (k_p = 32, k_d = 5) at 1 ms, fed by
 the latest estimate; the EKF every 20 ms; measurement noise σ = 0.02 on the two inclinometer angles
-and the three gyro rates (seeded). Trajectories: :func:`verticality.trajectories.impact` and
-:func:`verticality.trajectories.jump` (their docstrings give their readings of P13 Fig. 2).
+and the three gyro rates (seeded). Trajectories: :func:`verticality.simulation.trajectories.impact` and
+:func:`verticality.simulation.trajectories.jump` (their docstrings give their readings of P13 Fig. 2).
 
 Estimators: the multiplicative EKF on SO(3) (:mod:`verticality.estimators.ekf`, the metrics of
 docs/reproduction.md) and the papers' stacked 24-element EKF (:mod:`verticality.estimators.ekf_stacked`,
@@ -69,15 +69,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import plots, so3, trajectories
-from verticality import simulation as sim
+from verticality.core import plots, so3
 from verticality.estimators import ekf, ekf_stacked, parameter_noise
 from verticality.experiments import Result, check, register
 from verticality.models import gimbal
 from verticality.models.gimbal_plant import gimbal_plant
 from verticality.models.head import HeadInput, state_from_motion
 from verticality.models.otolith_head import HeadFrameAcceleration, HeadFrameInput, OtolithHeadState
-from verticality.params import P13_EKF_HEAD, P13_EKF_PENDULUM, P13_HEAD, P13_PENDULUM
+from verticality.models.params import P13_EKF_HEAD, P13_EKF_PENDULUM, P13_HEAD, P13_PENDULUM
+from verticality.simulation import closed_loop as sim
+from verticality.simulation import trajectories
 
 T_SETTLE_S = 2.0
 INITIAL_ERROR_RAD = 0.1

@@ -11,7 +11,7 @@ filter, seeds and trajectories as :mod:`verticality.experiments.ekf`; one value 
    P13 §5's σ_w = 0.001 in both conditions; the stabilized head's filter (whose torque is known) is
    the same in every row.
 2. **The trunk's pitch during the jump** (rad; ekf-jump: 0.2). P13 gives the jump's translation
-   only; the trunk's rotation is this project's choice (:func:`verticality.trajectories.jump`).
+   only; the trunk's rotation is this project's choice (:func:`verticality.simulation.trajectories.jump`).
 3. **Sensor noise** σ on the two inclinometer angles (rad) and the three gyro rates (rad/s), in
    the simulation and in the filter's R alike (P13 §5: 0.02), jump.
 
@@ -26,9 +26,10 @@ import inspect
 import time
 from pathlib import Path
 
-from verticality import plots, trajectories
+from verticality.core import plots
 from verticality.experiments import Result, register
 from verticality.experiments import ekf as ekf_exp
+from verticality.simulation import trajectories
 
 HEAD_RATE_SIGMAS = (3e-4, 1e-3, 3e-3, 1e-2, 3e-2)
 HEAD_RATE_SIGMAS_QUICK = (1e-3, 3e-2)

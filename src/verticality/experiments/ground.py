@@ -43,6 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from verticality.core.integrate import rk4_step_staged
 from verticality.estimators.disturbance import extended_disturbance_observer, extended_system
 from verticality.estimators.ground import ground_from_states
 from verticality.estimators.kalman import continuous_observer
@@ -53,7 +54,6 @@ from verticality.experiments.tahboub import (
     GYRO_SIGMA_RAD_S,
     estimate_lean,
 )
-from verticality.integrate import rk4_step_staged
 from verticality.models.body import HUMAN_TWO_SEGMENT, GroundInput, TwoSegmentBody, upright
 from verticality.models.linearize import LinearModel, linearize, select_inputs
 
@@ -218,7 +218,7 @@ def trial(quick: bool = False, poles: tuple = EDO_POLES, seed: int = 11):
 
 def _figures(kind: str):
     def figures(result: Result, out_dir: Path):
-        from verticality.plots import new_figure, save
+        from verticality.core.plots import new_figure, save
 
         s = result.series
         rows = [("theta1", "inclination [deg]", "Fig. 9" if kind == "kf" else "Fig. 11"),

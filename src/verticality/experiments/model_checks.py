@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality import so3
 from verticality.analysis import model_checks as mc
+from verticality.core import so3
 from verticality.experiments import Result, check, register
 
 __all__ = ["TOL", "figures", "run"]
@@ -147,7 +147,7 @@ def run(quick: bool = False) -> Result:
 
 # ---------------------------------------------------------------------------------- figures
 def figures(result: Result, out_dir: Path) -> list[Path]:
-    from verticality import plots
+    from verticality.core import plots
 
     s, m = result.series, result.metrics
     out_dir = Path(out_dir)

@@ -16,7 +16,7 @@ What F does not give, and our readings:
   spin decays in 53 µs, 13 µs with /20, both far faster than the head turns); full
   Newton–Euler forms (gyroscopic and Euler terms kept: F simplifies them only "after the model
   verification", F §2.1.2); the lateral pivots at ±5 cm on the interaural (y) axis
-  (:func:`verticality.params.lateral_pendulums`);
+  (:func:`verticality.models.params.lateral_pendulums`);
 - the head: isotropic, 0.0174 kg·m² about each axis, gyroscopic term kept;
 - the stabilizer's gains: critically damped at upright at 10 rad/s (J θ̈ = −2K_p θ − K_d θ̇:
   K_p = J·ω²/2, K_d = 2J·ω), the bandwidth of the F §4.5.2 experiments of this project;
@@ -48,15 +48,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
 from verticality.analysis.model_checks import run_model
-from verticality.control import global_stabilizer
+from verticality.core import so3
 from verticality.experiments import Result, check, register
 from verticality.models.head import FreeHead, HeadInput, HeadState
 from verticality.models.kinematics import RigidMotion
 from verticality.models.otolith_head import OtolithHead
-from verticality.models.pendulum import Pendulum
-from verticality.params import (
+from verticality.models.params import (
     F452_HEAD_INERTIA_KG_M2,
     F452_OTOLITH_DAMPING_RATIO,
     F452_OTOLITH_NATURAL_HZ,
@@ -65,6 +63,8 @@ from verticality.params import (
     PendulumParams,
     lateral_pendulums,
 )
+from verticality.models.pendulum import Pendulum
+from verticality.simulation.control import global_stabilizer
 
 DT_S = 1e-4
 EVERY = 10  # outputs every 1 ms
@@ -244,7 +244,7 @@ def run(quick: bool = False) -> Result:
 
 
 def _figures(result: Result, out_dir: Path) -> list[Path]:
-    from verticality import plots
+    from verticality.core import plots
 
     fig, axes = plots.new_figure(len(CASES), 3, width=13.0, height_per_row=2.4)
     for i, c in enumerate(CASES):

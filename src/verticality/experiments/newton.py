@@ -93,7 +93,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import sensors
 from verticality.estimators import newton
 from verticality.experiments import Result, check, register
 from verticality.models import lissajous_plant as lp
@@ -105,7 +104,8 @@ from verticality.models.planar import (
     head_frame_to_inertial,
     inclinometer_reading,
 )
-from verticality.trajectories import LISSAJOUS_AMPLITUDE
+from verticality.sensors import readings as sensors
+from verticality.simulation.trajectories import LISSAJOUS_AMPLITUDE
 
 DT_S = 1e-3
 SUBSTEPS = 25  # 1 ms plant steps per observer sample (25 ms spacing)
@@ -424,7 +424,7 @@ def run_uncertainty(quick: bool = False) -> Result:
 
 
 def _figures_lissajous(result: Result, out_dir: Path) -> list[Path]:
-    from verticality import plots
+    from verticality.core import plots
 
     paths = []
     pub = PAPER_LISSAJOUS["max_tilt_error_deg"]
@@ -475,7 +475,7 @@ def _figures_lissajous(result: Result, out_dir: Path) -> list[Path]:
 
 
 def _figures_uncertainty(result: Result, out_dir: Path) -> list[Path]:
-    from verticality import plots
+    from verticality.core import plots
 
     fig, axes = plots.new_figure(1, 1, width=7.0, height_per_row=3.6)
     ax = axes[0, 0]

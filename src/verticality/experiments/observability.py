@@ -73,7 +73,7 @@ def _agreement(rows) -> int:
 
 
 def figures(result: Result, out_dir: Path) -> list[Path]:
-    from verticality import plots
+    from verticality.core import plots
 
     rows = result.metrics["rows"]
     fig, axes = plots.new_figure(1, 2, width=13.0, height_per_row=6.0, sharex=False)

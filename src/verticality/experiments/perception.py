@@ -1,8 +1,8 @@
 """Vestibular perception paradigms: the Merfeld & Zupan 2002 observer (F §1.4.3 reviews Merfeld's
 observer) and the Laurens & Angelaki 2017 Kalman filter (not in F, which reviews the same group's
 earlier particle filter) driven by the classic head motions of
-:mod:`verticality.perception_paradigms`, with the papers' sensors (high-pass canals, unity-gain
-otolith; :func:`verticality.perception.perceive`).
+:mod:`verticality.perception.paradigms`, with the papers' sensors (high-pass canals, unity-gain
+otolith; :func:`verticality.perception.perceive.perceive`).
 
 * ``perception-yaw`` — Earth-vertical yaw velocity step of 60°/s for 60 s, then a stop. Merfeld–
   Zupan (human, no adaptation): the perceived velocity starts at the gain kω/(1 + kω) and decays
@@ -29,11 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality import perception as pc
-from verticality import perception_paradigms as pp
 from verticality.experiments import Result, check, register
-from verticality.params import G_M_S2
-from verticality.perception_params import MERFELD_PRESETS
+from verticality.models.params import G_M_S2
+from verticality.perception import paradigms as pp
+from verticality.perception import perceive as pc
+from verticality.perception.params import MERFELD_PRESETS
 
 MODELS = {"merfeld": ("merfeld", "human"), "laurens": ("laurens", "default")}
 OMEGA_DEG_S = 60.0
@@ -203,7 +203,7 @@ def run_stabilized_head(quick: bool = False) -> Result:
     (``fixed``) or servoed upright (``stabilized``, :func:`perception_paradigms.stabilized`),
     perceived by both models with the unity otolith and with the project's otolith pendulum;
     metrics: the max and RMS angle between perceived and true gravity after 2 s."""
-    from verticality.recorded_trajectory import built_in_motion
+    from verticality.simulation.recorded import built_in_motion
 
     rec, _ = built_in_motion("walking", 100.0, 0.0, 10.0 if quick else None)
     heads = {"fixed": rec, "stabilized": pp.stabilized(rec)}
@@ -283,7 +283,7 @@ def _amplitude(x) -> float:
 def swing_forces(rec) -> dict:
     """The head-frame y velocity (cm/s; trapezoidal integration of ``a_I`` from rest) and the
     gravito-inertial force per unit mass along the head's y and z axes (m/s²) of a record."""
-    from verticality import so3
+    from verticality.core import so3
 
     R = np.asarray(so3.matrix_from_quat(np.asarray(rec.q_I_H_wxyz)))
     a = np.asarray(rec.a_I_m_s2, float)
@@ -297,7 +297,7 @@ def swing_forces(rec) -> dict:
 
 def _swing_figure(result: Result, out_dir: Path) -> list[Path]:
     """Perceived against actual roll and lateral velocity, the four conditions side by side."""
-    from verticality.plots import new_figure, save
+    from verticality.core.plots import new_figure, save
 
     s = result.series
     conds = [c for c in pp.SWING_CONDITIONS if f"{c}/t" in s]

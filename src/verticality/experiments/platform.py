@@ -49,14 +49,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import sensors
+from verticality.core.integrate import rk4_step
 from verticality.estimators import luenberger as lu
 from verticality.estimators.kalman import ContinuousObserver
 from verticality.experiments import Result, check, register
-from verticality.integrate import rk4_step
 from verticality.models import platform as pf
 from verticality.models.kinematics import RigidMotion
 from verticality.models.linearize import linearize, select_inputs
+from verticality.sensors import readings as sensors
 
 LOOP_DT_S = 3e-3
 SUBSTEPS = 3
@@ -114,7 +114,7 @@ def _drive(cfg: AxisCfg, t, swing_s):
 
 def accelerometer_reading(key, theta_rad, omega_rad_s, a_h_I_m_s2):
     """The platform accelerometer's reading along the axis' horizontal (F §5.1.1: tri-axial, at the
-    platform's centre, axes aligned with the platform's): :func:`verticality.sensors.accelerometer`
+    platform's centre, axes aligned with the platform's): :func:`verticality.sensors.readings.accelerometer`
     for the platform tilted by θ about its axis and accelerated by ``a_h`` — the specific force
     ``a_h cos θ + g sin θ`` plus white noise of σ :data:`SIGMA_ACC_M_S2` (signs of the
     inclinometer's apparent tilt ``θ + atan2(a_h, g)``: the tilt about y is ``−θ``)."""
@@ -298,7 +298,7 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
     """F Fig. 5.7/5.8 (base swing) and 5.9 (translation): tilt, reading, estimate, base, command,
     for the three feeds (inclinometer; observer given the true acceleration; observer given the
     platform accelerometer's reading)."""
-    from verticality.plots import new_figure, published_line, save
+    from verticality.core.plots import new_figure, published_line, save
 
     s = result.series
     t = s["t"]

@@ -41,13 +41,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from verticality.core.integrate import rk4_step_staged
 from verticality.estimators import kalman as kf
 from verticality.estimators import luenberger as lu
 from verticality.experiments import Result, check, register
-from verticality.integrate import rk4_step_staged
 from verticality.models.inclinometer import F44_BETA_OVER_ML2_S, F44_G_OVER_L_S2
 from verticality.models.linearize import LinearModel, linearize, select_inputs
 from verticality.models.otolith_head import PlanarLateral, PlanarLateralState
+from verticality.models.params import LATERAL_R_M
 from verticality.models.planar import (
     HeadInput,
     PlanarInput,
@@ -56,7 +57,6 @@ from verticality.models.planar import (
     head_frame_to_inertial,
 )
 from verticality.models.platform import f44_platform
-from verticality.params import LATERAL_R_M
 
 KP, KD = 1.0, 0.1
 THETA0_RAD = 0.4
@@ -365,7 +365,7 @@ def run(quick: bool = False) -> Result:
 
 def figures(result: Result, out_dir: Path) -> list[Path]:
     """Fig. 4.9 (sensor vs state feedback) and Fig. 4.10 (Luenberger and Kalman, refs 1 and 0)."""
-    from verticality.plots import new_figure, published_line, save
+    from verticality.core.plots import new_figure, published_line, save
 
     s = result.series
     t = s["t"]

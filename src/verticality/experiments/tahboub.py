@@ -20,7 +20,7 @@ Readings and choices (the paper leaves them open; docs/reproduction.md fixes the
 * Step: 5° step commanded at t = 2 s, 20 s run (quick 8 s). Sine: 5°, 0.2 Hz, 60 s (quick 20 s).
 * PRTS: the 242-long ternary m-sequence, Δt = 0.25 s, cycle 60.5 s, velocity levels ±v scaled so
   the lean spans ±5° (:func:`prts_command`: the lean of `verticality motion prts`, sampled at
-  100 Hz, :func:`verticality.trajectories.prts_stimulus`); 6 cycles (quick 3), the first
+  100 Hz, :func:`verticality.simulation.trajectories.prts_stimulus`); 6 cycles (quick 3), the first
   discarded as a transient; transfer function actual → estimated lean and coherence from
   cross-spectra averaged over cycles at the odd harmonics (Peterka 2002). Each cycle is
   end-matched before its FFT (``cycle_transfer_function(end_match=True)``): the gyro drift makes
@@ -40,12 +40,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.analysis import frequency
+from verticality.core.integrate import zoh
 from verticality.estimators import otolith_canal
 from verticality.experiments import Result, check, register
-from verticality.integrate import zoh
 from verticality.models.body import POSTUROB, SingleSegmentBody
-from verticality.params import G_M_S2
-from verticality.trajectories import PRTS_DT_S, PRTS_LENGTH, prts_stimulus
+from verticality.models.params import G_M_S2
+from verticality.simulation.trajectories import PRTS_DT_S, PRTS_LENGTH, prts_stimulus
 
 FS_HZ = 100.0
 SERVO_WN_RAD_S = 11.2
@@ -132,7 +132,7 @@ def _lean_experiment(command, seed: int, extra_forms: bool = False):
 
 
 def _gain_figures(result: Result, out_dir: Path):
-    from verticality.plots import new_figure, save
+    from verticality.core.plots import new_figure, save
 
     ours = np.asarray(result.metrics["gain"])
     pub = np.asarray(result.paper["gain"])
@@ -168,7 +168,7 @@ def run_gains(quick: bool = False) -> Result:
 
 def _time_figure(name, fig_label):
     def figures(result: Result, out_dir: Path):
-        from verticality.plots import new_figure, save
+        from verticality.core.plots import new_figure, save
 
         s = result.series
         fig, axes = new_figure(2, 1, width=8.0, height_per_row=2.4)
@@ -211,7 +211,7 @@ def run_sine(quick: bool = False) -> Result:
 
 
 def _prts_figures(result: Result, out_dir: Path):
-    from verticality.plots import new_figure, save
+    from verticality.core.plots import new_figure, save
 
     m = result.metrics
     fig = frequency.bode_figure(np.array(m["frequency_hz"]), np.array(m["gain"]), np.array(m["phase_deg"]),

@@ -19,8 +19,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality import so3
-from verticality.errors import InputError
+from verticality.core import so3
+from verticality.core.errors import InputError
 from verticality.io.paths import check_input_file
 
 REQUIRED = ("imu_gyr", "imu_acc", "opt_quat", "movement")

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io import imu_layout as layout
 from verticality.io import imu_rows
 from verticality.io.paths import check_input_file

@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 
 IMU_COLUMNS = ("t", "gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z")
 # time units of a file's time column: stamps per second (integers, so that ns stamps convert exactly)

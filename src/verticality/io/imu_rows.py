@@ -13,7 +13,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io import imu_layout as layout
 
 HEAD_S = 1.0  # a stream's first second is held back and checked as a file is

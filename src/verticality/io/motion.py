@@ -8,7 +8,7 @@ MOTION.csv: a header row, then one row per sample with the columns
     ax,ay,az     linear acceleration of the head centre in frame I, m/s², gravity NOT included
 
 Other columns are ignored; column order is free. A bad file raises
-:class:`verticality.errors.InputError` with one line naming the line number and column.
+:class:`verticality.core.errors.InputError` with one line naming the line number and column.
 
 OUT.csv: ``t,sx,sy,sz,phi_x,phi_y`` (s_H: unit vector from pivot to mass, head frame; the otolith
 angles of F 2.8–2.9, rad); for several pendulums the same columns with a suffix per pendulum
@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 
 MOTION_COLUMNS = ("t", "qw", "qx", "qy", "qz", "wx", "wy", "wz", "ax", "ay", "az")
 QUATERNION_NORM_TOL = 1e-3
@@ -146,8 +146,8 @@ def from_broad_trial(trial, start_s: float = 0.0, duration_s: float | None = Non
     noise), a_I = R_I_S·``imu_acc`` + (0, 0, −g) (the specific force rotated into I, gravity
     removed). Rows without an optical reference are not filled in: a window that holds one raises
     :class:`InputError` naming it and the longest clean stretch of the trial."""
-    from verticality import so3
-    from verticality.params import G_M_S2
+    from verticality.core import so3
+    from verticality.models.params import G_M_S2
 
     t = trial.t_s
     sel = window_mask(t, start_s, duration_s, trial.name, end_tol_s=0.5 / trial.sampling_rate_hz)

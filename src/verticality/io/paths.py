@@ -4,7 +4,7 @@ compared with every input and with the other outputs, so that no run overwrites 
 or writes two results to one file; an output must be a writable file (not a folder), a figure's
 extension one that matplotlib can write; an input must be an existing file (a folder is named as
 one). Every command that writes calls :func:`check_paths` first; a refusal is an
-:class:`~verticality.errors.InputError` (one line, exit status 2).
+:class:`~verticality.core.errors.InputError` (one line, exit status 2).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 
 
 def resolved(path) -> str:

@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io import broad, imu, imu_layout
 from verticality.io.paths import check_input_file
 

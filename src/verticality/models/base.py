@@ -40,8 +40,8 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
-from verticality.errors import InputError
-from verticality.integrate import euler_step, rk4_step
+from verticality.core.errors import InputError
+from verticality.core.integrate import euler_step, rk4_step
 
 
 @runtime_checkable

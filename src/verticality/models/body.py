@@ -42,7 +42,7 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 
 from verticality.models.base import EuclideanState, model_dataclass
-from verticality.params import G_M_S2
+from verticality.models.params import G_M_S2
 
 # --------------------------------------------------------------------------- single segment
 

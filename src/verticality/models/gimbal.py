@@ -33,7 +33,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from verticality import so3
+from verticality.core import so3
 from verticality.models.base import EuclideanState, model_dataclass
 from verticality.models.head import FreeHead
 from verticality.models.kinematics import RigidMotion

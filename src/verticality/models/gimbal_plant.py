@@ -24,8 +24,8 @@ from verticality.models.gimbal import GimbalHead, GimbalInput, GimbalState, head
 from verticality.models.head import FreeHead
 from verticality.models.kinematics import RigidMotion
 from verticality.models.otolith_head import Otoliths
+from verticality.models.params import HeadParams, PendulumParams
 from verticality.models.pendulum import Pendulum
-from verticality.params import HeadParams, PendulumParams
 
 
 class GimbalPlantState(NamedTuple):
@@ -105,7 +105,7 @@ class GimbalPlant:
 def gimbal_plant(head: HeadParams, pendula: tuple[PendulumParams, ...],
                  fixed: bool = False) -> GimbalPlant:
     """The plant with a head of ``head`` parameters carrying pendula of ``pendula`` parameters
-    (one at the centre: the medial plant of P13; :func:`verticality.params.lateral_pendulums`
+    (one at the centre: the medial plant of P13; :func:`verticality.models.params.lateral_pendulums`
     for the lateral one)."""
     return GimbalPlant(GimbalHead(FreeHead(head.resolved())),
                        Otoliths(tuple(Pendulum(p.resolved()) for p in pendula)), fixed)

@@ -21,10 +21,10 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from verticality import so3
+from verticality.core import so3
 from verticality.models.base import model_dataclass
 from verticality.models.kinematics import RigidMotion, RotationAndRate
-from verticality.params import HeadParams
+from verticality.models.params import HeadParams
 
 
 class HeadState(NamedTuple):

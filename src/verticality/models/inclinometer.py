@@ -40,10 +40,10 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.models.base import EuclideanState, model_dataclass
+from verticality.models.params import G_M_S2
 from verticality.models.planar import FrameMotion, PlanarPendulum
-from verticality.params import G_M_S2
 
 F44_G_OVER_L_S2 = 3943.8  # F §4.4.3: 10 Hz vial
 F44_BETA_OVER_ML2_S = 125.6  # F §4.4.3: critically damped

@@ -7,7 +7,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from verticality import so3
+from verticality.core import so3
 
 
 class RigidMotion(NamedTuple):

@@ -33,8 +33,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from verticality.errors import InputError
-from verticality.integrate import zoh
+from verticality.core.errors import InputError
+from verticality.core.integrate import zoh
 
 
 class LinearModel(NamedTuple):
@@ -100,5 +100,5 @@ def from_statespace(sys) -> LinearModel:
 
 
 def discretize_zoh(model: LinearModel, dt: float) -> tuple[jnp.ndarray, jnp.ndarray]:
-    """Zero-order-hold discretization ``(A_d, B_d)`` (:func:`verticality.integrate.zoh`)."""
+    """Zero-order-hold discretization ``(A_d, B_d)`` (:func:`verticality.core.integrate.zoh`)."""
     return zoh(jnp.asarray(model.A), jnp.asarray(model.B), dt)

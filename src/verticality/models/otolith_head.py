@@ -11,7 +11,7 @@ F 2.11–2.17) as model values, composed of :class:`~verticality.models.head.Fre
   gyro ω_H when ``gyro`` (P13 eq. 4).
 * :func:`medial` — one pendulum pivoting at the head centre (F 2.5–2.9; P13 §3);
   :func:`lateral` — two pendula at ``±r`` along the head's y axis (left ``+r``, right ``−r``;
-  :func:`verticality.params.lateral_pendulums`): their pivots see the Euler (``ω̇_H × r``) and
+  :func:`verticality.models.params.lateral_pendulums`): their pivots see the Euler (``ω̇_H × r``) and
   centripetal (``ω_H × (ω_H × r)``) accelerations with opposite signs.
 * :class:`HeadFrameAcceleration` — an input adapter: the same model driven by F §4.2.1's
   ``u = (ᴴτ, ᴴa)``, rotated into ``ᴵa = R_IH ᴴa`` with the state's own R_IH.
@@ -35,8 +35,8 @@ from verticality.models import planar
 from verticality.models.base import EuclideanState, OnModel, model_dataclass, static_field
 from verticality.models.head import FreeHead, HeadInput, HeadState, state_from_motion
 from verticality.models.kinematics import RigidMotion
+from verticality.models.params import LATERAL_R_M, HeadParams, PendulumParams, lateral_pendulums
 from verticality.models.pendulum import Pendulum
-from verticality.params import LATERAL_R_M, HeadParams, PendulumParams, lateral_pendulums
 
 PENDULUM_DIM = 6
 """Tangent dimension of one pendulum (δθ, δω) and of the head."""

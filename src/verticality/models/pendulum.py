@@ -34,10 +34,10 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from verticality import so3
+from verticality.core import so3
 from verticality.models.base import model_dataclass
 from verticality.models.kinematics import RigidMotion, RotationAndRate
-from verticality.params import PendulumParams, gravity_I
+from verticality.models.params import PendulumParams, gravity_I
 
 
 class PendulumState(NamedTuple):

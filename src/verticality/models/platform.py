@@ -33,8 +33,8 @@ from verticality.models.inclinometer import (
     IdentifiedInclinometerState,
     pendulum_from_ratios,
 )
+from verticality.models.params import G_M_S2
 from verticality.models.planar import FrameMotion, PlanarHead
-from verticality.params import G_M_S2
 
 
 def f44_platform(g_over_l_s2: float = F44_G_OVER_L_S2, beta_over_ml2_s: float = F44_BETA_OVER_ML2_S,

@@ -5,7 +5,7 @@ are recorded at a faster rate than the sub-steps (P11's observer: inputs at 1 kH
 per 25 ms sample), holding their mean loses the first moment: the head's double integrator then
 misses part of its position increment. :class:`RampDiscretized` gives each sub-step its share of
 the held fast-rate inputs as a ramp with the same mean and the same first moment about the
-sub-step's centre, evaluated by the shared RK4 (:func:`verticality.integrate.rk4_step_staged`, the
+sub-step's centre, evaluated by the shared RK4 (:func:`verticality.core.integrate.rk4_step_staged`, the
 input at the start, middle and end of the sub-step). For a double integrator driven by the input
 this is exact (the velocity and position increments of the held inputs); for the rest of a model
 it is second order in the sub-step.
@@ -18,8 +18,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from verticality.errors import InputError
-from verticality.integrate import rk4_step_staged
+from verticality.core.errors import InputError
+from verticality.core.integrate import rk4_step_staged
 from verticality.models.base import OnModel, model_dataclass, static_field
 
 

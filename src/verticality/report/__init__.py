@@ -13,9 +13,9 @@ import datetime as _dt
 import json
 from pathlib import Path
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.report.results_schema import check_results
-from verticality.reporting import RESULTS_NAME
+from verticality.report.runs import RESULTS_NAME
 
 REPORT_NAME = "report.html"
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 
 ENTRY_KEYS = {"metrics": dict, "paper": dict, "runtime": dict, "figures": list}
 RUNTIME_KEYS = ("wall_s", "simulated_s")

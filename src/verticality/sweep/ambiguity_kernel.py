@@ -2,7 +2,7 @@
 
 The runs are those of :mod:`verticality.experiments.ambiguity`: F §4.5.2's head carrying the
 medial otolith (critically damped at 300 Hz, head inertia 0.0174 kg·m²), walking from
-:func:`verticality.trajectories.walking` (the steady gait), 10 kHz, an observer on the internal
+:func:`verticality.simulation.trajectories.walking` (the steady gait), 10 kHz, an observer on the internal
 model estimating the head's tilt and a PD on the estimate holding the head at the desired tilt,
 computed by the experiment's own :func:`~verticality.experiments.ambiguity.sweep` (its
 ``closed_loop``, vmapped over the runs). Knobs:
@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from verticality.experiments import ambiguity as E
-from verticality.params import F452_HEAD_INERTIA_KG_M2, F452_OTOLITH_DAMPING_RATIO
+from verticality.models.params import F452_HEAD_INERTIA_KG_M2, F452_OTOLITH_DAMPING_RATIO
 from verticality.sweep.kernels import Kernel, Knob, grouped_rows
 
 MODEL_ERRORS = ("otolith_frequency_rel_error", "otolith_damping_rel_error",

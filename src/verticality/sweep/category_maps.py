@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.sweep import maps as head_maps
 from verticality.sweep.kernels import Kernel
 
@@ -83,7 +83,7 @@ def figure(maps: CategoryMaps, path: Path, title: str) -> Path:
     median of the metric (one colour scale, logarithmic when every value is positive)."""
     from matplotlib.colors import LogNorm, Normalize
 
-    from verticality import plots
+    from verticality.core import plots
 
     cats = list(maps.runs)
     fig, axes = plots.new_figure(2, len(cats), width=3.4 * len(cats), height_per_row=3.4,

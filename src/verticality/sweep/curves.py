@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.sweep import category_maps
 from verticality.sweep.kernels import Kernel
 from verticality.sweep.maps import HEADS
@@ -154,7 +154,7 @@ def figure(curve: Curve, path: Path, title: str) -> Path:
     """Two panels along the knob: the share diverged with its 95 % intervals, and the median of
     the metric (max error for heads) over the runs that did not diverge; one line per group, the
     published threshold marked."""
-    from verticality import plots
+    from verticality.core import plots
 
     fig, axes = plots.new_figure(1, 2, width=11.0, height_per_row=3.8, sharex=False)
     axes = axes[0]

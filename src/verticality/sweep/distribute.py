@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.sweep import spec as sweep_spec
 from verticality.sweep.engine import (  # noqa: F401  (INSTALL_HINT: imported from here too)
     INSTALL_HINT,

@@ -25,7 +25,7 @@ and six times the worst fixed-head max of the ekf-* runs, so an estimate that fa
 head); the errors of a non-finite run are NaN.
 
 Batching: the trajectory is closed over by the compiled simulator
-(:func:`verticality.simulation.make_simulator`: its duration and its functions are static), and so
+(:func:`verticality.simulation.closed_loop.make_simulator`: its duration and its functions are static), and so
 is the head's condition, so the runs of one batch are grouped by (``head``, ``amplitude_scale``,
 ``frequency_scale``) and each group is one compiled ``vmap`` batch over its seeds,
 ``head_rate_sigma`` and ``noise_std`` (the filter's Q and R and the noise levels are traced). A spec

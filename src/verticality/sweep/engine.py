@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 
 INSTALL_HINT = "pip install 'verticality[sweep]'"
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.sweep import spec as sweep_spec
 from verticality.sweep.kernels import Kernel
 
@@ -182,7 +182,7 @@ def figure(maps: Maps, path: Path, title: str) -> Path:
     cell, and the fixed/stabilized ratio."""
     from matplotlib.colors import LogNorm, Normalize
 
-    from verticality import plots
+    from verticality.core import plots
 
     fig, axes = plots.new_figure(2, 3, width=13.0, height_per_row=3.6, sharex=False)
     positive = [a[np.isfinite(a) & (a > 0)] for a in (*maps.median_max_error_deg.values(),)]

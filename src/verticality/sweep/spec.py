@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.sweep.kernels import Kernel
 from verticality.sweep.registry import KERNELS
 
@@ -133,8 +133,8 @@ def size(kernel: Kernel, kind: str, knobs: dict[str, Any], n_draws: int, n_seeds
          batch: int, runs_per_task: int, source: str = "spec",
          limit_bytes: float | None = None) -> Size:
     """The size of a spec (:class:`Size`), refused (one :class:`InputError` line, the option to
-    change named) above ``limit_bytes`` (default :data:`verticality.sizing.MAX_WORK_BYTES`)."""
-    from verticality.sizing import check_work_size
+    change named) above ``limit_bytes`` (default :data:`verticality.core.sizing.MAX_WORK_BYTES`)."""
+    from verticality.core.sizing import check_work_size
 
     n_runs = n_points(kind, knobs, n_draws) * int(n_seeds)
     n_knobs = len(kernel.knobs)
@@ -179,7 +179,7 @@ def read(path: Path, limit_bytes: float | None = None) -> Spec:
 def parse(text: str, source: str = "spec", limit_bytes: float | None = None) -> Spec:
     """Validate the TOML ``text`` of a spec; every problem is one :class:`InputError` line. Its
     size (:func:`size`) is checked before the seeds or the design are built, against
-    ``limit_bytes`` (default :data:`verticality.sizing.MAX_WORK_BYTES`)."""
+    ``limit_bytes`` (default :data:`verticality.core.sizing.MAX_WORK_BYTES`)."""
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import jax
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.tilt import core
 from verticality.tilt import kernels as tilt_kernels
 from verticality.tilt.flags import (

@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
+from verticality.core import so3
 from verticality.tilt.flags import (
     ACC_DISTURBED,
     ACC_MISSING,
@@ -677,7 +677,7 @@ def sample_quat(q0, dq, b, tau, s, G, qexp=so3.quat_exp_components):
 def up_roll_pitch(q, xp=jnp, atan2=None):
     """``(up_S, roll, pitch)`` of ``q_E_S`` given as components: the unit up vector in the sensor
     frame (the third row of ``R(q)``, a component tuple) and the ZYX roll and pitch
-    (:func:`verticality.so3.roll_pitch_from_up`'s formula). ``atan2`` defaults to ``xp``'s."""
+    (:func:`verticality.core.so3.roll_pitch_from_up`'s formula). ``atan2`` defaults to ``xp``'s."""
     w, x, y, z = q
     up = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
     atan2 = xp.arctan2 if atan2 is None else atan2

@@ -67,7 +67,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.models.base import model_dataclass, static_field
 from verticality.tilt import batch as tilt_batch
 from verticality.tilt import core as tilt_core
@@ -193,7 +193,7 @@ def smooth(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
     as :func:`estimate`; ``var`` and ``sigma_rad`` are the smoothed ones. A gap in the time
     stamps, and the re-acquisition after it (or after the start), splits the smoothing: nothing
     after a gap changes the estimate before it. The whole recording is held in memory: a
-    recording beyond :data:`verticality.sizing.MAX_WORK_BYTES` is refused (``InputError``).
+    recording beyond :data:`verticality.core.sizing.MAX_WORK_BYTES` is refused (``InputError``).
 
     Example::
 

@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.tilt import batch as tilt_batch
 from verticality.tilt import estimator
 from verticality.tilt.core import TiltOutput, gaps_in, up_roll_pitch

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.tilt import flags as F
 
 RECORDING_SUFFIXES = (".csv", ".hdf5", ".h5")

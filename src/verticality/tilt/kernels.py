@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3
+from verticality.core import so3
 from verticality.tilt import core
 from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, P_DIAG, ROW, SOA, TRANS, S, X
 

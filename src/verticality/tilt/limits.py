@@ -59,7 +59,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.tilt.flags import CLIPPED, HELD
 from verticality.tilt.params import G_M_S2
 

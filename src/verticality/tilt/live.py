@@ -33,7 +33,7 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
     :func:`verticality.io.imu.read_imu_csv` reads, ``columns`` and ``time_unit`` as there) and
     write the estimate CSV (``io.imu.estimate_header``; with ``sigma`` the tilt's σ column) to
     ``out``, one row per data row, flushed after each. Notes and warnings go to ``err``. A problem
-    in the first second raises :class:`~verticality.errors.InputError` before any row is
+    in the first second raises :class:`~verticality.core.errors.InputError` before any row is
     written."""
     header = fh.readline().removeprefix("\ufeff")  # a byte-order mark, as files are read
     lay = imu_layout.locate(header.rstrip("\r\n"), columns, time_unit, source)

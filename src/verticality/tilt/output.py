@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io.imu import dt_from_t
 from verticality.tilt.layout import E
 from verticality.tilt.params import TiltParams

@@ -55,7 +55,7 @@ def plot_flags(ax, t, flags) -> None:
 def plot_estimate(path: Path, t, out, name: str, sigma_rad=None) -> Path:
     """Draw ``out`` (a ``TiltOutput``) of filter ``name`` over time ``t`` into ``path``: roll and
     pitch, the bias, the σ (when given) and the flags. Returns the path written."""
-    from verticality.plots import new_figure, save
+    from verticality.core.plots import new_figure, save
 
     fig, axes = new_figure(3 if sigma_rad is None else 4, 1, height_per_row=2.2)
     ax = axes[:, 0]

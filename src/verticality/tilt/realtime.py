@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.tilt import stream
 from verticality.tilt.flags import accelerometer_used
 from verticality.tilt.output import TiltEstimate

@@ -37,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import sizing, so3
+from verticality.core import sizing, so3
 from verticality.tilt import core
 from verticality.tilt.batch import Transitions
 from verticality.tilt.kernels import atan2, quat_exp_batched
@@ -51,7 +51,7 @@ BYTES_PER_SAMPLE = 800
 
 def check_size(n: int) -> None:
     """Refuse a recording of ``n`` samples whose smoothing would need more memory than
-    :data:`verticality.sizing.MAX_WORK_BYTES` (the smoother holds the whole recording)."""
+    :data:`verticality.core.sizing.MAX_WORK_BYTES` (the smoother holds the whole recording)."""
     sizing.check_work_size(n, BYTES_PER_SAMPLE, "samples held at once by the offline smoother",
                            "smooth the recording in parts (cut it where the IMU rests or at a "
                            "gap), or use the causal filter (estimate without --offline), which "

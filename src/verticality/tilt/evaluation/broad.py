@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from verticality.errors import InputError
+from verticality.core.errors import InputError
 from verticality.io import broad
 from verticality.tilt.output import tilt_sigma_rad
 from verticality.tilt.params import DEFAULT_PARAMS

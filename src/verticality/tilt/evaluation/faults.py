@@ -22,7 +22,8 @@ from math import erf, sqrt
 
 import numpy as np
 
-from verticality import so3, tilt
+from verticality import tilt
+from verticality.core import so3
 from verticality.tilt.params import G_M_S2
 
 FAULTS = ("clean", "bias_0.1", "bias_0.2", "shake", "clipped_2g", "taps", "kicks")

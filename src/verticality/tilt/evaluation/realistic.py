@@ -3,8 +3,8 @@ generalization check of the tilt filter that the project runs itself, beside VQF
 that no parameter of the filter was chosen on (docs/tilt.md, "Realistic synthetic recordings").
 
 A recording is a motion class (like BROAD's: slow or fast rotation, slow or fast translation, with
-or without rest breaks), drawn at random, simulated exactly (:mod:`verticality.trajectories`,
-autodiff kinematics; the accelerometer is :func:`verticality.sensors.specific_force_B` at a lever
+or without rest breaks), drawn at random, simulated exactly (:mod:`verticality.simulation.trajectories`,
+autodiff kinematics; the accelerometer is :func:`verticality.sensors.readings.specific_force_B` at a lever
 arm from the rotation centre, as a hand's IMU sits away from the wrist), and read by a sensor with
 errors drawn per recording from consumer MEMS datasheet ranges (:func:`draw_errors`; e.g. Bosch
 BMI160, InvenSense MPU-9250 and ICM-20948 data sheets):
@@ -30,9 +30,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality import so3, trajectories
+from verticality.core import so3
 from verticality.io.broad import inclination_error_deg
-from verticality.sensors import specific_force_B
+from verticality.sensors.readings import specific_force_B
+from verticality.simulation import trajectories
 
 MOTIONS = ("slow_rotation", "fast_rotation", "slow_translation", "fast_translation",
            "rotation_with_breaks", "translation_with_breaks")

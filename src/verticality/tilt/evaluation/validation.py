@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import signal
 
-from verticality import so3
+from verticality.core import so3
 from verticality.io import broad
 
 CAUSAL = ("verticality", "vqf")

@@ -1,0 +1,137 @@
+"""Simulated sensors: rate gyro, accelerometer, inclinometer (otolith) readings, ADC quantization.
+
+Every noisy reading is a pure function of a ``jax.random`` key, so runs are reproducible and
+batchable (``vmap`` over keys). Two forms are offered for each sensor:
+
+- one sample: ``gyro_step(key, bias, omega, dt, p) -> (bias, reading)`` (for closed loops), built
+  from ``gyro_white_noise``, ``gyro_reading`` and ``gyro_bias_step`` (a closed loop that draws its
+  random numbers in its own order, as the simulator does, calls these three);
+- a whole record: ``gyro_record(key, omega_series, dt, p) -> (readings, biases)`` (vectorised,
+  the random-walk bias by a cumulative sum, no Python loop).
+
+Models (T §III.A for the noise levels of docs/reproduction.md `tahboub-*`; P13 §5 for white noise
+on the inclinometer angles and gyro rates):
+
+    gyro          ω_m = ω_B + b + n,     ḃ = w,   n ~ N(0, σ²),  w white, E[w w] = q δ(t)
+                  (discrete: b_{k+1} = b_k + √(q·dt) N(0, 1))
+    accelerometer f_m = R_IBᵀ (a_P − g_I) + n   specific force at a point P of the body, in the
+                  sensor (body) frame, gravity included: a level body at rest reads (0, 0, +9.81);
+                  a_P = a_C + R_IB (ω̇ × r + ω × (ω × r)) for a sensor at r from the centre (T eq. 4)
+    inclinometer  φ_m = φ + n, optionally quantized (an n-bit ADC over ±full scale)
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from verticality.models.kinematics import RigidMotion
+from verticality.models.params import gravity_I
+
+
+class GyroParams(NamedTuple):
+    noise_std_rad_s: float = 0.0  # white noise σ per sample
+    bias_rw_q_rad2_s3: float = 0.0  # random-walk intensity q (T: 1e-6 rad²/s³)
+
+
+class AccelParams(NamedTuple):
+    noise_std_m_s2: float = 0.0
+    lever_B_m: jnp.ndarray | None = None  # sensor position from the body centre, body frame
+
+
+# -------------------------------------------------------------------------------------------
+# Gyro
+# -------------------------------------------------------------------------------------------
+
+
+def gyro_white_noise(key, shape, p: GyroParams):
+    """The gyro's white noise n ~ N(0, σ²) for readings of ``shape`` (e.g. (3,), or (n, 3) drawn at
+    once for n readings)."""
+    return p.noise_std_rad_s * jax.random.normal(key, shape)
+
+
+def gyro_reading(omega_B_rad_s, bias_rad_s, noise_rad_s):
+    """ω_m = ω_B + b + n: one reading from the true rate, the current bias and a white-noise draw."""
+    return jnp.asarray(omega_B_rad_s, float) + bias_rad_s + noise_rad_s
+
+
+def gyro_bias_step(key, bias_rad_s, dt_s, p: GyroParams):
+    """The bias random walk over ``dt_s``: b + √(q·dt) N(0, 1)."""
+    bias = jnp.asarray(bias_rad_s, float)
+    return bias + jnp.sqrt(p.bias_rw_q_rad2_s3 * dt_s) * jax.random.normal(key, bias.shape)
+
+
+def gyro_step(key, bias_rad_s, omega_B_rad_s, dt_s, p: GyroParams):
+    """One gyro sample: returns (next bias, reading). The reading uses the current bias."""
+    k_n, k_b = jax.random.split(key)
+    omega = jnp.asarray(omega_B_rad_s, float)
+    reading = gyro_reading(omega, bias_rad_s, gyro_white_noise(k_n, omega.shape, p))
+    next_bias = gyro_bias_step(k_b, jnp.broadcast_to(bias_rad_s, omega.shape), dt_s, p)
+    return next_bias, reading
+
+
+def gyro_record(key, omega_B_rad_s, dt_s, p: GyroParams, bias0_rad_s=0.0):
+    """Gyro readings for a whole record ``omega_B_rad_s`` (N, ...) sampled every ``dt_s``.
+
+    Returns ``(readings, biases)``; the bias starts at ``bias0_rad_s`` and random-walks.
+    """
+    omega = jnp.asarray(omega_B_rad_s, float)
+    k_n, k_b = jax.random.split(key)
+    steps = jnp.sqrt(p.bias_rw_q_rad2_s3 * dt_s) * jax.random.normal(k_b, omega.shape)
+    bias = bias0_rad_s + jnp.concatenate([jnp.zeros_like(steps[:1]), jnp.cumsum(steps[:-1], 0)], 0)
+    return gyro_reading(omega, bias, gyro_white_noise(k_n, omega.shape, p)), bias
+
+
+# -------------------------------------------------------------------------------------------
+# Accelerometer
+# -------------------------------------------------------------------------------------------
+
+
+def point_acceleration_I(motion: RigidMotion, lever_B_m):
+    """Acceleration (frame I, gravity excluded) of the point at ``lever_B_m`` from the centre."""
+    r = jnp.asarray(lever_B_m, float)
+    w = motion.omega_B_rad_s
+    transport = jnp.cross(motion.omegadot_B_rad_s2, r) + jnp.cross(w, jnp.cross(w, r))
+    return motion.a_I_m_s2 + motion.R_I_B @ transport
+
+
+def specific_force_B(motion: RigidMotion, lever_B_m=None):
+    """Noise-free accelerometer reading: R_IBᵀ (a_P − g_I), m/s², body frame, gravity included."""
+    a = motion.a_I_m_s2 if lever_B_m is None else point_acceleration_I(motion, lever_B_m)
+    return motion.R_I_B.T @ (a - gravity_I())
+
+
+def accelerometer(key, motion: RigidMotion, p: AccelParams):
+    """One accelerometer sample (use ``jax.vmap`` over keys and motions for a record)."""
+    f = specific_force_B(motion, p.lever_B_m)
+    return f + p.noise_std_m_s2 * jax.random.normal(key, f.shape)
+
+
+# -------------------------------------------------------------------------------------------
+# Inclinometer / otolith angles, quantization
+# -------------------------------------------------------------------------------------------
+
+
+def quantize(x, bits: int, full_scale: float):
+    """An n-bit ADC over [−full_scale, +full_scale): round to the step 2·full_scale/2^bits, clip.
+
+    NaN stays NaN (a missing sample remains flagged as missing)."""
+    step = 2.0 * full_scale / (2**bits)
+    q = jnp.round(jnp.asarray(x, float) / step) * step
+    return jnp.clip(q, -full_scale, full_scale - step)
+
+
+def inclinometer(key, angles_rad, noise_std_rad: float = 0.0, bits: int | None = None,
+                 full_scale_rad: float = jnp.pi):
+    """Noisy (and optionally quantized) inclinometer / otolith angle readings."""
+    a = jnp.asarray(angles_rad, float)
+    y = a + noise_std_rad * jax.random.normal(key, a.shape)
+    return y if bits is None else quantize(y, bits, full_scale_rad)
+
+
+def white(key, x, std):
+    """``x`` plus white Gaussian noise of standard deviation ``std`` (scalar or per component)."""
+    x = jnp.asarray(x, float)
+    return x + jnp.asarray(std, float) * jax.random.normal(key, x.shape)
