@@ -10,8 +10,8 @@ and Python loops over samples, run on the same closed loop for ``--numpy-seconds
 time (it is slow); its cost of a full 10 s run is extrapolated from the measured time before the
 first window and the measured cost per sample once the observer solves at every sample, and
 gives the ratio. "compile s" is first call minus a timed call (0 when the compiled loop is reused:
-the condition is a traced flag, so one compilation serves all four conditions). The two implementations'
-estimates are compared over that stretch as a cross-check.
+the condition is a traced flag, so one compilation serves all four conditions). The two
+implementations' estimates are compared over that stretch as a cross-check.
 """
 
 from __future__ import annotations
@@ -27,7 +27,8 @@ import numpy as np
 from verticality.experiments import newton as E
 from verticality.models import lissajous_plant as lp
 
-CASES = [("fixed", "exact"), ("stabilized", "exact"), ("fixed", "perturbed"), ("stabilized", "perturbed")]
+CASES = [("fixed", "exact"), ("stabilized", "exact"), ("fixed", "perturbed"),
+         ("stabilized", "perturbed")]
 
 
 # ---------------------------------------------------------------- NumPy peer (Python loops)
@@ -90,7 +91,8 @@ def np_solve(xi0, U, Y, p, cfg=E.CONFIG):
         smax = max(s.max(), 1e-100)
         gain = np.where(s > cfg.rcond * smax, s / (s * s + mu2 * smax * smax), 0.0)
         coef = gain * (Us.T @ r)
-        return (Vt.T @ coef) / scale, math.sqrt(np.sum((s * coef) ** 2) / m) <= cfg.step_tol * y_scale
+        return ((Vt.T @ coef) / scale,
+                math.sqrt(np.sum((s * coef) ** 2) / m) <= cfg.step_tol * y_scale)
 
     xi = xi0
     cost, xs, L = lin(xi)
@@ -190,7 +192,8 @@ def main():
         np_per_s = np_full / duration
         jax_per_s = wall / duration
         diff = np.rad2deg(np.max(np.abs(est_np - np.asarray(series.theta_H_hat_rad)[:est_np.size])))
-        print(f"{cond + '/' + model:24s} {max(compile_s - wall, 0.0):9.1f} {wall:10.3f} {duration / wall:11.1f} "
+        print(f"{cond + '/' + model:24s} {max(compile_s - wall, 0.0):9.1f} {wall:10.3f} "
+              f"{duration / wall:11.1f} "
               f"{np_per_s:13.2f} {np_per_s / jax_per_s:9.0f} {diff:13.2e}", flush=True)
 
 

@@ -66,8 +66,10 @@ def main(argv=None):
     args = ap.parse_args(argv)
     rec = pp.ovar(20.0, 60.0, on_s=100.0 - 1.0)
     rng = np.random.default_rng(0)
-    print(f"OVAR paradigm: {rec.t_s.size} samples, {rec.t_s[-1]:.0f} s at 100 Hz; batch {args.batch}")
-    print(f"{'model':<10} {'single ms':>10} {'real-time x':>12} {'batch s':>9} {'throughput ratio':>17}")
+    print(f"OVAR paradigm: {rec.t_s.size} samples, {rec.t_s[-1]:.0f} s at 100 Hz; "
+          f"batch {args.batch}")
+    print(f"{'model':<10} {'single ms':>10} {'real-time x':>12} {'batch s':>9} "
+          f"{'throughput ratio':>17}")
     for model in ("merfeld", "laurens"):
         params = MERFELD_PRESETS["human"] if model == "merfeld" else LAURENS_PRESETS["default"]
         alpha = pc.canal_signals(pc.canal_model(model, params), rec.omega_H_rad_s, rec.t_s)

@@ -51,11 +51,13 @@ def batched_plant(n: int):
     m = p.m_kg * (1.0 + 0.1 * spread)
     p_b = p._replace(m_kg=m, beta_Nms=p.beta_Nms * (1.0 + 0.2 * spread),
                      J_pivot_S=m[:, None] * jnp.array([0.06**2, 0.06**2, 0.06**2 / 20.0]))
-    p_b = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(jnp.asarray(a, float), (n,) + jnp.shape(a))
+    p_b = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(jnp.asarray(a, float),
+                                                            (n,) + jnp.shape(a))
                                  if jnp.shape(a)[:1] != (n,) else a, p_b)
     gimbal_b = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(jnp.asarray(a, float),
                                                                  (n,) + jnp.shape(a)), base.gimbal)
-    otoliths_b = dataclasses.replace(base.otoliths, pendula=(dataclasses.replace(pend, params=p_b),))
+    otoliths_b = dataclasses.replace(base.otoliths,
+                                     pendula=(dataclasses.replace(pend, params=p_b),))
     return dataclasses.replace(base, gimbal=gimbal_b, otoliths=otoliths_b)
 
 

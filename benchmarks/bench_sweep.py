@@ -1,4 +1,5 @@
-"""Speed of a sweep's kernel: runs per second per core, vmap batches vs a serial loop of the same runs.
+"""Speed of a sweep's kernel: runs per second per core, vmap batches vs a serial loop of the same
+runs.
 
     python benchmarks/bench_sweep.py [--batch 8 32 64] [--runs 64] [--duration 10] [--repeats 2]
 

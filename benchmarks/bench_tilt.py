@@ -1,17 +1,18 @@
 """Throughput of the tilt filter (verticality.tilt) and its offline smoother against
 vqf in the same run.
 
-- batch: ``tilt.estimate`` (``TiltFilter.run`` from the start) on BROAD trial 01 (``--broad BROAD_DIR``) or a synthetic recording vs
-  ``vqf.VQF(Ts).updateBatch`` (C++), samples per second, best of several repetitions (the two
-  alternate), compile excluded (one compiled shape serves every recording); also the time of the
-  compiled chunks alone, the rest of the run's time being the host side;
+- batch: ``tilt.estimate`` (``TiltFilter.run`` from the start) on BROAD trial
+  01 (``--broad BROAD_DIR``) or a synthetic recording vs ``vqf.VQF(Ts).updateBatch`` (C++), samples
+  per second, best of several repetitions (the two alternate), compile excluded (one compiled shape
+  serves every recording); also the time of the compiled chunks alone, the rest of the run's time
+  being the host side;
 - offline: ``tilt.smooth`` (the filter and its backward pass) vs ``vqf.offlineVQF`` (C++) on
   the same recording repeated to ``--offline-samples`` samples (10⁶ by default), alternating, best
   of ``--offline-reps``;
 - streaming, one call per sample as a 1 kHz robot loop would, samples per second:
   ``tilt.Stream.step`` (the plain Python/NumPy implementation of the filter with its output type,
-  the real-time path) and the jitted packed JAX step ``estimator.make_step(period_s=dt)`` (bounded by JAX's per-call
-  cost).
+  the real-time path) and the jitted packed JAX step ``estimator.make_step(period_s=dt)`` (bounded
+  by JAX's per-call cost).
 
 Run: ``python benchmarks/bench_tilt.py [--broad BROAD_DIR] [--reps 5]``.
 """
