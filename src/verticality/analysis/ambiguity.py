@@ -32,20 +32,21 @@ For an upright head (Θ = 0) and ``a_z = 0``, (2) is ``a_x = −g tan φ_y`` (F 
 form is ``a_x ≈ −g φ_y`` (F 3.12). With one tilt in the plane of the acceleration, (2) multiplied by
 ``cos φ`` is
 
-    a_x cos φ_y + a_z sin φ_y = −g sin(φ_y + Θ_y)                                       (F 3.16)
+    a_x cos φ_y + a_z sin φ_y = −g sin(φ_y + Θ_y)                                      (F 3.16)
 
 and for a small pendulum angle (``cos φ ≈ 1``, ``sin φ ≈ φ``, the head's tilt kept exact)
 
-    a_x ≈ −g sin(φ_y + Θ_y) − a_z φ_y,    a_y ≈ −g sin(φ_x + Θ_x) − a_z φ_x,            (F 3.17–3.18)
+    a_x ≈ −g sin(φ_y + Θ_y) − a_z φ_y,    a_y ≈ −g sin(φ_x + Θ_x) − a_z φ_x,           (F 3.17–3.18)
 
 the small-angle forms here (``small_angle=True``); they agree with (2) to second order in the
 angles. F writes them per plane: with a large tilt about one axis the other axis' form is off at
 first order (by ``g (φ_y + Θ_y)(1 − cos Θ_x)`` for a_x), since the two planes share ``u_z``.
 
-**The printed equations.** F 3.10–3.18 are printed as ``a_x = g tan φ_y``, ``a_x = (g − a_z) tan φ_y``,
-``a_z sin φ_y + a_x cos φ_y = g sin(φ_y + Θ_y)`` and ``a_x = g sin(φ_y + Θ_y) − a_z φ_y``. Against the
-model (verified to 1e-12 in ``tests/test_ambiguity.py``) they hold only with three sign conventions
-the thesis does not state, each opposite to its own definitions elsewhere:
+**The printed equations.** F 3.10–3.18 are printed as ``a_x = g tan φ_y``,
+``a_x = (g − a_z) tan φ_y``, ``a_z sin φ_y + a_x cos φ_y = g sin(φ_y + Θ_y)`` and
+``a_x = g sin(φ_y + Θ_y) − a_z φ_y``. Against the model (verified to 1e-12 in
+``tests/test_ambiguity.py``) they hold only with three sign conventions the thesis does not state,
+each opposite to its own definitions elsewhere:
 (i) the pendulum angle positive when it leans *back* under a forward acceleration (F's text),
 i.e. ``φ_F = −φ`` of F 2.8–2.9; (ii) the head tilt ``Θ_F = −Θ`` of F 3.8–3.9; (iii) ``a_z`` positive
 *downward* — F's text has the head "accelerated forward and up" with z up, and then the factor is
@@ -57,10 +58,10 @@ F 3.14–3.15 hold simultaneously in 3-D only with the pendulum's turn about its
 rotation from the head (F 2.8–2.9 read row 3 of ``R_HS``, which depends on that turn;
 ``docs/conventions.md``).
 
-**Planar forms** (:func:`planar_reading`, :func:`planar_head_acceleration`, :func:`planar_head_tilt`)
-use the convention of :mod:`verticality.models.planar`: rotations about the head's x axis (the
-coronal plane), the reading ``r = θ_S − θ_H`` (= φ_x), the head angle ``θ_H`` (= Θ_x) and the
-acceleration's head-frame components ``(a_h, a_z)`` along the head's y and z axes::
+**Planar forms** (:func:`planar_reading`, :func:`planar_head_acceleration`,
+:func:`planar_head_tilt`) use the convention of :mod:`verticality.models.planar`: rotations about
+the head's x axis (the coronal plane), the reading ``r = θ_S − θ_H`` (= φ_x), the head angle ``θ_H``
+(= Θ_x) and the acceleration's head-frame components ``(a_h, a_z)`` along the head's y and z axes::
 
     r = atan2(−(a_h + g sin θ_H), a_z + g cos θ_H),     a_h = −(a_z + g cos θ_H) tan r − g sin θ_H.
 
@@ -98,8 +99,10 @@ def otolith_angles(a_H_m_s2, theta_x_rad=0.0, theta_y_rad=0.0, g_m_s2=G_M_S2, sm
     ``φ_y ≈ −(a_x + g sin Θ_y)/(a_z + g cos Θ_y)`` (and x alike)."""
     a = jnp.asarray(a_H_m_s2)
     if small_angle:
-        phi_x = -(a[..., 1] + g_m_s2 * jnp.sin(theta_x_rad)) / (a[..., 2] + g_m_s2 * jnp.cos(theta_x_rad))
-        phi_y = -(a[..., 0] + g_m_s2 * jnp.sin(theta_y_rad)) / (a[..., 2] + g_m_s2 * jnp.cos(theta_y_rad))
+        phi_x = (-(a[..., 1] + g_m_s2 * jnp.sin(theta_x_rad))
+                 / (a[..., 2] + g_m_s2 * jnp.cos(theta_x_rad)))
+        phi_y = (-(a[..., 0] + g_m_s2 * jnp.sin(theta_y_rad))
+                 / (a[..., 2] + g_m_s2 * jnp.cos(theta_y_rad)))
         return jnp.stack(jnp.broadcast_arrays(phi_x, phi_y), -1)
     f = specific_force_H(a, theta_x_rad, theta_y_rad, g_m_s2)
     return jnp.stack([jnp.arctan2(-f[..., 1], f[..., 2]), jnp.arctan2(-f[..., 0], f[..., 2])], -1)

@@ -1,9 +1,9 @@
 """How far the tilt–translation ambiguity bites on a recorded head motion (F §3.2).
 
 For a head motion (MOTION.csv, :mod:`verticality.io.motion`) the otolith pendulum is replayed
-(:func:`verticality.simulation.closed_loop.otolith_replay`, the project's pendulum model value) and its angles
-are read as an accelerometer under the **upright assumption** (F 3.14–3.15, the head's tilt taken
-as zero, the vertical head-frame acceleration ``a_z`` known from the saccule):
+(:func:`verticality.simulation.closed_loop.otolith_replay`, the project's pendulum model value) and
+its angles are read as an accelerometer under the **upright assumption** (F 3.14–3.15, the head's
+tilt taken as zero, the vertical head-frame acceleration ``a_z`` known from the saccule):
 :func:`verticality.analysis.ambiguity.head_acceleration`. The indicated horizontal acceleration is
 compared with the true one (the recording's acceleration in head-frame components). Its error has
 two sources: the head's real tilt (``g tan Θ`` for a still tilted head, the ambiguity itself) and
@@ -48,7 +48,8 @@ class UprightReading(NamedTuple):
 
 
 def otolith_overrides(otolith: str) -> list[str]:
-    """``NAME=VALUE`` overrides of :func:`verticality.models.params.otolith_pendula` for ``otolith``."""
+    """``NAME=VALUE`` overrides of :func:`verticality.models.params.otolith_pendula` for
+    ``otolith``."""
     if otolith not in OTOLITHS:
         raise InputError(f"otolith must be one of {', '.join(OTOLITHS)}, not {otolith!r}")
     if otolith == "p13":

@@ -3,7 +3,8 @@ Peterka 2002 J Neurophysiol 88:1097).
 
 The PRTS stimulus itself (the 242-long pseudorandom ternary sequence, velocity held for
 Δt = 0.25 s per element, integrated to a lean) is a trajectory:
-:func:`verticality.simulation.trajectories.prts_stimulus` and :func:`verticality.simulation.trajectories.prts`.
+:func:`verticality.simulation.trajectories.prts_stimulus` and
+:func:`verticality.simulation.trajectories.prts`.
 
 * :func:`prts_frequencies` — the odd harmonics of the cycle, where a PRTS has power.
 * :func:`cycle_transfer_function` — Peterka's method for a periodic stimulus: one FFT per stimulus

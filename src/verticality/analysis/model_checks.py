@@ -29,10 +29,10 @@ The checks and the readings they fix:
   ``E(10 s) − E(0)`` against ``−∫ β |ω_S|² dt`` (Simpson on the 1 ms samples), relative to the
   dissipated energy.
 * SO(3) drift (:func:`so3_drift_medial`, :func:`so3_drift_lateral_free_head`): the pendulum driven
-  kinematically by the P13 impact motion (:func:`verticality.simulation.trajectories.impact`, 60 s; the trunk
-  stops after ~6 s), max over the run of ``‖R_ISᵀ R_IS − I‖_F`` with and without the projection;
-  the lateral model with a free head under the global stabilizer (F 2.20) and the impact's
-  acceleration, 60 s, max over R_IL, R_IR, R_IH.
+  kinematically by the P13 impact motion (:func:`verticality.simulation.trajectories.impact`, 60 s;
+  the trunk stops after ~6 s), max over the run of ``‖R_ISᵀ R_IS − I‖_F`` with and without the
+  projection; the lateral model with a free head under the global stabilizer (F 2.20) and the
+  impact's acceleration, 60 s, max over R_IL, R_IR, R_IH.
 * planar vs 3-D (:func:`planar_vs_3d_max_error_rad`): the 3-D models with a free head (full
   Newton–Euler) restricted to the coronal y–z plane against the planar medial model
   (:mod:`verticality.models.planar`, F p. 36) and the planar lateral model (F 2.19 plus the Euler
@@ -53,10 +53,11 @@ The checks and the readings they fix:
   (J_H = 0.125, gyroscopic term on) released at rest from a 2.5 rad rotation about
   (1, 1, 0.3)/‖·‖, under F 2.20 with K_p = 16, K_d = 4 (critically damped at upright:
   J θ̈ = −2K_p θ − K_d θ̇), rotation angle of R_IH after 5 s; closed-loop poles of the head under
-  the linearized tilt PD (F 4.8–4.9; :func:`verticality.simulation.control.tilt_pd_closed_loop_matrix`)
-  against the eigenvalues of the ``jacfwd`` linearization (:func:`nonlinear_loop_jacobian`, in
-  exponential coordinates) of the nonlinear loop with F 4.6–4.7, and against the analytic roots of
-  ``J s² + k_d s + k_p``; k_p = 32, k_d = 5, k_{d,z} = 1.
+  the linearized tilt PD (F 4.8–4.9;
+  :func:`verticality.simulation.control.tilt_pd_closed_loop_matrix`) against the eigenvalues of the
+  ``jacfwd`` linearization (:func:`nonlinear_loop_jacobian`, in exponential coordinates) of the
+  nonlinear loop with F 4.6–4.7, and against the analytic roots of ``J s² + k_d s + k_p``; k_p = 32,
+  k_d = 5, k_{d,z} = 1.
 """
 
 from __future__ import annotations
@@ -452,7 +453,8 @@ def _lateral_vs_medial(table, n):
                                                 R_H_S(x, table.motion(t).R_I_B))))
 
     def lateral(r):
-        model = otolith_head.Otoliths(tuple(Pendulum(p) for p in lateral_pendulums(P13_PENDULUM, r)))
+        model = otolith_head.Otoliths(tuple(Pendulum(p)
+                                            for p in lateral_pendulums(P13_PENDULUM, r)))
         return run_model(model, model.rest_state(head0), lambda t, x: table.motion(t), DT_S, n,
                          every=EVERY_LM,
                          output=lambda t, x: (x[0].R_I_S, x[1].R_I_S,

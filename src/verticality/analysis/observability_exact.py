@@ -16,7 +16,8 @@ import sympy as sp
 
 def lie_derivatives(f: Sequence, h: Sequence, states: Sequence, inputs: Sequence = (),
                     order: int = 3) -> tuple[list, list]:
-    """Rows ``h, ḣ, …`` up to ``order`` and the input-derivative symbols used (``u`` → ``u_1, u_2…``)."""
+    """Rows ``h, ḣ, …`` up to ``order`` and the input-derivative symbols used
+    (``u`` → ``u_1, u_2…``)."""
     states = list(states)
     chains = {u: [u] + [sp.Symbol(f"{u.name}_{k}") for k in range(1, order + 1)] for u in inputs}
     out, cur = [], [sp.sympify(e) for e in h]

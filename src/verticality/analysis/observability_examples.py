@@ -60,8 +60,8 @@ def linear(A, C, B=None) -> Problem:
 
 @model_dataclass
 class Unicycle(EuclideanState):
-    """State ``(p_x, p_y, ψ)`` driven by a known speed and turn rate ``u = (v, w)``; the output is the
-    position (``measure="position"``) or the heading (``measure="heading"``)."""
+    """State ``(p_x, p_y, ψ)`` driven by a known speed and turn rate ``u = (v, w)``; the output is
+    the position (``measure="position"``) or the heading (``measure="heading"``)."""
 
     measure: str = static_field("position")
 
@@ -89,7 +89,8 @@ class RatePendulum(EuclideanState):
 
     def dynamics(self, x, u):
         q, w = x
-        return jnp.stack([w, planar.pendulum_angular_acceleration(q, w, 0.0, 0.0, 0.0, self.params)])
+        return jnp.stack([w, planar.pendulum_angular_acceleration(q, w, 0.0, 0.0, 0.0,
+                                                                  self.params)])
 
     def output(self, x, u):
         return x[1:]
@@ -126,7 +127,8 @@ class Attitude:
 
 
 def accelerometer() -> Problem:
-    """Body orientation ``R_I_B`` with a known body rate; the output is the specific force at rest."""
+    """Body orientation ``R_I_B`` with a known body rate; the output is the specific force at
+    rest."""
     return Problem(
         model=Attitude(), state=jnp.eye(3), inputs={"omega": (3,)},
         input_map=lambda x, u, th: u["omega"], leaf_names=("R_I_B",),

@@ -9,8 +9,8 @@ stored as arrays with a leading axis of length K + 1:
   act only on the coefficient they touch, products with them broadcast;
 - structural and linear primitives (slices, reshapes, concatenation, sums, transposes, ``select``
   with a constant predicate, …) are mapped over the series axis with ``vmap``;
-- the product of two series (``mul``, ``dot_general``) is the Cauchy product, one ``einsum`` with the
-  0/1 tensor ``T[i, j, k] = [i + j = k]``;
+- the product of two series (``mul``, ``dot_general``) is the Cauchy product, one ``einsum`` with
+  the 0/1 tensor ``T[i, j, k] = [i + j = k]``;
 - quotient, ``sin``/``cos``, ``exp``, ``sqrt`` and ``atan2`` use the classical recurrences
   (Griewank & Walther, *Evaluating Derivatives*, ch. 13), a loop of K small steps.
 
@@ -109,7 +109,8 @@ _LINEAR = {
     "copy_p", "split", "reduce_precision", "stack", "unstack", "reshard",
 }
 # operand positions that are indices / predicates (never series)
-_INDEX_ARGS = {"select_n": (0,), "gather": (1,), "dynamic_slice": "rest", "dynamic_update_slice": "rest2"}
+_INDEX_ARGS = {"select_n": (0,), "gather": (1,), "dynamic_slice": "rest",
+               "dynamic_update_slice": "rest2"}
 _PRIMAL_ONLY = {
     "lt", "le", "gt", "ge", "eq", "ne", "and", "or", "not", "sign", "iota", "floor", "ceil",
     "round", "is_finite", "stop_gradient", "argmax", "argmin",

@@ -2,10 +2,11 @@
 
 Models: the :class:`~verticality.models.otolith_head.OtolithHead` values of the package, consumed
 unchanged (:func:`~verticality.models.otolith_head.medial`, one pendulum at the head centre, F 2.7;
-:func:`~verticality.models.otolith_head.lateral`, two pendula at ``±r`` on the head's y axis, F 2.12,
-``r = 0.05`` m). ``form="simplified"`` (default) is F 2.7 / 2.12: ``PendulumParams.simplified()``
-(no gyroscopic and no Euler term; the centripetal term of the lateral model kept) and
-``HeadParams(gyroscopic=0)`` (the head ``J_H ω̇_H = τ``); ``form="full"`` keeps every term.
+:func:`~verticality.models.otolith_head.lateral`, two pendula at ``±r`` on the head's y axis,
+F 2.12, ``r = 0.05`` m). ``form="simplified"`` (default) is F 2.7 / 2.12:
+``PendulumParams.simplified()`` (no gyroscopic and no Euler term; the centripetal term of the
+lateral model kept) and ``HeadParams(gyroscopic=0)`` (the head ``J_H ω̇_H = τ``); ``form="full"``
+keeps every term.
 
 Outputs: the model's output, the otolith angles of F 2.8–2.9 / 2.13–2.16 (``output="thesis"``);
 ``output="axis"`` reads the same angles from the pendulum's axis in the head frame instead.
@@ -15,10 +16,11 @@ input ``HeadInput(τ_H, a_I)``::
 
     τ_H = θ.tau_H + u.tau_u + θ.stab · global_stabilizer(R_IH, ω_H)      a_I = R_IH θ.a_H
 
-Motion ``rot``: ``a = 0``; ``rot+trans``: ``H a`` a constant unknown (F §3.1.2 defines the head-frame
-acceleration as a symbolic parameter). Control: ``zero`` (τ = 0), ``unknown`` (τ a constant unknown
-parameter), ``known`` (τ a known input with free derivatives, not stabilized), ``stabilized`` (the
-feedback of F 2.20–2.21, :func:`verticality.simulation.control.global_stabilizer`: the stabilizing sign,
+Motion ``rot``: ``a = 0``; ``rot+trans``: ``H a`` a constant unknown (F §3.1.2 defines the
+head-frame acceleration as a symbolic parameter). Control: ``zero`` (τ = 0), ``unknown`` (τ a
+constant unknown parameter), ``known`` (τ a known input with free derivatives, not stabilized),
+``stabilized`` (the feedback of F 2.20–2.21,
+:func:`verticality.simulation.control.global_stabilizer`: the stabilizing sign,
 ``τ = K_p Σ_i e_i × (R_IHᵀ e_i) − K_d ω_H``; the sign does not change the generic rank).
 
 Quantities asked: ``tilt`` = ``R_IHᵀ e3`` (gravity's up direction in the head frame, which fixes
@@ -106,7 +108,8 @@ def plant_params(which: str = "generic", r_m: float = LATERAL_R_M) -> PlantParam
 
 def otolith_model(model: str, *, params: str = "generic", form: str = "simplified",
                   r_m: float = LATERAL_R_M) -> otolith_head.OtolithHead:
-    """The medial or lateral :class:`~verticality.models.otolith_head.OtolithHead` value of a case."""
+    """The medial or lateral :class:`~verticality.models.otolith_head.OtolithHead` value of a
+    case."""
     if model not in MODELS:
         raise InputError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
     if form not in FORMS:
@@ -126,7 +129,8 @@ to have stalled (its rank stopped growing) before that order."""
 
 
 AMBIENT_ORDERS = {"medial": 15, "lateral": 11}
-"""Orders for the free-entry (ambient) formulation: 24–30 (medial) or 36–42 (lateral) coordinates."""
+"""Orders for the free-entry (ambient) formulation: 24–30 (medial) or 36–42 (lateral)
+coordinates."""
 
 
 def axis_angles(model: otolith_head.OtolithHead, x: otolith_head.OtolithHeadState, u=None):
@@ -145,9 +149,9 @@ def build_problem(model: str, *, params: str = "generic", form: str = "simplifie
                   r_m: float = LATERAL_R_M, output: str = "thesis") -> Problem:
     """The observability :class:`Problem` of one model, serving all eight motion/control cases.
 
-    Unknown constants: ``a_H`` (head-frame acceleration), ``tau_H`` (constant unknown torque) and the
-    switch ``stab`` (1 = feedback F 2.20 on); known input ``tau_u`` (known torque); they reach the
-    model through its input (module docstring). ``output="thesis"``: the model's output, the
+    Unknown constants: ``a_H`` (head-frame acceleration), ``tau_H`` (constant unknown torque) and
+    the switch ``stab`` (1 = feedback F 2.20 on); known input ``tau_u`` (known torque); they reach
+    the model through its input (module docstring). ``output="thesis"``: the model's output, the
     otolith angles of F 2.8–2.9 as written (third *row* of ``R_HS``); ``output="axis"``:
     :func:`axis_angles`. A case fixes the constants that are not unknown in it and zeroes the
     unused input (:func:`case_settings`), so one compiled function serves the eight cases of a
@@ -253,7 +257,8 @@ def _turn_pendula(x, Rz):
 def global_yaw(model, x, th, eps):
     """Every frame turned about gravity: ``R_IX → Rz(ε) R_IX``."""
     Rz = so3.rot_z(eps)
-    return x._replace(pendula=_turn_pendula(x, Rz), head=x.head._replace(R_I_H=Rz @ x.head.R_I_H)), {}
+    return x._replace(pendula=_turn_pendula(x, Rz),
+                      head=x.head._replace(R_I_H=Rz @ x.head.R_I_H)), {}
 
 
 def head_yaw(model, x, th, eps):
@@ -282,13 +287,13 @@ def symmetry_directions(case: CaseResult) -> dict[str, np.ndarray]:
 
     ``global_yaw``: every frame turned about gravity.
     ``head_yaw``: the head turned about its own z axis with its angular velocity, torque and
-    acceleration counter-rotated (``τ → J_H Rz(ε)ᵀ J_H⁻¹ τ`` so that ω̇_H = J_H⁻¹τ turns with ω_H): the
-    inertial angular velocity ``R_IH ω_H``, the head's z axis and ``R_IH a_H`` do not change, so neither
-    do the pendulum dynamics nor the otolith angles of F 2.8–2.9 (third row of ``R_HS``), but the
-    gravity direction in the head frame turns about the head's z axis.
+    acceleration counter-rotated (``τ → J_H Rz(ε)ᵀ J_H⁻¹ τ`` so that ω̇_H = J_H⁻¹τ turns with ω_H):
+    the inertial angular velocity ``R_IH ω_H``, the head's z axis and ``R_IH a_H`` do not change, so
+    neither do the pendulum dynamics nor the otolith angles of F 2.8–2.9 (third row of ``R_HS``),
+    but the gravity direction in the head frame turns about the head's z axis.
     ``yaw_conjugation``: global yaw composed with the inverse head yaw. The feedback F 2.20 is
-    equivariant under it when ``J_H`` is isotropic and the gains scalar (the P13 head), and so is the
-    medial model: the stabilized medial model then hides the direction of the tilt too.
+    equivariant under it when ``J_H`` is isotropic and the gains scalar (the P13 head), and so is
+    the medial model: the stabilized medial model then hides the direction of the tilt too.
     """
     return curve_directions(case.problem, case.result, SYMMETRIES)
 

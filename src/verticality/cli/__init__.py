@@ -1,6 +1,6 @@
-"""The ``verticality`` command. Subcommands live in :mod:`verticality.cli.commands`, one module each,
-each with ``register(subparsers)``; this module only assembles them and turns user errors into one
-line on stderr and exit status 2."""
+"""The ``verticality`` command. Subcommands live in :mod:`verticality.cli.commands`, one module
+each, each with ``register(subparsers)``; this module only assembles them and turns user errors into
+one line on stderr and exit status 2."""
 
 from __future__ import annotations
 

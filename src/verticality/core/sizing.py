@@ -19,6 +19,6 @@ def check_work_size(count: float, bytes_each: float, what: str, advice: str,
     limit = MAX_WORK_BYTES if limit_bytes is None else float(limit_bytes)
     size = float(count) * float(bytes_each)
     if not size <= limit:  # also NaN
-        raise InputError(f"this needs {float(count):.3g} {what} (~{size / 2**30:.3g} GiB, more than "
-                         f"the {limit / 2**30:g} GiB allowed): {advice}")
+        raise InputError(f"this needs {float(count):.3g} {what} (~{size / 2**30:.3g} GiB, "
+                         f"more than the {limit / 2**30:g} GiB allowed): {advice}")
     return size

@@ -1,12 +1,13 @@
 """Extended disturbance observer for the ground motion (T §II.B, eq. 16–19, 23).
 
-The linearized body ``ẋ = A x + B u + N F_d`` (T eq. 16: :func:`verticality.models.linearize.linearize`
-of :class:`verticality.models.body.TwoSegmentBody` at upright, whose input is ``(u, F_d)``, so that
-the last three columns of its B and D are T's N and E) is extended with the disturbance ``F_d = (θ1, θ̇1, θ̈1)`` modelled as a chain of integrators with a
+The linearized body ``ẋ = A x + B u + N F_d`` (T eq. 16:
+:func:`verticality.models.linearize.linearize` of :class:`verticality.models.body.TwoSegmentBody` at
+upright, whose input is ``(u, F_d)``, so that the last three columns of its B and D are T's N and E)
+is extended with the disturbance ``F_d = (θ1, θ̇1, θ̈1)`` modelled as a chain of integrators with a
 piecewise-constant θ̈1 (T eq. 17, Friedland's disturbance model):
 
-    A_e = [[A, N], [0, A_d]],  A_d = [[0, 1, 0], [0, 0, 1], [0, 0, 0]],  B_e = [[B], [0]]   (T eq. 18)
-    y_e = (θ2, θ3, θ̇2, θ̇3, ω, a_x) = C_e x_e + D u,  C_e = [C, E]                         (T eq. 23)
+    A_e = [[A, N], [0, A_d]],  A_d = [[0, 1, 0], [0, 0, 1], [0, 0, 0]],  B_e = [[B], [0]] (T eq. 18)
+    y_e = (θ2, θ3, θ̇2, θ̇3, ω, a_x) = C_e x_e + D u,  C_e = [C, E]                       (T eq. 23)
 
 and estimated by ``x̂_e' = A_e x̂_e + B_e u + L_e (y_e − C_e x̂_e − D u)`` (T eq. 19). The
 feed-through ``D u`` (the accelerometer sees the torque-driven accelerations) is not written in
@@ -53,7 +54,8 @@ def extended_system(lin: LinearModel):
 
 
 def observability_rank(A_e, C_e) -> int:
-    """Rank of the observability matrix of ``(A_e, C_e)`` (T: the observer exists iff it is full)."""
+    """Rank of the observability matrix of ``(A_e, C_e)`` (T: the observer exists iff it is
+    full)."""
     n = A_e.shape[0]
     O = np.vstack([C_e @ np.linalg.matrix_power(A_e, i) for i in range(n)])
     return int(np.linalg.matrix_rank(O))

@@ -91,7 +91,8 @@ class ExtendedKalmanFilter:
         m = self.model
         x_pred = m.transition(state.x, u, dt)
         z = jnp.zeros(state.P.shape[0], dtype=state.P.dtype)
-        F = jax.jacfwd(lambda d: m.difference(m.transition(m.retract(state.x, d), u, dt), x_pred))(z)
+        F = jax.jacfwd(lambda d: m.difference(m.transition(m.retract(state.x, d), u, dt),
+                                              x_pred))(z)
         pred = EKFState(x=x_pred, P=_sym(F @ state.P @ F.T + self.Q))
         return keep_finite(pred, state)
 
@@ -187,5 +188,6 @@ def with_noise(filt: ExtendedKalmanFilter, Q=None, R=None) -> ExtendedKalmanFilt
 
 
 def head_orientation(x: OtolithHeadState):
-    """The estimate's ``R_IH`` (used by controllers and metrics; same name in the stacked module)."""
+    """The estimate's ``R_IH`` (used by controllers and metrics; same name in the stacked
+    module)."""
     return x.head.R_I_H

@@ -87,7 +87,8 @@ class StackedCoordinates(EuclideanState):
         return self.discrete.output(from_flat(v, len(self.head_model.pendula)), u)
 
 
-def stacked_model(p_pend: PendulumParams, p_head: HeadParams, u_blocks: int = 4) -> StackedCoordinates:
+def stacked_model(p_pend: PendulumParams, p_head: HeadParams,
+                  u_blocks: int = 4) -> StackedCoordinates:
     """The medial model of :func:`verticality.estimators.ekf.medial_model`, unprojected, on the
     stacked coordinates."""
     return StackedCoordinates(Discretized(Unprojected(medial(p_pend, p_head, gyro=True)),

@@ -15,10 +15,11 @@ same plant and, as ``dt → 0``, the discrete steady-state gain ``K_d`` tends to
   Loan, Joseph update).
 * :class:`SteadyStateKalmanFilter` (:func:`steady_state_kalman_filter`) — the same filter with its
   converged (DARE) gain, for one dt.
-* :class:`ContinuousObserver` (:func:`continuous_observer`) — ``x̂' = A x̂ + B u + L (y − C x̂ − D u)``
-  (T eq. 9 and 19, F eq. 4.10) with a fixed gain L (steady-state Kalman gain, or a pole-placement
-  gain: :mod:`verticality.estimators.luenberger`, :mod:`verticality.estimators.disturbance`),
-  integrated exactly over each sample with u and y held (zero-order hold).
+* :class:`ContinuousObserver` (:func:`continuous_observer`) —
+  ``x̂' = A x̂ + B u + L (y − C x̂ − D u)`` (T eq. 9 and 19, F eq. 4.10) with a fixed gain L
+  (steady-state Kalman gain, or a pole-placement gain: :mod:`verticality.estimators.luenberger`,
+  :mod:`verticality.estimators.disturbance`), integrated exactly over each sample with u and y held
+  (zero-order hold).
 
 The estimators are frozen values with the interface of :mod:`verticality.estimators.base`
 (``init``, ``predict``, ``step``, ``run``); the functions above validate and build them. A NaN in a
@@ -110,7 +111,8 @@ def van_loan(A, B, Q, dt):
 
 
 def continuous_steady_gain(A, C, Q, R):
-    """Steady-state Kalman–Bucy gain (T eq. 10–11): ``(L, P)`` with ``A P + P Aᵀ + Q − P Cᵀ R⁻¹ C P = 0``.
+    """Steady-state Kalman–Bucy gain (T eq. 10–11): ``(L, P)`` with
+    ``A P + P Aᵀ + Q − P Cᵀ R⁻¹ C P = 0``.
 
     Solved with :func:`scipy.linalg.solve_continuous_are` on the dual (control) problem.
     """
@@ -118,7 +120,8 @@ def continuous_steady_gain(A, C, Q, R):
     try:
         P = scipy.linalg.solve_continuous_are(A.T, C.T, Q, R)
     except (np.linalg.LinAlgError, ValueError) as exc:
-        raise InputError(f"continuous Riccati equation has no stabilizing solution: {exc}") from None
+        raise InputError("continuous Riccati equation has no stabilizing solution: "
+                         f"{exc}") from None
     L = scipy.linalg.solve(R, C @ P, assume_a="pos").T
     return L, P
 
@@ -126,8 +129,9 @@ def continuous_steady_gain(A, C, Q, R):
 def discrete_steady_gain(Phi, C, Qd, Rd):
     """Steady-state gain of the sampled filter: ``(K, P_prior, P_post)`` from the DARE.
 
-    ``P_prior`` solves ``P = Φ P Φᵀ − Φ P Cᵀ (C P Cᵀ + R)⁻¹ C P Φᵀ + Q``; ``K = P Cᵀ (C P Cᵀ + R)⁻¹``
-    is the measurement-update gain of :class:`KalmanFilter` once it has converged.
+    ``P_prior`` solves ``P = Φ P Φᵀ − Φ P Cᵀ (C P Cᵀ + R)⁻¹ C P Φᵀ + Q``;
+    ``K = P Cᵀ (C P Cᵀ + R)⁻¹`` is the measurement-update gain of :class:`KalmanFilter` once it has
+    converged.
     """
     Phi, _, C, _, Qd, Rd = check_system(Phi, None, C, None, Qd, Rd)
     try:
@@ -361,7 +365,8 @@ class ContinuousObserver:
     def init(self, x0, P0=None) -> ObsState:
         x0 = jnp.asarray(x0, dtype=jnp.float64)
         if x0.shape != (self.A.shape[0],):
-            raise InputError(f"x0 must be a vector of {self.A.shape[0]} states, got shape {x0.shape}")
+            raise InputError(f"x0 must be a vector of {self.A.shape[0]} states, "
+                             f"got shape {x0.shape}")
         return ObsState(x0, jnp.asarray(0))
 
     def _zoh(self, ok, dt):

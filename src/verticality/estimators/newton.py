@@ -25,10 +25,10 @@ than the papers did it:
   once (``vmap``); they are chained along the window (Φ_k = A_k·Φ_{k−1}, rows C_k·Φ_k). Equal to
   ``jacfwd`` through the whole window to rounding.
 - **Damped least squares** (Levenberg–Marquardt) instead of the inverse in F 4.4: the map may be
-  non-square (N·p ≠ n) or ill-conditioned. Columns of the Jacobian are scaled to unit norm (states of
-  different units), the step is ``δ = V diag(s/(s²+μ²)) Uᵀ r`` from a thin SVD, and the damping μ² is
-  adapted (÷3 when the cost falls, ×8 and the step rejected when it rises). With a well-conditioned
-  square map and μ → 0 this is exactly Newton's step (F 4.4).
+  non-square (N·p ≠ n) or ill-conditioned. Columns of the Jacobian are scaled to unit norm (states
+  of different units), the step is ``δ = V diag(s/(s²+μ²)) Uᵀ r`` from a thin SVD, and the damping
+  μ² is adapted (÷3 when the cost falls, ×8 and the step rejected when it rises). With a
+  well-conditioned square map and μ → 0 this is exactly Newton's step (F 4.4).
 - **Warm start**: the observer keeps its estimated trajectory over the window; the first guess of
   a new window is the previous solution carried forward (or the model prediction before any solve).
   The first linearization rolls the window out from that guess again (the rollout gives the
@@ -76,12 +76,14 @@ class NewtonConfig(NamedTuple):
     damping: float = 1e-6  # initial LM damping μ², relative to the scaled Jacobian (unit columns)
     damping_min: float = 1e-15
     rcond: float = 1e-9  # scaled s_min/s_max below this: rank-deficient window
-    step_tol: float = 1e-10  # stop once a step changes the predicted outputs by less (RMS, relative)
+    # stop once a step changes the predicted outputs by less (RMS, relative)
+    step_tol: float = 1e-10
 
 
 class NewtonState(NamedTuple):
     x_hat: Any  # estimate at the present sample (a model state)
-    xs_window: Any  # estimated trajectory over the window (model states, leading axis N; warm start)
+    # estimated trajectory over the window (model states, leading axis N; warm start)
+    xs_window: Any
     ys: jnp.ndarray  # (N, p) measurements, NaN replaced by 0
     mask: jnp.ndarray  # (N, p) 1 where measured
     us: Any  # input pytree with leading axis N
@@ -206,8 +208,8 @@ class NewtonObserver:
         Each iteration costs one forward-mode pass through the window (:meth:`rollout`: the
         outputs, the trajectory and the per-sample tangent transition matrices at the candidate),
         then the exact Jacobian by the chain rule along the window (the same exact derivative as
-        ``jacfwd`` through the whole window, to rounding). A candidate that does not lower the cost is
-        rejected (the damping grows, the stored Jacobian is reused). Iterations stop early once
+        ``jacfwd`` through the whole window, to rounding). A candidate that does not lower the cost
+        is rejected (the damping grows, the stored Jacobian is reused). Iterations stop early once
         the next proposed step would change the predicted outputs by less than ``step_tol`` (RMS,
         relative to 1 + RMS of the measurements): that is the convergence flag; d is the maximum
         number of iterations, as in F 4.4.

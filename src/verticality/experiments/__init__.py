@@ -1,7 +1,8 @@
 """Registry of named, reproducible experiments.
 
 An experiment module in this package registers itself with :func:`register`; the registry imports
-every module of the package on first use (:func:`discover`), so adding an experiment is adding a file.
+every module of the package on first use (:func:`discover`), so adding an experiment is adding a
+file.
 
 Each experiment returns a :class:`Result`: metrics (the JSON contract of docs/reproduction.md), the
 published values (``paper``), time series for figures, and the simulated duration. Figures are drawn
@@ -46,7 +47,8 @@ def register(name: str, title: str, source: str = "", figures=None):
     def deco(run):
         if name in _REGISTRY:
             raise ValueError(f"experiment {name!r} registered twice")
-        _REGISTRY[name] = Experiment(name=name, title=title, run=run, figures=figures, source=source)
+        _REGISTRY[name] = Experiment(name=name, title=title, run=run, figures=figures,
+                                     source=source)
         return run
 
     return deco

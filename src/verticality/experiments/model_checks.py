@@ -126,7 +126,8 @@ def so3_metrics(quick: bool) -> tuple[dict, dict]:
 
 
 # ------------------------------------------------------------------------------------- run
-@register("model-checks", "Validation of the pendulum, medial/lateral, planar models and stabilizers",
+@register("model-checks",
+          "Validation of the pendulum, medial/lateral, planar models and stabilizers",
           source="F §2.1–2.2, F §4.4 (4.6–4.9), P13 §3",
           figures=lambda result, out_dir: figures(result, out_dir))
 def run(quick: bool = False) -> Result:
@@ -140,7 +141,8 @@ def run(quick: bool = False) -> Result:
         metrics.update(m)
         series.update(s)
         simulated += sim_s
-    paper = {"oscillation_frequency_analytic_rad_s": metrics["oscillation_frequency_analytic_rad_s"]}
+    paper = {"oscillation_frequency_analytic_rad_s":
+             metrics["oscillation_frequency_analytic_rad_s"]}
     return Result(metrics=metrics, paper=paper, series=series, simulated_s=simulated,
                   notes="tolerances: docs/models.md")
 
@@ -229,7 +231,8 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
     fig, ax = plots.new_figure(2, 1, height_per_row=2.4)
     k = t <= 3.0
     for ax_name, col in (("x", 0), ("y", 1)):
-        ax[0, 0].plot(t[k], s[f"still_phi_{ax_name}"][k, col], label=f"φ{ax_name}, tilt about {ax_name}")
+        ax[0, 0].plot(t[k], s[f"still_phi_{ax_name}"][k, col],
+                      label=f"φ{ax_name}, tilt about {ax_name}")
         ax[0, 0].axhline(s[f"still_expected_{ax_name}"][col], color="0.3", ls="--", lw=1)
     ax[0, 0].set_title(f"Still head tilted by {mc.TILT_RAD} rad: φ → −Θ (dashed)")
     ax[0, 0].set_ylabel("rad")
@@ -237,7 +240,8 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
     for ax_name in ("x", "y"):
         ax[1, 0].plot(t[k], s[f"deflection_{ax_name}"][k], label=f"a along {ax_name}")
     plots.published_line(ax[1, 0], s["deflection_expected"], label="atan(a/g)")
-    ax[1, 0].set_title(f"Constant horizontal acceleration {mc.A_STEADY_M_S2} m/s²: pendulum deflection")
+    ax[1, 0].set_title(f"Constant horizontal acceleration {mc.A_STEADY_M_S2} m/s²: "
+                       "pendulum deflection")
     ax[1, 0].set_ylabel("rad")
     ax[1, 0].set_xlabel("t (s)")
     ax[1, 0].legend(fontsize=8)

@@ -2,13 +2,15 @@
 
 Readings and choices (the thesis leaves them open or they had to be fixed):
 
-- Test: local generic-rank (Hermann–Krener / Sedoglavic) test of :mod:`verticality.analysis.observability`
-  in float64 at two random points per case, rotations on the tangent space of SO(3); rank tolerance
-  1e-8 relative after row normalisation, quantity residual 1e-6. Derivative orders 8 (medial) and 6
-  (lateral); every case is checked to have stopped gaining rank before that order.
+- Test: local generic-rank (Hermann–Krener / Sedoglavic) test of
+  :mod:`verticality.analysis.observability` in float64 at two random points per case, rotations on
+  the tangent space of SO(3); rank tolerance 1e-8 relative after row normalisation, quantity
+  residual 1e-6. Derivative orders 8 (medial) and 6 (lateral); every case is checked to have stopped
+  gaining rank before that order.
 - "Orientation observable" = the tilt ``R_IHᵀ e3`` (which fixes Θx, Θy of F 3.8–3.9) lies in the
   observable span; yaw about gravity is never observable from otoliths and is not asked.
-  "Acceleration identifiable" = all three components of the constant head-frame acceleration ``H a``.
+  "Acceleration identifiable" = all three components of the constant head-frame acceleration
+  ``H a``.
 - Models: the ``OtolithHead`` values of ``models/otolith_head.py`` in the simplified form of
   F 2.7 / 2.12 (no gyroscopic, no Euler term; centripetal term kept for the lateral pendula);
   lateral pivots at ±0.05 m on the head's y axis; head ``J_H ω̇ = τ``. Unknown torque and
@@ -47,7 +49,8 @@ def _validation() -> dict:
     pen = ob.analyze(ex.pendulum_from_rate(), points=2)
     prod = ob.analyze(ex.product_parameter(), points=2)
     return {
-        "linear_rank_minus_kalman": check(lin.rank - ex.kalman_rank(A, C), 0, lin.rank == ex.kalman_rank(A, C)),
+        "linear_rank_minus_kalman": check(lin.rank - ex.kalman_rank(A, C), 0,
+                                          lin.rank == ex.kalman_rank(A, C)),
         "accelerometer_tilt_residual_yaw_hidden": check(acc.quantities["tilt"].residual, 1e-6,
                                                         acc.rank == 2
                                           and acc.quantities["tilt"].observable

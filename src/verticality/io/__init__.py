@@ -1,1 +1,2 @@
-"""Reading and writing files: head motions (``motion``), IMU recordings (``imu``), BROAD (``broad``)."""
+"""Reading and writing files: head motions (``motion``), IMU recordings (``imu``), BROAD
+(``broad``)."""

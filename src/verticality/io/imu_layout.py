@@ -18,7 +18,8 @@ import numpy as np
 from verticality.core.errors import InputError
 
 IMU_COLUMNS = ("t", "gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z")
-# time units of a file's time column: stamps per second (integers, so that ns stamps convert exactly)
+# time units of a file's time column: stamps per second (integers, so that ns stamps convert
+# exactly)
 TIME_UNITS = {"s": 1, "ms": 1_000, "us": 1_000_000, "ns": 1_000_000_000}
 # units written in brackets after a time column's name, e.g. "timestamp [ns]"
 HEADER_TIME_UNITS = {"s": "s", "sec": "s", "ms": "ms", "us": "us", "µs": "us", "μs": "us",

@@ -81,9 +81,11 @@ def read_motion_csv(path) -> MotionRecord:
                         v = float(cell)
                     except ValueError:
                         raise InputError(
-                            f"{path}: {_where(line_no)}, column {c}: not a number: {cell!r}") from None
+                            f"{path}: {_where(line_no)}, column {c}: not a number: "
+                            f"{cell!r}") from None
                     if not math.isfinite(v):
-                        raise InputError(f"{path}: {_where(line_no)}, column {c}: {cell} is not finite")
+                        raise InputError(f"{path}: {_where(line_no)}, column {c}: "
+                                         f"{cell} is not finite")
                     values.append(v)
                 rows.append((line_no, values))
         except csv.Error as exc:
@@ -96,7 +98,8 @@ def read_motion_csv(path) -> MotionRecord:
     bad = np.nonzero(np.diff(t) <= 0.0)[0]
     if bad.size:
         i = bad[0] + 1
-        raise InputError(f"{path}: {_where(lines[i])}, column t: time {float(t[i])!r} does not increase "
+        raise InputError(f"{path}: {_where(lines[i])}, column t: "
+                         f"time {float(t[i])!r} does not increase "
                          f"(previous row has t = {float(t[i - 1])!r})")
     q = data[:, 1:5]
     norm = np.linalg.norm(q, axis=1)
@@ -116,9 +119,11 @@ def window_mask(t_s: np.ndarray, start_s: float = 0.0, duration_s: float | None 
     holding fewer than two rows are refused (:class:`InputError`)."""
     t = np.asarray(t_s, float)
     if not (math.isfinite(start_s) and start_s >= 0.0):
-        raise InputError(f"{source}: --start must be a non-negative number of seconds, not {start_s}")
+        raise InputError(f"{source}: --start must be a non-negative number of seconds, "
+                         f"not {start_s}")
     if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
-        raise InputError(f"{source}: --duration must be a positive number of seconds, not {duration_s}")
+        raise InputError(f"{source}: --duration must be a positive number of seconds, "
+                         f"not {duration_s}")
     span = float(t[-1] - t[0])
     t_from = t[0] + start_s
     t_to = t[-1] if duration_s is None else t_from + duration_s
@@ -224,7 +229,8 @@ def otolith_columns(suffixes=("",)) -> list[str]:
 
 
 def write_otolith_csv(path, t_s, s_H, phi_rad, suffixes=("",)) -> Path:
-    """Write OUT.csv. ``s_H`` (N, P, 3), ``phi_rad`` (N, P, 2) for P pendulums named by ``suffixes``."""
+    """Write OUT.csv. ``s_H`` (N, P, 3), ``phi_rad`` (N, P, 2) for P pendulums named by
+    ``suffixes``."""
     path = Path(path)
     s_H = np.asarray(s_H, float)
     phi = np.asarray(phi_rad, float)

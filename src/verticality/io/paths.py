@@ -144,8 +144,8 @@ def check_paths(outputs: Mapping[str, object], inputs: Iterable[object] = (),
     not asked for), ``inputs`` the files it reads (None entries ignored), ``figures`` the options of
     ``outputs`` that are figures (:func:`check_figure_name`). Refuses an output that reaches an
     input (:func:`same_file`) or another output, a folder, a figure with an unknown extension and
-    an output that cannot be written (:func:`check_writable_file`), in that order, so that nothing is
-    created when the run is refused. Returns the outputs given, as paths."""
+    an output that cannot be written (:func:`check_writable_file`), in that order, so that nothing
+    is created when the run is refused. Returns the outputs given, as paths."""
     outs = {opt: Path(p) for opt, p in outputs.items() if p is not None}
     ins = [Path(p) for p in inputs if p is not None]
     for opt, out in outs.items():

@@ -52,7 +52,8 @@ def load_imu(path, units: Iterable[str] = (), columns: str | dict[str, str] | No
     check_input_file(path)
     gyr_u, acc_u = parse_units(units)
     if broad.is_broad_file(path):
-        given = [o for o, v in (("--columns", columns), ("--time-unit", time_unit)) if v is not None]
+        given = [o for o, v in (("--columns", columns), ("--time-unit", time_unit))
+                 if v is not None]
         if given:
             verb = "apply" if len(given) > 1 else "applies"
             raise InputError(f"{path}: {' and '.join(given)} {verb} to CSV input only, not to a "

@@ -19,10 +19,11 @@ The interface (:class:`Model`)::
     model.project(x) -> x               back onto the state manifold after an integration step
                                         (rotation matrices onto SO(3)); identity on vector spaces
 
-``u`` is any pytree (a torque, an acceleration, a :class:`~verticality.models.kinematics.RigidMotion`
-of a driving body). Parameters are the model's pytree leaves, so a model can be passed into jitted
-functions, batched with ``vmap`` over parameter values and differentiated with respect to them.
-Switches that change the structure of a computation are static fields (``model_dataclass``).
+``u`` is any pytree (a torque, an acceleration, a
+:class:`~verticality.models.kinematics.RigidMotion` of a driving body). Parameters are the model's
+pytree leaves, so a model can be passed into jitted functions, batched with ``vmap`` over parameter
+values and differentiated with respect to them. Switches that change the structure of a computation
+are static fields (``model_dataclass``).
 
 Models are frozen dataclasses registered as pytrees (:func:`model_dataclass`); models on a vector
 space inherit :class:`EuclideanState` for ``retract``/``difference``/``project``. Composite models
@@ -46,7 +47,8 @@ from verticality.core.integrate import euler_step, rk4_step
 
 @runtime_checkable
 class Model(Protocol):
-    """A continuous-time model ``ẋ = f(x, u)``, ``y = h(x, u)`` on a manifold (see the module doc)."""
+    """A continuous-time model ``ẋ = f(x, u)``, ``y = h(x, u)`` on a manifold (see the module
+    doc)."""
 
     def dynamics(self, x, u): ...
 
@@ -61,7 +63,8 @@ class Model(Protocol):
 
 @runtime_checkable
 class DiscreteModel(Protocol):
-    """A discrete-time model ``x_{k+1} = F(x_k, u, dt)``, ``y_k = h(x_k, u)`` (EKF, Newton observer)."""
+    """A discrete-time model ``x_{k+1} = F(x_k, u, dt)``, ``y_k = h(x_k, u)`` (EKF, Newton
+    observer)."""
 
     def transition(self, x, u, dt): ...
 
@@ -166,7 +169,8 @@ class Discretized(OnModel):
 
     def transition(self, x, u, dt):
         if self.single_input:
-            u = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (self.substeps,) + jnp.shape(a)),
+            u = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (self.substeps,)
+                                                                  + jnp.shape(a)),
                                        u)
         n = jax.tree_util.tree_leaves(u)[0].shape[0]
         h = dt / n

@@ -64,7 +64,8 @@ class SingleSegmentBody(EuclideanState):
     g_m_s2: Any = G_M_S2
 
     def lean_acceleration(self, phi_rad, tau_Nm):
-        return (self.m_kg * self.g_m_s2 * self.com_m * jnp.sin(phi_rad) + tau_Nm) / self.J_ankle_kg_m2
+        return ((self.m_kg * self.g_m_s2 * self.com_m * jnp.sin(phi_rad) + tau_Nm)
+                / self.J_ankle_kg_m2)
 
     def dynamics(self, x: LeanState, u) -> LeanState:
         return LeanState(x.phi_dot_rad_s, self.lean_acceleration(x.phi_rad, u))
@@ -132,16 +133,19 @@ class TwoSegmentBody(EuclideanState):
         rhs = jnp.array([
             g * (self.m_legs_kg * self.c_legs_m + self.m_trunk_kg * self.L2_m) * jnp.sin(a[0])
             + tau_Nm[0] - tau_Nm[1] - M12 * s * a_dot[1] ** 2,
-            g * self.m_trunk_kg * self.c_trunk_m * jnp.sin(a[1]) + tau_Nm[1] + M12 * s * a_dot[0] ** 2,
+            g * self.m_trunk_kg * self.c_trunk_m * jnp.sin(a[1]) + tau_Nm[1]
+            + M12 * s * a_dot[0] ** 2,
         ])
         return jnp.linalg.solve(M, rhs)
 
     def energy(self, a, a_dot):
-        """Kinetic + potential energy in absolute coordinates (conserved for τ = 0, ground still)."""
+        """Kinetic + potential energy in absolute coordinates (conserved for τ = 0, ground
+        still)."""
         M11, M22, M12 = self.mass_terms()
         T = (0.5 * M11 * a_dot[0] ** 2 + 0.5 * M22 * a_dot[1] ** 2
              + M12 * jnp.cos(a[0] - a[1]) * a_dot[0] * a_dot[1])
-        V = self.g_m_s2 * ((self.m_legs_kg * self.c_legs_m + self.m_trunk_kg * self.L2_m) * jnp.cos(a[0])
+        V = self.g_m_s2 * ((self.m_legs_kg * self.c_legs_m + self.m_trunk_kg * self.L2_m)
+                           * jnp.cos(a[0])
                            + self.m_trunk_kg * self.c_trunk_m * jnp.cos(a[1]))
         return T + V
 

@@ -99,7 +99,8 @@ def torsion_pendulum(tau_long_s: float = 5.7, tau_short_s: float = 0.005) -> Tor
                                 jnp.asarray(1.0 / (tau_long_s * tau_short_s)))
 
 
-def torsion_pendulum_from_coefficients(Theta: float, Pi: float, Delta: float) -> TorsionPendulumCanal:
+def torsion_pendulum_from_coefficients(Theta: float, Pi: float,
+                                       Delta: float) -> TorsionPendulumCanal:
     """F eq. 1.2 with its three coefficients (F eq. 1.3: Θ = 1, Π = 10, Δ = 1)."""
     if not (Theta > 0 and Pi > 0 and Delta > 0):
         raise InputError("torsion pendulum: Θ, Π and Δ must be positive")

@@ -75,8 +75,8 @@ def body_jacobian_autodiff(theta_rad):
 def joint_angles_for_up(up_T):
     """Λ⁻¹ restricted to tilt: motor angles that put the head's z axis along ``up_T``.
 
-    ``up_T`` is the direction the head's z axis should take, in the trunk frame (for an upright head,
-    the world vertical expressed in T: ``R_IT^T e3``). With Λ e3 = (sin θ1 cos θ2, −sin θ2,
+    ``up_T`` is the direction the head's z axis should take, in the trunk frame (for an upright
+    head, the world vertical expressed in T: ``R_IT^T e3``). With Λ e3 = (sin θ1 cos θ2, −sin θ2,
     cos θ1 cos θ2): θ2 = −asin(u_y), θ1 = atan2(u_x, u_z).
     """
     u = up_T / jnp.linalg.norm(up_T)
@@ -122,8 +122,9 @@ def head_angular_velocity(x: GimbalState, trunk: RigidMotion):
 
 
 def driven_head_motion(x: GimbalState, motor_torque_Nm, trunk: RigidMotion, head: FreeHead):
-    """The head's kinematics and θ̈ under the motor torques m (2,), for the head on the moving trunk:
-    Eᵀ τ_H = m with τ_H = ``head.torque(ω_H, ω̇_H)`` (the free head's Euler equation) solved for θ̈."""
+    """The head's kinematics and θ̈ under the motor torques m (2,), for the head on the moving
+    trunk: Eᵀ τ_H = m with τ_H = ``head.torque(ω_H, ω̇_H)`` (the free head's Euler equation) solved
+    for θ̈."""
     omega_H, omegadot_bias = _omega_and_bias(x, trunk)
     E = body_jacobian(x.theta_rad)
     J = head.params.resolved().J_H

@@ -58,7 +58,8 @@ def pendulum_from_ratios(g_over_l_s2: float = F44_G_OVER_L_S2,
         raise InputError(f"g/l must be positive, got {g_over_l_s2}")
     l_m = g_m_s2 / g_over_l_s2
     J = m_kg * l_m**2
-    return PlanarPendulum(m_kg=m_kg, l_m=l_m, J_kg_m2=J, beta_Nms=beta_over_ml2_s * J, g_m_s2=g_m_s2)
+    return PlanarPendulum(m_kg=m_kg, l_m=l_m, J_kg_m2=J, beta_Nms=beta_over_ml2_s * J,
+                          g_m_s2=g_m_s2)
 
 
 class IdentifiedInclinometerState(NamedTuple):
@@ -67,7 +68,8 @@ class IdentifiedInclinometerState(NamedTuple):
 
 
 def apparent_tilt(theta_rad, a_h_I_m_s2, a_z_I_m_s2=0.0, g_m_s2: float = G_M_S2):
-    """ψ = θ + atan2(a_h, g + a_z): the tilt a still inclinometer would read under that acceleration."""
+    """ψ = θ + atan2(a_h, g + a_z): the tilt a still inclinometer would read under that
+    acceleration."""
     return theta_rad + jnp.arctan2(a_h_I_m_s2, g_m_s2 + a_z_I_m_s2)
 
 
@@ -82,7 +84,8 @@ class IdentifiedInclinometer(EuclideanState):
     k_s: Any = 5.629
     g_m_s2: Any = G_M_S2
 
-    def dynamics(self, x: IdentifiedInclinometerState, u: FrameMotion) -> IdentifiedInclinometerState:
+    def dynamics(self, x: IdentifiedInclinometerState,
+                 u: FrameMotion) -> IdentifiedInclinometerState:
         """``J_s ÿ + b_s ẏ + k_s y = k_s ψ`` (F §5.2, input reading in the module docstring)."""
         psi = apparent_tilt(u.theta_rad, u.a_h_I_m_s2, u.a_z_I_m_s2, self.g_m_s2)
         ydd = (self.k_s * (psi - x.y_rad) - self.b_s * x.ydot_rad_s) / self.J_s

@@ -92,7 +92,8 @@ class TabulatedMotion(NamedTuple):
 
 def tabulate(motion, dt_s: float, n_steps: int, t0_s: float = 0.0,
              chunk: int = 1000) -> TabulatedMotion:
-    """Sample ``motion(t) -> RigidMotion`` at ``t0 + k·dt/2``, ``k = 0 … 2·n_steps`` (jitted, chunked)."""
+    """Sample ``motion(t) -> RigidMotion`` at ``t0 + k·dt/2``, ``k = 0 … 2·n_steps`` (jitted,
+    chunked)."""
     n = 2 * n_steps + 1
     n_pad = -(-n // chunk) * chunk
     step = 0.5 * dt_s

@@ -38,7 +38,8 @@ from verticality.core.integrate import zoh
 
 
 class LinearModel(NamedTuple):
-    """Continuous-time ``ẋ = A x + B u``, ``y = C x + D u`` (deviations from the operating point)."""
+    """Continuous-time ``ẋ = A x + B u``, ``y = C x + D u`` (deviations from the operating
+    point)."""
 
     A: jnp.ndarray
     B: jnp.ndarray
@@ -96,7 +97,8 @@ def to_statespace(model: LinearModel, *, dt=None, **kw):
 
 def from_statespace(sys) -> LinearModel:
     """A :class:`LinearModel` from a ``control.StateSpace`` (continuous-time)."""
-    return LinearModel(*(jnp.asarray(np.asarray(m, dtype=float)) for m in (sys.A, sys.B, sys.C, sys.D)))
+    return LinearModel(*(jnp.asarray(np.asarray(m, dtype=float))
+                         for m in (sys.A, sys.B, sys.C, sys.D)))
 
 
 def discretize_zoh(model: LinearModel, dt: float) -> tuple[jnp.ndarray, jnp.ndarray]:

@@ -11,14 +11,14 @@ F 2.11–2.17) as model values, composed of :class:`~verticality.models.head.Fre
   gyro ω_H when ``gyro`` (P13 eq. 4).
 * :func:`medial` — one pendulum pivoting at the head centre (F 2.5–2.9; P13 §3);
   :func:`lateral` — two pendula at ``±r`` along the head's y axis (left ``+r``, right ``−r``;
-  :func:`verticality.models.params.lateral_pendulums`): their pivots see the Euler (``ω̇_H × r``) and
-  centripetal (``ω_H × (ω_H × r)``) accelerations with opposite signs.
+  :func:`verticality.models.params.lateral_pendulums`): their pivots see the Euler (``ω̇_H × r``)
+  and centripetal (``ω_H × (ω_H × r)``) accelerations with opposite signs.
 * :class:`HeadFrameAcceleration` — an input adapter: the same model driven by F §4.2.1's
   ``u = (ᴴτ, ᴴa)``, rotated into ``ᴵa = R_IH ᴴa`` with the state's own R_IH.
 
 Full and simplified forms: the defaults keep every term; ``PendulumParams.simplified()`` drops the
-pendulum's gyroscopic and Euler terms (F 2.7 and F 2.12 keep gravity, damping, head acceleration and,
-for the lateral model, the centripetal term); ``HeadParams(gyroscopic=0.0)`` drops the head's
+pendulum's gyroscopic and Euler terms (F 2.7 and F 2.12 keep gravity, damping, head acceleration
+and, for the lateral model, the centripetal term); ``HeadParams(gyroscopic=0.0)`` drops the head's
 (F 2.7's ``J_H ω̇_H = τ``). The pendula do not act on the head (F §2.1.1: negligible mass).
 
 * :class:`PlanarLateral` — the lateral model in the coronal plane (F 2.19), a planar value.
@@ -188,7 +188,8 @@ def replace_params(model: OtolithHead, pendulum=None, head=None) -> OtolithHead:
     ``head(params)`` (either may be None: unchanged)."""
     pend = tuple(p if pendulum is None else dataclasses.replace(p, params=pendulum(p.params))
                  for p in model.pendula)
-    h = model.head if head is None else dataclasses.replace(model.head, params=head(model.head.params))
+    h = (model.head if head is None
+         else dataclasses.replace(model.head, params=head(model.head.params)))
     return dataclasses.replace(model, head=h, pendula=pend)
 
 
@@ -227,7 +228,8 @@ class PlanarLateral(EuclideanState):
     def pivot_acceleration_I(self, side, x: PlanarLateralState, u: planar.PlanarInput, omegadot_H):
         """Pivot acceleration (h, z) in I for the pivot at ``side·r`` on the head's y axis."""
         w = x.omega_H_rad_s
-        # Head frame: ω × (ω × r) = (0, −r ω², 0)·side, ω̇ × r = (0, 0, r ω̇)·side, for ω = (ω, 0, 0).
+        # Head frame: ω × (ω × r) = (0, −r ω², 0)·side, ω̇ × r = (0, 0, r ω̇)·side,
+        # for ω = (ω, 0, 0).
         t_h = -self.centripetal * side * self.r_m * w * w
         t_z = self.euler * side * self.r_m * omegadot_H
         dh, dz = planar.head_frame_to_inertial(t_h, t_z, x.theta_H_rad)

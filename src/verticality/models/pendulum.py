@@ -12,12 +12,12 @@ with the pivot acceleration a_P_I = a_C_I + R_IH (ε ω̇_H × r_H + κ ω_H × 
 r_H from the head centre C (ε = params.euler, κ = params.centripetal).
 
 Frame S convention. The thesis writes the arm as ``S l = (0, 0, l)`` with gravity ``(0, 0, −9.81)``,
-which taken literally is an inverted (unstable) pendulum; its planar form (F p. 36) is stable only if
-g is read as −9.81. We keep the physics of a hanging pendulum and put the z axis of S *from the mass
-to the pivot*: the centre of mass is at ``c_S = (0, 0, −l)``. The z axis of S is then the normal of the
-liquid surface of an inclinometer (the gravito-inertial "up"), a pendulum at rest in a level head has
-``R_HS = I``, and the otolith angles of F 2.8–2.9 read zero. ``s_H`` (docs/conventions.md: unit vector
-from pivot to mass, head frame) is ``−R_HS e3``.
+which taken literally is an inverted (unstable) pendulum; its planar form (F p. 36) is stable only
+if g is read as −9.81. We keep the physics of a hanging pendulum and put the z axis of S *from the
+mass to the pivot*: the centre of mass is at ``c_S = (0, 0, −l)``. The z axis of S is then the
+normal of the liquid surface of an inclinometer (the gravito-inertial "up"), a pendulum at rest in a
+level head has ``R_HS = I``, and the otolith angles of F 2.8–2.9 read zero. ``s_H``
+(docs/conventions.md: unit vector from pivot to mass, head frame) is ``−R_HS e3``.
 
 Sign of the otolith angles: for a still head, ``R_HS = R_IH^T`` (up to yaw of the pendulum), so the
 otolith angles are the tilt angles (F 3.8–3.9) of ``R_HI``: φ = Θ(R_IH^T). For a tilt about one axis
@@ -97,7 +97,8 @@ def arm_direction_H(x: PendulumState, R_I_H):
 
 
 def otolith_angles(R_H_S_):
-    """(φ_x, φ_y) of F 2.8–2.9: ``tan φ_x = [R_HS]_32/[R_HS]_33``, ``tan φ_y = [R_HS]_31/[R_HS]_33``."""
+    """(φ_x, φ_y) of F 2.8–2.9: ``tan φ_x = [R_HS]_32/[R_HS]_33``,
+    ``tan φ_y = [R_HS]_31/[R_HS]_33``."""
     R = jnp.asarray(R_H_S_)
     return jnp.stack(
         [jnp.arctan2(R[..., 2, 1], R[..., 2, 2]), jnp.arctan2(R[..., 2, 0], R[..., 2, 2])], -1
@@ -178,7 +179,8 @@ class Pendulum(RotationAndRate):
         return self.angles(x, u.R_I_B)
 
     def rest_state(self, u: RigidMotion) -> PendulumState:
-        """At rest relative to the head moving as ``u``, along its pivot's gravito-inertial vertical."""
+        """At rest relative to the head moving as ``u``, along its pivot's gravito-inertial
+        vertical."""
         return rest_state(u, self.params.resolved())
 
     def energy_J(self, x: PendulumState):

@@ -1,4 +1,5 @@
-"""Planar head (platform) carrying a damped pendulum (otolith / inclinometer), in one vertical plane.
+"""Planar head (platform) carrying a damped pendulum (otolith / inclinometer), in one vertical
+plane.
 
 The planar medial model of F p. 36, the platform/pendulum system of P11 §V.A and the sagittal
 platform of F §4.4 are this one system. The plane is the head's y–z plane (rotations about x, the
@@ -20,7 +21,8 @@ Three model values (:mod:`verticality.models.base`), one pendulum equation
 (:func:`pendulum_angular_acceleration`):
 
 * :class:`PlanarPendulum` — the pendulum alone in a frame whose motion is given
-  (:class:`FrameMotion`); the liquid inclinometer of F 5.1–5.3 (:mod:`verticality.models.inclinometer`);
+  (:class:`FrameMotion`); the liquid inclinometer of F 5.1–5.3
+  (:mod:`verticality.models.inclinometer`);
 * :class:`PlanarHead` — the head driven by a torque, carrying that pendulum (F p. 36, P11 §V.A,
   F §4.4); its pendulum is :attr:`PlanarHead.pendulum`;
 * :class:`WithHeadFrameInput` — a model driven by the pivot acceleration in **head-frame**
@@ -69,7 +71,8 @@ class PlanarInput(NamedTuple):
 
 
 class HeadInput(NamedTuple):
-    """Head torque and the pivot acceleration in head-frame components (:class:`WithHeadFrameInput`)."""
+    """Head torque and the pivot acceleration in head-frame components
+    (:class:`WithHeadFrameInput`)."""
 
     tau_Nm: jnp.ndarray
     a_h_H_m_s2: jnp.ndarray  # horizontal head axis (y of the coronal plane)

@@ -55,7 +55,8 @@ class AxisState(NamedTuple):
 class AxisInput(NamedTuple):
     u: jnp.ndarray  # amplifier reference (torque-equivalent)
     a_h_I_m_s2: jnp.ndarray  # linear acceleration of the platform centre along the axis' horizontal
-    omega_base_rad_s: jnp.ndarray = 0.0  # base-link angular velocity about this axis (unknown to the observer)
+    # base-link angular velocity about this axis (unknown to the observer)
+    omega_base_rad_s: jnp.ndarray = 0.0
 
 
 @model_dataclass

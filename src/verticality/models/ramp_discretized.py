@@ -5,8 +5,8 @@ are recorded at a faster rate than the sub-steps (P11's observer: inputs at 1 kH
 per 25 ms sample), holding their mean loses the first moment: the head's double integrator then
 misses part of its position increment. :class:`RampDiscretized` gives each sub-step its share of
 the held fast-rate inputs as a ramp with the same mean and the same first moment about the
-sub-step's centre, evaluated by the shared RK4 (:func:`verticality.core.integrate.rk4_step_staged`, the
-input at the start, middle and end of the sub-step). For a double integrator driven by the input
+sub-step's centre, evaluated by the shared RK4 (:func:`verticality.core.integrate.rk4_step_staged`,
+the input at the start, middle and end of the sub-step). For a double integrator driven by the input
 this is exact (the velocity and position increments of the held inputs); for the rest of a model
 it is second order in the sub-step.
 """
@@ -29,7 +29,8 @@ def ramp_moments(u_block, substeps: int):
     sub-step, has the block's mean and first moment about the sub-step's centre."""
     n_fast = jax.tree_util.tree_leaves(u_block)[0].shape[0]
     if n_fast % substeps:
-        raise InputError(f"input block of {n_fast} samples is not a multiple of {substeps} sub-steps")
+        raise InputError(f"input block of {n_fast} samples is not a multiple of "
+                         f"{substeps} sub-steps")
     k = n_fast // substeps
     # sample centres in units of the sub-step, relative to its centre: (j + 1/2)/k − 1/2
     c = (jnp.arange(k) + 0.5) / k - 0.5

@@ -4,8 +4,8 @@ Each registered experiment is matched by name with a :class:`Claim`: the documen
 tests, the claim in our own words, the settings that matter, the readings the project chose where
 the documents are silent, and the published figures (:class:`Published`) with the metric of
 ``results.json`` each is compared with. :data:`DIFFERENCES` lists where our results and the seeds
-part, each with the metrics that show it. The protocol behind every entry is ``docs/reproduction.md``;
-the reasoning is on the method pages named in ``pages``.
+part, each with the metrics that show it. The protocol behind every entry is
+``docs/reproduction.md``; the reasoning is on the method pages named in ``pages``.
 
 Metric paths are tuples of keys (and list indices) into an experiment's ``metrics``; keys can
 contain dots (``sigma_0.001``), so paths are never dotted strings. A path that a results file does
@@ -300,7 +300,8 @@ CLAIMS: dict[str, Claim] = {
         claim="A Newton (moving-window) observer recovers the head's tilt from a damped "
               "inclinometer while the trunk follows a fast Lissajous motion. Under P11's own "
               "observer model (forward Euler at 1 ms) the stabilized head's error is 12.7–15 times "
-              "smaller (84 times after its start-up; P11: “almost two orders of magnitude”): a coarse "
+              "smaller (84 times after its start-up; P11: “almost two orders of magnitude”): "
+              "a coarse "
               "model is accurate when "
               "the head turns slowly. With our near-exact discretization both heads are ~1e-5° "
               "with the exact model; the benefit remains with the 10 % wrong model.",
@@ -308,7 +309,8 @@ CLAIMS: dict[str, Claim] = {
                   "K = 100 J; PD K_p = 230, K_d = 15 fed by the estimate; plant RK4 at 1 ms",
                   "trunk (x, z, Θ) = 0.25·(sin 0.5πt, sin πt, π sin 2πt), 10 s",
                   "at most d = 5 Newton iterations every 25 ms; window of 24",
-                  "P11's setting: observer model x_{k+1} = x_k + T·F(x_k, u_k), T = 1 ms (P11 §V.C)",
+                  "P11's setting: observer model x_{k+1} = x_k + T·F(x_k, u_k), T = 1 ms "
+                  "(P11 §V.C)",
                   "perturbed: observer parameters 10 % high and white noise σ = 1e-4 rad on the "
                   "reading; in P11's setting also the reading rounded by a 16-bit ADC instead"),
         readings=("the window: P11 keeps “the last 24 iterations” and runs Newton every 25 ms; "
@@ -563,7 +565,8 @@ CLAIMS: dict[str, Claim] = {
               "head is upright (the Fig. 4.12 caption), the observer-fed loop stabilizes the head "
               "upright from an initial tilt of 12° and fails from 25°. We find the same outcomes "
               "under that reading (failing already from 16°), in a region of PD bandwidths and "
-              "walking phases that F does not give, and show how the boundary moves with the PD bandwidth and the "
+              "walking phases that F does not give, and show how the boundary moves with the PD "
+              "bandwidth and the "
               "walking's amplitude, phase and harmonics; F's text also describes the "
               "reconstruction with the estimated tilt (F 3.17), which fails under walking.",
         settings=AMBIGUITY_SETTINGS,
@@ -701,7 +704,8 @@ CLAIMS: dict[str, Claim] = {
               "otoliths contradict the residual canal signal.",
         settings=("60 s at 60°/s, stop, 90° nose-down pitch within 1 s; against an upright stop",),
         readings=("decay time: e-folding time of |ω̂| from 2 s after the stop",),
-        published=(Published("Merfeld–Zupan τ tilted / τ upright", "Zupan et al. 2000 (the bound is ours)", "≤ 0.7",
+        published=(Published("Merfeld–Zupan τ tilted / τ upright",
+                             "Zupan et al. 2000 (the bound is ours)", "≤ 0.7",
                              ("merfeld", "ratio"), "at_most", 0.7, headline=True),
                    Published("Laurens–Angelaki τ tilted / τ upright",
                              "Zupan et al. 2000 (the bound is ours)", "≤ 0.7",
@@ -780,7 +784,8 @@ CLAIMS: dict[str, Claim] = {
     ),
     "model-verification": Claim(
         source="F §2.2, Figs. 2.4–2.5",
-        claim="The medial and lateral models with the head stabilized upright from a tilt (F 2.20): "
+        claim="The medial and lateral models with the head stabilized upright from a tilt "
+              "(F 2.20): "
               "the left and right pendula agree in a sagittal tilt, differ in the coronal plane "
               "while a lateral tilt turns the head and in both planes in yaw, differ more under "
               "Fig. 2.5's tilt and acceleration; the medial model follows the lateral one. F calls "
@@ -861,7 +866,8 @@ DIFFERENCES: tuple[Difference, ...] = (
              "up to 50 % diverges (non-finite or beyond 30°): the fixed head's error grows "
              "steadily and passes 3° near 10 %, while the stabilized head stays far below 3°. "
              "With each parameter wrong by its own random error within ±level (a sweep of 200 "
-             "seeds per level, docs/sweep.md), the fixed head starts to diverge at ±15 % (2 of 200; "
+             "seeds per level, docs/sweep.md), the fixed head starts to diverge at ±15 % "
+             "(2 of 200; "
              "0 up to ±10 %) — at 15 %, one level before P11's “exceeded 15 %” —, 54 % of its "
              "runs at ±50 %; the stabilized head "
              "from ±20 % (1 of 200), 2.1–2.7 times less often from ±25 % on, and only when the "
@@ -896,7 +902,8 @@ DIFFERENCES: tuple[Difference, ...] = (
              "given the head's total torque, the fixed head comes within a small factor of the "
              "stabilized one. Our implementation of the stacked 24-element state P13 §4 defines "
              "(a plain additive EKF on the matrices' entries, with our process noise per block) "
-             "shows no benefit at all (its rotation matrices leave SO(3)). The jump's ratio depends on the trunk's pitch, "
+             "shows no benefit at all (its rotation matrices leave SO(3)). The jump's ratio "
+             "depends on the trunk's pitch, "
              "which P13 does not give; 1/3 is reached near 0.3 rad. Over the trunk motion's "
              "amplitude × frequency (×0.5–2 each, a sweep, docs/sweep.md) the benefit (fixed / "
              "stabilized median max error) is 2.5–25× (impact) and 1–9× (jump) with P13's "
@@ -1017,12 +1024,14 @@ DIFFERENCES: tuple[Difference, ...] = (
              "with 10 rad/s; 8° at half the walking amplitude, 16° at 1.25–1.5 times; it needs "
              "the bounce in quadrature with the sway (at a lag of 0°, 45°, 135° or 180° nothing "
              "converges) and shrinks with the walking's 2nd harmonics (8° at half the built-in "
-             "walking's, none with the built-in walking). With the estimated tilt (F 3.17) the loop "
+             "walking's, none with the built-in walking). With the estimated tilt (F 3.17) "
+             "the loop "
              "fails from every tilt under walking; linearized at upright it is unstable in "
              "continuous time even with the head only rotating (a 39 Hz pair growing at 29 s⁻¹ "
              "with the 10 rad/s PD) — sampled at 10 kHz the one-sample delay of the sampled loop "
              "stabilizes that pair, so the sampled loop's convergence with the head only "
-             "rotating (rotation_only) is the step's artefact. An EKF with a Gauss–Markov (zero-mean) acceleration "
+             "rotating (rotation_only) is the step's artefact. An EKF with a Gauss–Markov "
+             "(zero-mean) acceleration "
              "converges over both sweeps (ours).",
         why="Read as an accelerometer on an upright head, the otolith explains a still tilt as "
             "acceleration: linearized, the loop has an eigenvalue at 0 (the head stays where it "
@@ -1062,7 +1071,8 @@ DIFFERENCES: tuple[Difference, ...] = (
                            ("upright_assumption", "smallest_failing_desired_tilt_deg"),
                            "smallest failing desired tilt, upright reading", "°",
                            none_text="none"),
-                  Evidence("ambiguity-initial-tilt", ("luenberger", "largest_converging_initial_tilt_deg"),
+                  Evidence("ambiguity-initial-tilt",
+                           ("luenberger", "largest_converging_initial_tilt_deg"),
                            "largest converging initial tilt, estimated tilt (F 3.17)", "°",
                            none_text="none"),
                   Evidence("ambiguity-initial-tilt",
@@ -1093,7 +1103,8 @@ DIFFERENCES: tuple[Difference, ...] = (
         title="The otolith outputs are F 2.8–2.9, not P13 eq. 3",
         seeds="P13 eq. 3: the inclinometer reads y1 = arcsin‖j_H × j_S‖ and y2 = arcsin‖i_H × i_S‖ "
               "(the angles between the head's and the pendulum's y and x axes).",
-        ours="Every model, filter and reproduction of P13 here uses F 2.8–2.9 (signed angles of the "
+        ours="Every model, filter and reproduction of P13 here uses F 2.8–2.9 "
+             "(signed angles of the "
              "head's axis in the pendulum frame). P13 eq. 3 is implemented beside it "
              "(models/pendulum.py): with no turn of the pendulum about its own arm relative to the "
              "head it equals |φ| of F 2.8–2.9 to third order in the tilt (2.4e-7 rad at 0.01 rad); "

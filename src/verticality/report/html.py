@@ -208,7 +208,8 @@ def summary_row(name: str, registry: dict, experiments: dict) -> tuple[str, str]
     source = escape(_source(name, registry))
     if entry is None:
         status = compare.NOT_RUN
-        return (f"<tr class=first><td>{link}</td><td>{source}</td><td colspan='3'>not in this results "
+        return (f"<tr class=first><td>{link}</td><td>{source}</td>"
+                "<td colspan='3'>not in this results "
                 f"folder</td><td>{badge(status)}</td><td>—</td></tr>", status)
     metrics = entry.get("metrics", {})
     rows = compare.rows(claim, metrics)
@@ -226,7 +227,8 @@ def summary_row(name: str, registry: dict, experiments: dict) -> tuple[str, str]
         lead = (f"<td{span}>{link}</td><td{span}>{source}</td>" if i == 0 else "")
         tail = (f"<td{span}>{badge(status)}</td><td class='nowrap{checks_cls}'{span}>{checks}"
                 "</td>" if i == 0 else "")
-        out.append(f"<tr{' class=first' if i == 0 else ''}>{lead}<td>{what}</td><td>{published}</td><td class='ours'>{ours}</td>"
+        out.append(f"<tr{' class=first' if i == 0 else ''}>{lead}<td>{what}</td>"
+                   f"<td>{published}</td><td class='ours'>{ours}</td>"
                    f"{tail}</tr>")
     return "".join(out), status
 
@@ -468,7 +470,8 @@ def render(results: dict, results_dir: Path, built: dict) -> str:
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>{escape(title)}</title><style>{_STYLE}</style></head>
 <body><nav class="top"><a href="#summary">Summary</a><a href="#experiments">Experiments</a>
-<a href="#differ">Where we differ</a>{'<a href="#pending">Not reproduced yet</a>' if pending else ''}
+<a href="#differ">Where we differ</a>{'<a href="#pending">Not reproduced yet</a>'
+                                     if pending else ''}
 <a href="#provenance">Provenance</a></nav><main>
 <h1>{escape(title)}</h1>
 <p class="meta">verticality {escape(str(version))}{' · commit ' + escape(commit) if commit else ''}

@@ -16,7 +16,8 @@ RESULTS_NAME = "results.json"
 
 
 def to_jsonable(value: Any) -> Any:
-    """Plain-JSON copy of ``value``: arrays to lists, NumPy/JAX scalars to Python, NaN/inf to None."""
+    """Plain-JSON copy of ``value``: arrays to lists, NumPy/JAX scalars to Python, NaN/inf to
+    None."""
     if isinstance(value, dict):
         return {str(k): to_jsonable(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
@@ -135,8 +136,8 @@ def earlier_results(out_dir: Path, quick: bool) -> dict | None:
 def write_results(out_dir: Path, results: dict) -> Path:
     """Write ``results`` to ``out_dir/results.json``, merged into what is there: an experiment of
     this run replaces only its own entry, the others stay (and the report lists them), the
-    earlier runs' date, version, commit and experiments are kept under ``provenance.earlier``. Written under a temporary name
-    and renamed, so an interrupted write loses nothing."""
+    earlier runs' date, version, commit and experiments are kept under ``provenance.earlier``.
+    Written under a temporary name and renamed, so an interrupted write loses nothing."""
     from verticality.sweep.engine import write_atomic
 
     out_dir = Path(out_dir)

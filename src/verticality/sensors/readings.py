@@ -16,7 +16,8 @@ on the inclinometer angles and gyro rates):
                   (discrete: b_{k+1} = b_k + √(q·dt) N(0, 1))
     accelerometer f_m = R_IBᵀ (a_P − g_I) + n   specific force at a point P of the body, in the
                   sensor (body) frame, gravity included: a level body at rest reads (0, 0, +9.81);
-                  a_P = a_C + R_IB (ω̇ × r + ω × (ω × r)) for a sensor at r from the centre (T eq. 4)
+                  a_P = a_C + R_IB (ω̇ × r + ω × (ω × r)) for a sensor at r from the centre
+                  (T eq. 4)
     inclinometer  φ_m = φ + n, optionally quantized (an n-bit ADC over ±full scale)
 """
 
@@ -53,7 +54,8 @@ def gyro_white_noise(key, shape, p: GyroParams):
 
 
 def gyro_reading(omega_B_rad_s, bias_rad_s, noise_rad_s):
-    """ω_m = ω_B + b + n: one reading from the true rate, the current bias and a white-noise draw."""
+    """ω_m = ω_B + b + n: one reading from the true rate, the current bias and a white-noise
+    draw."""
     return jnp.asarray(omega_B_rad_s, float) + bias_rad_s + noise_rad_s
 
 

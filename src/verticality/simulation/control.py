@@ -6,11 +6,12 @@ scalars, per-axis vectors or (for the global law) 3×3 matrices.
 
 **Sign readings** (the sources leave them open or are inconsistent with our conventions):
 
-* F 2.21 prints ``Ω = Σ e_i × (R e_i)`` with ``R`` typeset ambiguously between ``R_IH`` and ``R_HI``.
-  ``Σ e_i × (A e_i) = vee(A − Aᵀ)``, which for ``A = R_IH = exp(θ [e]×)`` is ``≈ 2θ e``: with
-  ``τ = K_p Ω`` that is positive feedback. The stabilizing reading, used here, is ``A = R_HI = R_IHᵀ``:
-  ``Ω = Σ e_i × (R_IHᵀ e_i) = vee(R_IHᵀ − R_IH) ≈ −2θ e``, so the linearized loop is
-  ``J θ̈ = −2 K_p θ − K_d θ̇``. It regulates the full orientation (yaw too) to the identity, as F says.
+* F 2.21 prints ``Ω = Σ e_i × (R e_i)`` with ``R`` typeset ambiguously between ``R_IH`` and
+  ``R_HI``. ``Σ e_i × (A e_i) = vee(A − Aᵀ)``, which for ``A = R_IH = exp(θ [e]×)`` is ``≈ 2θ e``:
+  with ``τ = K_p Ω`` that is positive feedback. The stabilizing reading, used here, is
+  ``A = R_HI = R_IHᵀ``: ``Ω = Σ e_i × (R_IHᵀ e_i) = vee(R_IHᵀ − R_IH) ≈ −2θ e``, so the linearized
+  loop is ``J θ̈ = −2 K_p θ − K_d θ̇``. It regulates the full orientation (yaw too) to the identity,
+  as F says.
 * F 4.6–4.9 were used in the thesis for one plane only. With the tilt angles of F 3.8–3.9,
   ``Θ_x = atan2(R32, R33)`` grows with a positive rotation about x, but ``Θ_y = atan2(R31, R33)``
   grows with a *negative* rotation about y (``R_IH = R_y(θ)`` gives ``Θ_y = −θ``). Applied about
@@ -69,8 +70,8 @@ def _tilt_torque(tilt_rad, omega_H, kp, kd, tilt_desired_rad, kd_z):
 def tilt_pd(R_I_H, omega_H, kp, kd, tilt_desired_rad=None, kd_z=0.0):
     """F 4.6–4.7: PD on the tilt angles ``Θ = (atan2(R32, R33), atan2(R31, R33))``.
 
-    ``τ_x = k_p (φ_{x,d} − Θ_x) − k_d ω_x``, ``τ_y = −k_p (φ_{y,d} − Θ_y) − k_d ω_y`` (sign of y: see
-    the module docstring), ``τ_z = −k_{d,z} ω_z``. ``kp``, ``kd``: scalars or (k_x, k_y).
+    ``τ_x = k_p (φ_{x,d} − Θ_x) − k_d ω_x``, ``τ_y = −k_p (φ_{y,d} − Θ_y) − k_d ω_y`` (sign of y:
+    see the module docstring), ``τ_z = −k_{d,z} ω_z``. ``kp``, ``kd``: scalars or (k_x, k_y).
     """
     return _tilt_torque(so3.tilt_angles(R_I_H), omega_H, kp, kd, tilt_desired_rad, kd_z)
 
@@ -102,7 +103,8 @@ def tilt_pd_closed_loop_matrix(J_H, kp, kd, kd_z=0.0):
 
 # --------------------------------------------------------------------- joint-space PD (P13)
 def trunk_orientation_estimate(R_I_H_est, theta_rad):
-    """``R̂_IT = R̂_IH Λ(θ)ᵀ``: the trunk's orientation from the head's estimate and the encoders."""
+    """``R̂_IT = R̂_IH Λ(θ)ᵀ``: the trunk's orientation from the head's estimate and the
+    encoders."""
     return jnp.asarray(R_I_H_est) @ gimbal.Lambda(theta_rad).T
 
 
@@ -129,7 +131,8 @@ def desired_joint_rates(R_I_T_est, omega_T_rad_s):
 
 def trunk_rate_from_head(theta_rad, thetadot_rad_s, omega_H_rad_s):
     """ω_T (trunk frame) from the head's gyro and the encoders: ω_H = Λᵀ ω_T + E θ̇."""
-    return gimbal.Lambda(theta_rad) @ (omega_H_rad_s - gimbal.body_jacobian(theta_rad) @ thetadot_rad_s)
+    return gimbal.Lambda(theta_rad) @ (omega_H_rad_s
+                                       - gimbal.body_jacobian(theta_rad) @ thetadot_rad_s)
 
 
 def joint_space_pd_tracking(theta, thetadot, R_I_T_est, omega_H_rad_s, kp, kd):

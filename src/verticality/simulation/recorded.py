@@ -1,5 +1,6 @@
-"""A recorded trunk motion (a MOTION.csv) as a :class:`verticality.simulation.trajectories.Trajectory`, so the
-closed-loop simulator can put the gimbal head on a trunk that moved the way the user's robot did.
+"""A recorded trunk motion (a MOTION.csv) as a
+:class:`verticality.simulation.trajectories.Trajectory`, so the closed-loop simulator can put the
+gimbal head on a trunk that moved the way the user's robot did.
 
 The simulator needs the trunk's R_I_T, ω_T, ω̇_T and the centre's acceleration a_I at any time, and
 derives them by forward-mode autodiff from a position and an Euler-angle function. From the
@@ -13,8 +14,8 @@ samples (t_k, q_k, ω_k, a_k):
   double integral, starting at rest at the origin. Only its second derivative enters the physics
   (the position is relative and only for display).
 
-Refused with :class:`verticality.core.errors.InputError`: fewer than two rows, and a trunk pitch within
-``PITCH_LIMIT_DEG`` of ±90° (the Euler angles are singular there). Times are shifted so the
+Refused with :class:`verticality.core.errors.InputError`: fewer than two rows, and a trunk pitch
+within ``PITCH_LIMIT_DEG`` of ±90° (the Euler angles are singular there). Times are shifted so the
 trajectory starts at t = 0 (``events["t0_s"]`` keeps the file's first time).
 """
 
@@ -68,7 +69,8 @@ def rate_mismatch(t_s, q_wxyz, omega_rad_s, window_s: float = RATE_MISMATCH_WIND
 
 
 def _interval(t_knots, t):
-    """Index k of the interval [t_k, t_k+1] holding t (clamped to the first and last) and t − t_k."""
+    """Index k of the interval [t_k, t_k+1] holding t (clamped to the first and last) and
+    t − t_k."""
     k = jnp.clip(jnp.searchsorted(t_knots, t, side="right") - 1, 0, t_knots.shape[0] - 2)
     return k, t - t_knots[k]
 
@@ -171,7 +173,8 @@ def from_record(t_s, q_I_T_wxyz, omega_T_rad_s, a_I_m_s2, name: str = "recorded"
     bad = np.nonzero(pitch_deg > PITCH_LIMIT_DEG)[0]
     if bad.size:
         raise InputError(f"row {bad[0] + 1}: the trunk pitches to {pitch_deg[bad[0]]:.1f}°, beyond "
-                         f"±{PITCH_LIMIT_DEG:g}° (the Euler-angle interpolation is singular at 90°)")
+                         f"±{PITCH_LIMIT_DEG:g}° "
+                         "(the Euler-angle interpolation is singular at 90°)")
     rpy[:, 0] = np.unwrap(rpy[:, 0])
     rpy[:, 2] = np.unwrap(rpy[:, 2])
     t0 = float(t[0])

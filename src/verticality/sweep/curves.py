@@ -7,8 +7,8 @@ number that **diverged** and their share with its 95 % **Wilson score interval**
 normal approximation), and the **median max error** of the runs that did not diverge (NaN when all
 did). A kernel without a ``head`` knob (``ambiguity-walking``) is split instead by its first
 categorical knob (:func:`verticality.sweep.category_maps.category_of`, e.g. the feed), and the
-median is of its first metric. Unlike the maps (:mod:`verticality.sweep.maps`) the knob is not binned: a curve is for a
-knob the design sets to a few values, such as ``error_level``.
+median is of its first metric. Unlike the maps (:mod:`verticality.sweep.maps`) the knob is not
+binned: a curve is for a knob the design sets to a few values, such as ``error_level``.
 
 :func:`compute` makes the curve from the table's columns; :func:`write` reads a finished sweep and
 writes ``DIR/curve-KNOB.png``; :func:`table` is the curve as Markdown rows.

@@ -7,8 +7,8 @@ folders of recordings). A task writes its Parquet part to
 ``OUT/parts/part-NNNNNN.parquet`` under a temporary name and renames it when complete, so a part
 that exists is finished; ``resume`` keeps the finished parts and computes only the others. The
 parts, in task order, make ``OUT/results.parquet`` (column ``run``, the knobs, ``seed``, what
-the runs drew from their seeds (the kernel's ``drawn``), the metrics, ``diverged``); ``OUT/spec.toml`` is the spec as given and ``OUT/provenance.json`` says
-how the table was made.
+the runs drew from their seeds (the kernel's ``drawn``), the metrics, ``diverged``);
+``OUT/spec.toml`` is the spec as given and ``OUT/provenance.json`` says how the table was made.
 
 A task computes its runs in vmap batches of the spec's ``batch`` runs, the last one padded (its
 last run repeated, then dropped), so all tasks share one compiled batch shape and a run's numbers

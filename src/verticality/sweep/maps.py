@@ -193,7 +193,8 @@ def figure(maps: Maps, path: Path, title: str) -> Path:
     ratio_norm = (LogNorm(rpos.min(), max(rpos.max(), rpos.min() * 1.01)) if rpos.size
                   else Normalize())
     panels = [
-        (axes[0, 0], maps.p_diverged["fixed"], "P(diverged), fixed head", Normalize(0, 1), "magma_r"),
+        (axes[0, 0], maps.p_diverged["fixed"], "P(diverged), fixed head", Normalize(0, 1),
+         "magma_r"),
         (axes[0, 1], maps.p_diverged["stabilized"], "P(diverged), stabilized head", Normalize(0, 1),
          "magma_r"),
         (axes[0, 2], maps.runs["fixed"] + maps.runs["stabilized"], "runs per cell", Normalize(),

@@ -1,4 +1,5 @@
-"""A sweep's specification (TOML) and its design: the table of runs, each a point of the knobs and a seed.
+"""A sweep's specification (TOML) and its design: the table of runs, each a point of the knobs and a
+seed.
 
 A spec names a kernel (:mod:`verticality.sweep.kernels`), the kernel's options, a design over the
 kernel's knobs and the seeds::
@@ -15,7 +16,8 @@ kernel's knobs and the seeds::
     # n = 100                    # random: draws of the knobs ...
     # seed = 0                   # ... from this generator seed
 
-    [knobs]                      # grid: a list of values per knob; random: {min = , max = } or a list
+    [knobs]                      # grid: a list of values per knob; random: {min = , max = }
+                                 # or a list
     head = ["fixed", "stabilized"]
     K_rel_error = [-0.2, 0.0, 0.2]
 
@@ -186,14 +188,16 @@ def parse(text: str, source: str = "spec", limit_bytes: float | None = None) -> 
         raise InputError(f"{source}: not valid TOML ({exc})") from None
     unknown = sorted(set(raw) - set(TOP_KEYS))
     if unknown:
-        raise InputError(f"{source}: unknown key(s) {', '.join(unknown)}; expected {', '.join(TOP_KEYS)}")
+        raise InputError(f"{source}: unknown key(s) {', '.join(unknown)}; "
+                         f"expected {', '.join(TOP_KEYS)}")
     for key, (kind_, what) in TOP_TYPES.items():
         value = raw.get(key)
         if value is not None and (not isinstance(value, kind_) or isinstance(value, bool)):
             raise InputError(f"{source}: {key} = {value!r} must be {what}")
     name = raw.get("kernel")
     if name not in KERNELS:
-        raise InputError(f"{source}: kernel must be one of {', '.join(sorted(KERNELS))} (got {name!r})")
+        raise InputError(f"{source}: kernel must be one of {', '.join(sorted(KERNELS))} "
+                         f"(got {name!r})")
     kernel = KERNELS[name]
     batch = raw.get("batch", DEFAULT_BATCH)
     if not _is_int(batch) or batch < 1:
@@ -211,13 +215,15 @@ def parse(text: str, source: str = "spec", limit_bytes: float | None = None) -> 
         raise InputError(f"{source}: [design] kind = {kind!r} must be \"grid\" or \"random\"")
     extra = sorted(set(design) - {"kind", "n", "seed"})
     if kind not in ("grid", "random") or extra:
-        raise InputError(f"{source}: [design] takes kind = \"grid\" or \"random\" (with n and seed); "
+        raise InputError(f"{source}: [design] takes kind = \"grid\" or \"random\" "
+                         "(with n and seed); "
                          f"got kind={kind!r}{' and ' + ', '.join(extra) if extra else ''}")
     n_draws, design_seed = 0, 0
     if kind == "random":
         n_draws, design_seed = design.get("n"), design.get("seed", 0)
         if not _is_int(n_draws) or n_draws < 1:
-            raise InputError(f"{source}: a random design needs n, a positive integer (got {n_draws!r})")
+            raise InputError(f"{source}: a random design needs n, a positive integer "
+                             f"(got {n_draws!r})")
         if not _is_int(design_seed) or not 0 <= design_seed <= MAX_SEED:
             raise InputError(f"{source}: [design] seed must be an integer in 0..{MAX_SEED}")
     elif "n" in design or "seed" in design:
@@ -256,7 +262,8 @@ def design(spec: Spec) -> Design:
                 cols[k] = [v[i] for i in rng.integers(0, len(v), spec.n_draws)]
     n_points = len(next(iter(cols.values())))
     seeds = np.tile(np.asarray(spec.seeds, dtype=np.int64), n_points)
-    columns = {k: kernel.knobs[k].column(np.repeat(np.asarray(cols[k], dtype=object), len(spec.seeds)))
+    columns = {k: kernel.knobs[k].column(np.repeat(np.asarray(cols[k], dtype=object),
+                                                   len(spec.seeds)))
                for k in names}
     return Design(columns, seeds)
 
@@ -314,8 +321,8 @@ def _check_knob(kernel: Kernel, knob: str, values, kind: str, source: str) -> No
     spec = kernel.knobs[knob]
     if isinstance(values, dict):
         if kind != "random" or spec.choices or set(values) != {"min", "max"}:
-            raise InputError(f"{source}: knob {knob}: a range {{min = , max = }} is for a numeric knob "
-                             "of a random design; give a list of values")
+            raise InputError(f"{source}: knob {knob}: a range {{min = , max = }} is for a "
+                             "numeric knob of a random design; give a list of values")
         lo, hi = values["min"], values["max"]
         bad = [v for v in (lo, hi) if spec.problem(v)]
         if bad or not lo <= hi:
@@ -367,7 +374,8 @@ def _seeds(raw, source: str) -> tuple[int, ...]:
     else:
         count, first = raw["count"], raw.get("first", 0)
         if not _is_int(count) or count < 1 or not _is_int(first):
-            raise InputError(f"{source}: [seeds] count must be a positive integer and first an integer")
+            raise InputError(f"{source}: [seeds] count must be a positive integer and first an "
+                             "integer")
         seeds = list(range(first, first + count))
     if not all(_is_int(s) and 0 <= s <= MAX_SEED for s in seeds):
         raise InputError(f"{source}: seeds must be integers in 0..{MAX_SEED}")

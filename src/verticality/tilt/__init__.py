@@ -39,6 +39,7 @@ from verticality.tilt.params import DEFAULT_PARAMS, TiltParams, block_samples
 from verticality.tilt.realtime import Stream
 
 __all__ = ["estimate", "smooth", "Stream", "TiltEstimate", "TiltFilter", "TiltParams",
-           "DEFAULT_PARAMS", "block_samples", "tilt_sigma_rad", "flags", "ACC_MISSING", "GYR_MISSING", "BAD_DT",
+           "DEFAULT_PARAMS", "block_samples", "tilt_sigma_rad", "flags", "ACC_MISSING",
+           "GYR_MISSING", "BAD_DT",
            "ACC_DISTURBED", "INIT", "DT_GAP", "REACQUIRED", "REACQUIRING", "OUT_OF_RANGE",
            "CLIPPED", "HELD", "FLAG_NAMES"]

@@ -79,8 +79,8 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     TiltOutput)`` of NumPy arrays, as the core's ``step`` applied sample by sample would; with
     ``transitions`` also the block updates (:class:`Transitions`, by the kernel compiled with
     them: the same numbers). ``tilt_var``, ``vel_var``, ``flags`` (N,): each sample's extra tilt
-    (rad²) and velocity (m²/s²) variances and flags from the recording's limits (``step``'s arguments of the same names;
-    :class:`~verticality.tilt.limits.Limits`), None for none."""
+    (rad²) and velocity (m²/s²) variances and flags from the recording's limits (``step``'s
+    arguments of the same names; :class:`~verticality.tilt.limits.Limits`), None for none."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:

@@ -122,7 +122,8 @@ def valid_dt(dt):
 
 def is_gap(dts, p):
     """Whether a sample's valid Δt (``dts``, 0 where not valid) spans a gap in the recording:
-    longer than ``gap_flag_s`` by more than the rounding of a regular clock (``GAP_TOLERANCE_S``)."""
+    longer than ``gap_flag_s`` by more than the rounding of a regular clock
+    (``GAP_TOLERANCE_S``)."""
     return dts > p.gap_flag_s + GAP_TOLERANCE_S
 
 
@@ -134,9 +135,10 @@ def gaps_in(dt, p, xp=jnp):
 
 def masks(g, a, dt, xp=jnp):
     """``(dt_ok, gyr_ok, acc_ok, |acc|²)`` of samples: ``g``, ``a`` vectors with the component
-    axis first (arrays (3, ...) or tuples of three arrays), ``dt`` (...): a valid Δt (:func:`valid_dt`); with it a gyro whose components
-    are finite and below ``MAX_RATE_RAD_S``; with it a non-zero accelerometer whose components are
-    finite and below ``MAX_ACC_M_S2`` (``|acc|²`` is 0 where they are not)."""
+    axis first (arrays (3, ...) or tuples of three arrays), ``dt`` (...): a valid Δt
+    (:func:`valid_dt`); with it a gyro whose components are finite and below ``MAX_RATE_RAD_S``;
+    with it a non-zero accelerometer whose components are finite and below ``MAX_ACC_M_S2``
+    (``|acc|²`` is 0 where they are not)."""
     dt_ok = valid_dt(dt)
     gyr_ok = ((xp.abs(g[0]) < MAX_RATE_RAD_S) & (xp.abs(g[1]) < MAX_RATE_RAD_S)
               & (xp.abs(g[2]) < MAX_RATE_RAD_S) & dt_ok)
@@ -161,7 +163,8 @@ def flag_bits(dt_ok, gyr_ok, acc_ok, disturbed=False, gap=False, reacquired=Fals
               reacquiring=False, init=False, beyond=False, xp=jnp):
     """The flags of samples (int32) from their validity and the filter's events (``beyond``:
     :func:`out_of_range`)."""
-    f = (xp.where(beyond, OUT_OF_RANGE, 0) | xp.where(acc_ok | ~dt_ok, 0, ACC_MISSING) | xp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
+    f = (xp.where(beyond, OUT_OF_RANGE, 0) | xp.where(acc_ok | ~dt_ok, 0, ACC_MISSING)
+         | xp.where(gyr_ok | ~dt_ok, 0, GYR_MISSING)
          | xp.where(dt_ok, 0, BAD_DT) | xp.where(disturbed, ACC_DISTURBED, 0)
          | xp.where(gap, DT_GAP, 0) | xp.where(reacquired, REACQUIRED, 0)
          | xp.where(reacquiring, REACQUIRING, 0) | xp.where(init, INIT, 0))
@@ -299,8 +302,8 @@ def initialize(x, acc_m_s2, p, xp=jnp):
     may hold an inertial acceleration), and the tilt to be re-acquired after ``reacquire_s`` (as
     after a gap, so that a start in motion is caught)."""
     P = widen_tilt(x[X.P].reshape(NE, NE), p.init_tilt_rad, xp)
-    return X.pack(xp=xp, q=quat_from_acc(acc_m_s2, xp), b=x[X.b], s=x[X.s], v=x[X.v], P=P.reshape(-1),
-                  acc_dev_var=x[X.acc_dev_var], rest_s=x[X.rest_s], reacquire=1.0,
+    return X.pack(xp=xp, q=quat_from_acc(acc_m_s2, xp), b=x[X.b], s=x[X.s], v=x[X.v],
+                  P=P.reshape(-1), acc_dev_var=x[X.acc_dev_var], rest_s=x[X.rest_s], reacquire=1.0,
                   reacq_f_E=xp.zeros(3), reacq_t=0.0, vel_inn=xp.zeros(2), vel_fix=xp.zeros(5),
                   speed_var=x[X.speed_var], dv_var=x[X.dv_var])
 
@@ -667,9 +670,10 @@ def close_block(x, sums, p):
 def sample_quat(q0, dq, b, tau, s, G, qexp=so3.quat_exp_components):
     """``q_E_S`` at a sample inside a block, on component tuples, before normalization:
     ``q0 ⊗ dq ⊗ exp(−(b τ + s ⊙ G))`` (``q0``, ``b``, ``s`` the block-start estimate, ``dq``,
-    ``tau``, ``G`` the block's sums so far: raw rotation, gyro time and Σ ω Δt). ``qexp`` the quaternion exponential on components (the batch kernel passes its
-    faster one); the caller normalizes (component-wise in the batch kernel, as one vector in
-    :func:`step`: fewer kernels per call)."""
+    ``tau``, ``G`` the block's sums so far: raw rotation, gyro time and Σ ω Δt). ``qexp`` the
+    quaternion exponential on components (the batch kernel passes its faster one); the caller
+    normalizes (component-wise in the batch kernel, as one vector in :func:`step`: fewer kernels per
+    call)."""
     qb = qexp(*(-(b[i] * tau + s[i] * G[i]) for i in range(3)))
     return so3.quat_multiply_components(so3.quat_multiply_components(q0, dq), qb)
 

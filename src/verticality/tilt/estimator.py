@@ -1,4 +1,5 @@
-"""3-D otolith–canal tilt filter for recorded IMU data (gyroscope = canals, accelerometer = otoliths).
+"""3-D otolith–canal tilt filter for recorded IMU data (gyroscope = canals,
+accelerometer = otoliths).
 
 Tahboub's stand-alone filter (T eq. 1–13) fuses, in one plane, a gyro reading
 ``ω_g = ω + ω_drift + v_c`` (T eq. 1) whose drift is a random walk ``ω̇_drift = v_drift`` (T eq. 2)
@@ -12,8 +13,8 @@ part of the specific force (T eq. 4) "is handled as a high-frequency noise". Thi
 * error state (7): tilt error ``δ = (δx, δy)`` about Earth's horizontal axes
   (``R_true = exp([δ, 0]) R_est``), velocity error ``ṽ`` (2), bias error ``b̃ = b_true − b̂`` (3);
 * prediction: strapdown ``q ← q ⊗ exp((ω_g − b̂) Δt)`` with the true Δt of every sample;
-  ``δ̇ = −Π R b̃`` (3-D T eq. 7 with the drift subtracted), ``ṽ̇ = g J δ`` (a tilt error leaks gravity
-  into the integrated velocity), bias random walk (T eq. 2, 12);
+  ``δ̇ = −Π R b̃`` (3-D T eq. 7 with the drift subtracted), ``ṽ̇ = g J δ`` (a tilt error leaks
+  gravity into the integrated velocity), bias random walk (T eq. 2, 12);
 * gravito-inertial ambiguity (T §I: the otolith cannot tell tilt from translation): T eq. 4–5 treat
   the inertial part as high-frequency noise because body accelerations "tend to be periodic and for
   short time". Taken as a model: the velocity they produce stays small, pseudo-measurement
@@ -111,8 +112,8 @@ class TiltFilter:
                 raise InputError("x0 must be (quat_E_S (4,) wxyz, non-zero, bias_S_rad_s (3,)), "
                                  "finite")
             q0, initialized = q0 / np.sqrt(np.sum(q0 * q0)), True
-        x = X.pack(xp=np, q=q0, b=b0, s=np.zeros(3), v=np.zeros(2), P=P0.reshape(-1), acc_dev_var=0.0,
-                   rest_s=0.0, reacquire=0.0, reacq_f_E=np.zeros(3), reacq_t=0.0,
+        x = X.pack(xp=np, q=q0, b=b0, s=np.zeros(3), v=np.zeros(2), P=P0.reshape(-1),
+                   acc_dev_var=0.0, rest_s=0.0, reacquire=0.0, reacq_f_E=np.zeros(3), reacq_t=0.0,
                    vel_inn=np.zeros(2), vel_fix=np.zeros(5), speed_var=0.0, dv_var=0.0)
         return TiltState(x, _EMPTY_SUMS, np.int32(0), np.bool_(initialized))
 
@@ -140,10 +141,10 @@ _EMPTY_SUMS = np.asarray(tilt_core.empty_sums(xp=np))
 
 def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
                      detect_clipping: bool = True, prev=None):
-    """The clipped and held samples of a recording (:func:`verticality.tilt.limits.find_limits`; ``prev`` the
-    row before the first when it is read in pieces), or None when its shapes are wrong (the
-    filter's own checks then say so). ``detect_clipping=False``: no clipping at all, given ranges
-    or not (held rows are still flagged)."""
+    """The clipped and held samples of a recording (:func:`verticality.tilt.limits.find_limits`;
+    ``prev`` the row before the first when it is read in pieces), or None when its shapes are wrong
+    (the filter's own checks then say so). ``detect_clipping=False``: no clipping at all, given
+    ranges or not (held rows are still flagged)."""
     n = gyr.shape[0] if gyr.ndim == 2 and gyr.shape[1:] == (3,) else -1
     if n < 0 or acc.shape != gyr.shape or dt.ndim > 1 or (dt.ndim == 1 and dt.shape[0] != n):
         return None

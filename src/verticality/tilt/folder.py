@@ -169,7 +169,8 @@ def estimate_one(path: str, out_path: str, row_path: str, options: dict,
 
 
 def estimate_options(units=(), columns=None, time_unit=None, filter_name: str | None = None,
-                     sigma: bool = False, offline: bool = False, ranges: dict | None = None) -> dict:
+                     sigma: bool = False, offline: bool = False,
+                     ranges: dict | None = None) -> dict:
     """The options of every recording's ``estimate`` (checked once, before any task), as a
     JSON-able dict."""
     from verticality.io.recording import parse_units

@@ -11,11 +11,11 @@ when no range is given, at a level inferred from the recording's flat tops: on e
 the recording's extreme value when it is read by a run of at least :data:`MIN_RUN` consecutive
 identical samples (held rows not counted: they repeat every channel) and lies beyond the smallest
 range of common parts (:data:`GYR_FLOOR_RAD_S`, :data:`ACC_FLOOR_M_S2`). ``MIN_RUN`` = 4: a noisy
-sensor rarely reads the same value twice in a row at its extreme (on the twelve BROAD trials, 286 Hz,
-every axis's extreme on either side is read by runs of at most 2), while a motion beyond a range
-reads its full scale for as long as it lasts (tens of samples at 100 Hz for a rotation that peaks
-50 % above the range); 4 is twice the longest run seen on clean data. The floors keep a dead or
-constant axis (all zeros, a level sensor's steady 1 g) from counting as clipped.
+sensor rarely reads the same value twice in a row at its extreme (on the twelve BROAD trials,
+286 Hz, every axis's extreme on either side is read by runs of at most 2), while a motion beyond a
+range reads its full scale for as long as it lasts (tens of samples at 100 Hz for a rotation that
+peaks 50 % above the range); 4 is twice the longest run seen on clean data. The floors keep a dead
+or constant axis (all zeros, a level sensor's steady 1 g) from counting as clipped.
 
 What the filter does with a clipped reading, by physics:
 

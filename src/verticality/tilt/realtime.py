@@ -43,7 +43,8 @@ class Stream:
     ``params.update_s`` at ``period_s``, or at the first step after the initialization."""
 
     def __init__(self, period_s=None, *, params: TiltParams = DEFAULT_PARAMS,
-                 block: int | None = None, gyr_range_rad_s=None, acc_range_m_s2=None, x0=None, P0=None):
+                 block: int | None = None, gyr_range_rad_s=None, acc_range_m_s2=None, x0=None,
+                 P0=None):
         if period_s is not None and not (isinstance(period_s, (int, float, np.floating))
                                          and math.isfinite(period_s) and period_s > 0):
             raise InputError(f"period_s must be one positive, finite number of seconds; got "

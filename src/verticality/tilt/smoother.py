@@ -109,7 +109,8 @@ def rts_backward(P0, F, P_prior, dx, split, P_end):
         Ps = 0.5 * (Ps + Ps.T)
         return (e, Ps), (e, Ps)
 
-    _, (e, Ps) = jax.lax.scan(back, (jnp.zeros(NE), P_end), (C, P0, P_prior, dx), reverse=True, unroll=16)
+    _, (e, Ps) = jax.lax.scan(back, (jnp.zeros(NE), P_end), (C, P0, P_prior, dx), reverse=True,
+                              unroll=16)
     return e, Ps
 
 
@@ -120,8 +121,8 @@ def _diag(P):
 @jax.jit
 def _smooth_ends(rows, P_end):
     """Per block (``rows`` (M, ``TRANS``), ``P_end`` (10, 10)): what its samples need (``ENDS``
-    (M, 6 NE + 1), see :func:`_smooth_samples`): the error corrections at its start ``e``, at its end
-    relative to the gyro-carried prediction ``e' + dx`` and at its last sample ``e'``; the
+    (M, 6 NE + 1), see :func:`_smooth_samples`): the error corrections at its start ``e``, at its
+    end relative to the gyro-carried prediction ``e' + dx`` and at its last sample ``e'``; the
     smoothed variances minus the filtered ones at its start and end, and the smoothed ones at its
     end; ``split``."""
     m = rows.shape[0]

@@ -68,7 +68,8 @@ def _qnorm(q):
 
 def _rotate(q, v):
     w, ux, uy, uz = q
-    tx, ty, tz = 2.0 * (uy * v[2] - uz * v[1]), 2.0 * (uz * v[0] - ux * v[2]), 2.0 * (ux * v[1] - uy * v[0])
+    tx, ty, tz = (2.0 * (uy * v[2] - uz * v[1]), 2.0 * (uz * v[0] - ux * v[2]),
+                  2.0 * (ux * v[1] - uy * v[0]))
     return (v[0] + w * tx + (uy * tz - uz * ty), v[1] + w * ty + (uz * tx - ux * tz),
             v[2] + w * tz + (ux * ty - uy * tx))
 
@@ -133,8 +134,8 @@ class Stream:
     beyond its range adds the variance of an unknown constant excess rate (σ = ``EXCESS_FRACTION``
     × range) over its clipped run to the tilt; an accelerometer component there is kept (the
     other components are right, the clipped one a lower bound) and the same unknown excess over its
-    run widens the velocity; both flag ``CLIPPED``. A sample repeating the previous one bit for bit is flagged
-    ``HELD``."""
+    run widens the velocity; both flag ``CLIPPED``. A sample repeating the previous one bit for bit
+    is flagged ``HELD``."""
 
     def __init__(self, params=None, block: int | None = None, P0=None, x0=None,
                  gyr_range_rad_s=None, acc_range_m_s2=None, period_s: float | None = None):
@@ -263,7 +264,8 @@ class Stream:
                              _qexp(*(-(b[i] * self.tau + s[i] * gs[i]) for i in range(3)))))
         w, x, y, z = q
         up = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
-        fl = ((0 if acc_ok or not dt_ok else ACC_MISSING) | (0 if gyr_ok or not dt_ok else GYR_MISSING)
+        fl = ((0 if acc_ok or not dt_ok else ACC_MISSING)
+              | (0 if gyr_ok or not dt_ok else GYR_MISSING)
               | (0 if dt_ok else BAD_DT) | (ACC_DISTURBED if disturbed else 0)
               | (INIT if init_now else 0) | (DT_GAP if gap else 0) | (REACQUIRED if reacq else 0)
               | (REACQUIRING if self.reacquire or self.gap > 0 else 0)
@@ -337,7 +339,8 @@ class Stream:
             dv = np.array(f_E)[:2]
             self.speed2 = lam * self.speed2 + (1.0 - lam) * float(vel @ vel) / 2.0
             self.dv2 = lam * self.dv2 + (1.0 - lam) * float(dv @ dv) / 2.0
-            share = min(max(self.dv2 / max(2.0 * self.speed2, 1e-12), 1.0 - lam), 1.0 - math.exp(-1.0))
+            share = min(max(self.dv2 / max(2.0 * self.speed2, 1e-12), 1.0 - lam),
+                        1.0 - math.exp(-1.0))
             tau_motion = p.vel_corr_s if at_rest else -T / math.log(1.0 - share)
             inn = lam * self.vel_inn + (1.0 - lam) * np.linalg.solve(np.linalg.cholesky(S), -vel)
             persist = not jump and bool(inn @ inn * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)

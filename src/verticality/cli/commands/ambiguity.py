@@ -42,7 +42,8 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
-    print(f"{summary['samples']} samples, {summary['duration_s']:.3f} s, otolith {summary['otolith']}")
+    print(f"{summary['samples']} samples, {summary['duration_s']:.3f} s, "
+          f"otolith {summary['otolith']}")
     for k, plane in (("x", "y"), ("y", "x")):
         print(f"a_{k}: rms true {summary['rms_true_acceleration_m_s2'][k]:.4g} m/s², "
               f"rms error of the upright reading {summary['rms_error_m_s2'][k]:.4g} m/s², "

@@ -22,8 +22,8 @@ def rows() -> dict[str, dict[str, str]]:
 
 
 def table(experiments: dict[str, dict[str, str]]):
-    """The experiments as a rich table (printed by :func:`print_table`, which never cuts a name: they
-    are typed into `reproduce`)."""
+    """The experiments as a rich table (printed by :func:`print_table`, which never cuts a name:
+    they are typed into `reproduce`)."""
     from rich.table import Table
 
     t = Table(title="verticality experiments")

@@ -1,7 +1,7 @@
 """``verticality motion NAME|TRIAL.hdf5 --out MOTION.csv [--rate HZ] [--start S] [--duration S]``:
-record a trajectory of :mod:`verticality.simulation.trajectories` (the head rigid on the trunk), or convert
-a window of a BROAD-layout recording (optical orientation, gyro, accelerometer), as a head-motion
-file for `otolith` and `stabilize`."""
+record a trajectory of :mod:`verticality.simulation.trajectories` (the head rigid on the trunk), or
+convert a window of a BROAD-layout recording (optical orientation, gyro, accelerometer), as a
+head-motion file for `otolith` and `stabilize`."""
 
 from __future__ import annotations
 
@@ -51,8 +51,8 @@ def run(args) -> int:
                              "sampling rate")
         rec, what = broad_motion(Path(args.name), args.start, args.duration)
     else:
-        raise InputError(f"{args.name!r} is neither a built-in trajectory ({', '.join(sorted(BY_NAME))}) "
-                         "nor an existing file")
+        raise InputError(f"{args.name!r} is neither a built-in trajectory "
+                         f"({', '.join(sorted(BY_NAME))}) nor an existing file")
     write_motion_csv(args.out, rec)
     check_written(args.out)
     print(f"wrote {rec.t_s.size} rows of {what} to {args.out}")

@@ -1,10 +1,11 @@
 """``verticality otolith MOTION.csv --out OUT.csv [--model medial|lateral] [--param NAME=VALUE]...``
 
 What the otolith pendulum(s) report for a recorded head motion (file formats in
-:mod:`verticality.io.motion` and docs/simulation.md): :func:`verticality.simulation.closed_loop.otolith_replay`
-of the pendula of :func:`verticality.models.params.otolith_pendula` (the P13 plant, m = 0.05 kg,
-l = 0.06 m, J_S = m·diag(l², l², l²/20) about the pivot, β = 0.001 N·m·s; the lateral model's
-pivots at ±r along the head's y, r = 0.05 m; NAME=VALUE overrides).
+:mod:`verticality.io.motion` and docs/simulation.md):
+:func:`verticality.simulation.closed_loop.otolith_replay` of the pendula of
+:func:`verticality.models.params.otolith_pendula` (the P13 plant, m = 0.05 kg, l = 0.06 m,
+J_S = m·diag(l², l², l²/20) about the pivot, β = 0.001 N·m·s; the lateral model's pivots at ±r
+along the head's y, r = 0.05 m; NAME=VALUE overrides).
 """
 
 from __future__ import annotations
@@ -26,8 +27,8 @@ def register(sub):
     p.add_argument("--out", type=Path, required=True, metavar="OUT.csv")
     p.add_argument("--model", choices=OTOLITH_MODELS, default="medial")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help=f"override a parameter: {', '.join(OTOLITH_PARAM_NAMES)} (SI units; J about the "
-                        "pivot, z along the arm; r: lateral pivot offset)")
+                   help=f"override a parameter: {', '.join(OTOLITH_PARAM_NAMES)} "
+                        "(SI units; J about the pivot, z along the arm; r: lateral pivot offset)")
     p.set_defaults(func=run)
 
 
