@@ -65,8 +65,8 @@ class Chromium:
         script = (f'exec "$0" "$@" 3<&{to_browser_r} 4>&{from_browser_w} '
                   f'{to_browser_r}<&- {from_browser_w}>&-')
         self._proc = subprocess.Popen(
-            [shutil.which("bash") or "/bin/bash", "-c", script, binary, *FLAGS, f"--user-data-dir={self._profile}",
-             "about:blank"],
+            [shutil.which("bash") or "/bin/bash", "-c", script, binary, *FLAGS,
+             f"--user-data-dir={self._profile}", "about:blank"],
             pass_fds=(to_browser_r, from_browser_w), stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         os.close(to_browser_r)

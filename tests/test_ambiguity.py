@@ -58,7 +58,8 @@ def _head_rotation(theta_x, theta_y):
 def _model_steady_state(row):
     """Otolith angles of the 3-D pendulum model value at its equilibrium on a still head with the
     tilt and head-frame acceleration of ``row``: Newton on the model's own ω̇ (zero ω) over the
-    pendulum tilt R_HS = exp((α, β, 0)) (the smallest rotation from the head, docs/conventions.md)."""
+    pendulum tilt R_HS = exp((α, β, 0)) (the smallest rotation from the head,
+    docs/conventions.md)."""
     tx, ty, a_H = row[0], row[1], row[2:]
     R_I_H = _head_rotation(tx, ty)
     pend = Pendulum(P13_PENDULUM)
@@ -163,7 +164,8 @@ def test_round_trips():
     # planar
     r = am.planar_reading(a[:, 1], a[:, 2], tilt[:, 0])
     ok = a[:, 2] + G * np.cos(tilt[:, 0]) > 0.1 * G
-    assert np.max(np.abs(am.planar_head_acceleration(r, a[:, 2], tilt[:, 0]) - a[:, 1])[ok]) / G <= 1e-12
+    assert (np.max(np.abs(am.planar_head_acceleration(r, a[:, 2], tilt[:, 0]) - a[:, 1])[ok]) / G
+            <= 1e-12)
 
 
 @pytest.mark.parametrize("theta_deg", [0.0, 20.0])

@@ -22,7 +22,8 @@ def test_walking_without_harmonics_is_the_step_frequency_a_quarter_step_apart():
     # a_h = −a_x = w²·1 cm·sin(wt); the bounce a_z = w²·2 cm·cos(wt): ≈ 0.16 g and 0.32 g peaks
     np.testing.assert_allclose(fund_h, w**2 * 0.01 * np.sin(w * t), atol=1e-9)
     np.testing.assert_allclose(fund_z, w**2 * 0.02 * np.cos(w * t), atol=1e-9)
-    assert 0.15 < np.abs(fund_h).max() / G_M_S2 < 0.17 and 0.31 < np.abs(fund_z).max() / G_M_S2 < 0.33
+    assert (0.15 < np.abs(fund_h).max() / G_M_S2 < 0.17
+            and 0.31 < np.abs(fund_z).max() / G_M_S2 < 0.33)
     # the two parts add up to the built-in walking
     full = tr.sample(tr.walking(duration_s=4.0), t).a_I_m_s2
     np.testing.assert_allclose(a_h[0] + a_h[1], -np.asarray(full)[:, 0], atol=1e-9)

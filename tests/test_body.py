@@ -1,5 +1,5 @@
-"""Multi-segment body on inclined ground (models/body.py, T Fig. 1, eq. 4, 16): model values, T eq. 16
-through the one linearization, energy, sensors."""
+"""Multi-segment body on inclined ground (models/body.py, T Fig. 1, eq. 4, 16): model values,
+T eq. 16 through the one linearization, energy, sensors."""
 
 import control
 import jax
@@ -101,7 +101,8 @@ def test_still_tilted_body_reads_gravity_component():
     d = jnp.array([np.radians(2.0), 0.0, 0.0])
     phi = float(d[0] + x[0] + x[1])
     m1c1 = BODY.m_legs_kg * BODY.c_legs_m + BODY.m_trunk_kg * BODY.L2_m
-    u_hold = -jnp.array([9.81 * (m1c1 * np.sin(float(d[0] + x[0])) + BODY.m_trunk_kg * BODY.c_trunk_m * np.sin(phi)),
+    u_hold = -jnp.array([9.81 * (m1c1 * np.sin(float(d[0] + x[0]))
+                                 + BODY.m_trunk_kg * BODY.c_trunk_m * np.sin(phi)),
                          9.81 * BODY.m_trunk_kg * BODY.c_trunk_m * np.sin(phi)])
     xdot = BODY.dynamics(x, GroundInput(u_hold, d))
     np.testing.assert_allclose(xdot, 0.0, atol=1e-12)

@@ -146,7 +146,8 @@ def test_motion_from_a_broad_trial_window(tmp_path, capsys):
     optical dropout is refused, naming the longest clean stretch."""
     path = FAST_TRANSLATION
     out = tmp_path / "m.csv"
-    assert cli.main(["motion", str(path), "--start", "38", "--duration", "4", "--out", str(out)]) == 0
+    assert cli.main(["motion", str(path), "--start", "38", "--duration", "4",
+                     "--out", str(out)]) == 0
     from verticality.io.motion import read_motion_csv
 
     rec = read_motion_csv(out)

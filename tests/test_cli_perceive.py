@@ -18,14 +18,15 @@ def test_perceive_on_the_paradigm_file_equals_the_experiment(tmp_path):
         out = tmp_path / f"{model}.csv"
         assert cli.main(["perceive", str(motion), "--model", model, "--out", str(out)]) == 0
         rows = read_otolith_csv(out)  # any CSV of numbers with a header
-        np.testing.assert_allclose(rows["tilt_deg"][::exp.DECIMATE], result.series[f"{model}/tilt_deg"],
-                                   rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(rows["tilt_deg"][::exp.DECIMATE],
+                                   result.series[f"{model}/tilt_deg"], rtol=1e-12, atol=1e-12)
         assert rows["pitch_up_deg"][-1] == result.metrics[model]["final_pitch_deg"]
 
 
 def test_perceive_json_and_plot_on_motion_command_output(tmp_path, capsys):
     motion = tmp_path / "still.csv"
-    assert cli.main(["motion", "still", "--out", str(motion), "--rate", "100", "--duration", "2"]) == 0
+    assert cli.main(["motion", "still", "--out", str(motion), "--rate", "100",
+                     "--duration", "2"]) == 0
     capsys.readouterr()
     png = tmp_path / "p.png"
     assert cli.main(["perceive", str(motion), "--model", "laurens", "--otolith", "pendulum",

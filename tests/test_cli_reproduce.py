@@ -1,4 +1,5 @@
-"""The `reproduce` and `list` commands: the JSON contract of docs/reproduction.md, figures, exit codes."""
+"""The `reproduce` and `list` commands: the JSON contract of docs/reproduction.md, figures, exit
+codes."""
 
 import json
 import math
@@ -40,11 +41,13 @@ def test_reproduce_tables_report_path_and_no_report(tmp_path, capsys):
     assert cli.main(["reproduce", "tahboub-gains", "--quick", "--out", str(tmp_path / "a")]) == 0
     out = capsys.readouterr().out
     assert "tahboub-gains" in out and out.strip().endswith(str(tmp_path / "a" / "report.html"))
-    assert json.loads((tmp_path / "a" / "results.json").read_text())["provenance"]["mode"] == "quick"
+    assert (json.loads((tmp_path / "a" / "results.json").read_text())["provenance"]["mode"]
+            == "quick")
     assert cli.main(["reproduce", "tahboub-gains", "--out", str(tmp_path / "b"),
                      "--no-report"]) == 0
     assert "report.html" not in capsys.readouterr().out
-    assert (tmp_path / "b" / "results.json").exists() and not (tmp_path / "b" / "report.html").exists()
+    assert ((tmp_path / "b" / "results.json").exists()
+            and not (tmp_path / "b" / "report.html").exists())
 
 
 def test_unknown_experiment_is_one_line_and_status_2(capsys):

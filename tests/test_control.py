@@ -1,4 +1,5 @@
-"""Stabilizers: global law (F 2.20–2.21), tilt PD and its linearization (F 4.6–4.9), DLS torque map."""
+"""Stabilizers: global law (F 2.20–2.21), tilt PD and its linearization (F 4.6–4.9), DLS torque
+map."""
 
 import jax
 import jax.numpy as jnp
@@ -72,7 +73,8 @@ def test_linearized_pd_poles_equal_nonlinear_loop_jacobian():
     for law in (tilt_pd, tilt_pd_linearized):
         A = np.asarray(nonlinear_loop_jacobian(law, J, kp, kd, kdz))
         np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(A)), poles, atol=1e-9)
-    roots = list(np.roots([0.1, 4.0, 30.0])) + list(np.roots([0.125, 3.0, 20.0])) + [0.0, -0.5 / 0.15]
+    roots = (list(np.roots([0.1, 4.0, 30.0])) + list(np.roots([0.125, 3.0, 20.0]))
+             + [0.0, -0.5 / 0.15])
     np.testing.assert_allclose(poles, np.sort_complex(np.asarray(roots, complex)), atol=1e-9)
     assert np.all(poles.real[np.abs(poles) > 1e-12] < 0)
 

@@ -28,7 +28,8 @@ def _imu(n=600, dt_s=0.01):
 
 # (file, index of the python block among the file's blocks). The chain of docs/architecture.md (one
 # medial value into a StateSpace and an EKF) is the one tests/test_architecture.py runs with the
-# same calls; run here as written it costs ~45 s of eager differentiation, so it is left to that test.
+# same calls; run here as written it costs ~45 s of eager differentiation, so it is left to that
+# test.
 EXAMPLES = [("README.md", 0), ("docs/tutorials/tilt-from-imu.md", 0),
             ("docs/observability.md", 0), ("docs/tutorials/extend.md", 0)]
 

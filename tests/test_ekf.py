@@ -77,7 +77,8 @@ def test_ekf_on_linear_model_equals_kalman_filter():
     x0, P0 = rng.standard_normal(n), np.eye(n)
     filt = ekf.ExtendedKalmanFilter(linear(A, B, C), jnp.asarray(Q), jnp.asarray(R))
     assert isinstance(filt, base.Estimator)
-    _, outs = jax.jit(filt.run)(filt.init(jnp.asarray(x0), jnp.asarray(P0)), us, ys, np.full(N, 0.1))
+    _, outs = jax.jit(filt.run)(filt.init(jnp.asarray(x0), jnp.asarray(P0)), us, ys,
+                                np.full(N, 0.1))
     xs_ref, Ps_ref = _kf_reference(A, B, C, Q, R, x0, P0, us, ys)
     np.testing.assert_allclose(outs.x, xs_ref, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(outs.P, Ps_ref, rtol=1e-9, atol=1e-9)
@@ -166,7 +167,8 @@ def test_autodiff_jacobians_match_finite_differences(medial):
         fm, hm = perturbed(x, u, x_pred, -eps * e)
         cols_F.append((fp - fm) / (2 * eps))
         cols_H.append((hp - hm) / (2 * eps))
-    np.testing.assert_allclose(F, np.stack(cols_F, 1), atol=1e-7 * max(1.0, float(jnp.abs(F).max())))
+    np.testing.assert_allclose(F, np.stack(cols_F, 1),
+                               atol=1e-7 * max(1.0, float(jnp.abs(F).max())))
     np.testing.assert_allclose(H, np.stack(cols_H, 1), atol=1e-7)
     # F is not the identity: the pendulum couples rotations and rates
     assert float(jnp.abs(F - jnp.eye(ekf.N_ERR)).max()) > 1e-3

@@ -1,4 +1,5 @@
-"""ekf-sensitivity: the sweeps behind the ekf-* ratios (quick mode: the jump, two head-rate noises)."""
+"""ekf-sensitivity: the sweeps behind the ekf-* ratios (quick mode: the jump, two head-rate
+noises)."""
 
 import pytest
 
@@ -22,7 +23,8 @@ def test_quick_sweep_runs_each_setting_once(quick_sweeps):
 
 def test_fixed_head_admitting_unknown_torque_closes_the_gap(quick_sweeps):
     """The finding docs/ekf.md reports: at P13's σ_w the fixed head's filter lags the trunk; told
-    its torque is unknown (σ_ωH = 0.03 rad/s per step), it is almost as good as the stabilized head."""
+    its torque is unknown (σ_ωH = 0.03 rad/s per step), it is almost as good as the stabilized
+    head."""
     rows = quick_sweeps[0]["fixed_head_rate_sigma"]["jump"]
     p13, loose = rows["sigma_0.001"], rows["sigma_0.03"]
     assert loose["fixed_rms_deg"] < 0.6 * p13["fixed_rms_deg"]
@@ -48,7 +50,8 @@ def test_batched_settings_equal_separate_runs(quick_sweeps):
     traj = ekf_exp.scenario_trajectory("jump", quick=True)
     loose = ekf_exp.SIGMA_PROCESS[:3] + (0.03,)
     (m_loose, _), (m_quiet, _) = ekf_exp.run_settings(
-        traj, "fixed", [ekf_exp.Setting(loose), ekf_exp.Setting(None, 0.5 * ekf_exp.SIGMA_MEASUREMENT)])
+        traj, "fixed",
+        [ekf_exp.Setting(loose), ekf_exp.Setting(None, 0.5 * ekf_exp.SIGMA_MEASUREMENT)])
     row = quick_sweeps[0]["fixed_head_rate_sigma"]["jump"]["sigma_0.03"]
     assert m_loose["rms_tilt_error_deg"] == pytest.approx(row["fixed_rms_deg"], rel=1e-9)
     assert m_loose["max_tilt_error_deg"] == pytest.approx(row["fixed_max_deg"], rel=1e-9)

@@ -57,7 +57,8 @@ def _case(name):
         return est, jnp.array([0.0, 0.0, 0.3, 0.0]), None, us, rng.normal(size=(N, 1)) * 0.1, 1e-3
     if name == "disturbance":
         lin = linearize(HUMAN_TWO_SEGMENT, *upright())
-        est = disturbance.extended_disturbance_observer(lin, (-6.0, -7.0, -8.0, -9.0, -10.0, -11.0, -12.0))
+        est = disturbance.extended_disturbance_observer(lin, (-6.0, -7.0, -8.0, -9.0, -10.0,
+                                                              -11.0, -12.0))
         us = rng.normal(size=(N, 2))
         return est, jnp.zeros(7), None, us, rng.normal(size=(N, 6)) * 0.01, DT
     if name == "ekf":
@@ -67,13 +68,16 @@ def _case(name):
             head.HeadState(so3.exp(jnp.array([0.2, 0.1, 0.4])), jnp.array([0.5, -0.3, 1.0])))
         us = head.HeadInput(jnp.asarray(rng.normal(scale=0.01, size=(N, 4, 3))),
                             jnp.asarray(rng.normal(scale=1.0, size=(N, 4, 3))))
-        return est, x0, 0.01 * jnp.eye(ekf.N_ERR), us, rng.normal(scale=0.1, size=(N, ekf.N_Y)), 0.02
+        return (est, x0, 0.01 * jnp.eye(ekf.N_ERR), us, rng.normal(scale=0.1, size=(N, ekf.N_Y)),
+                0.02)
     if name in ("merfeld", "laurens"):
         est = (MerfeldZupan(MERFELD_PRESETS["observer"]) if name == "merfeld"
                else laurens_angelaki(LAURENS_PRESETS["default"]))
-        x0 = est.init(None)._replace(g_H=jnp.array([0.1, -0.2, -0.97]) / np.linalg.norm([0.1, -0.2, -0.97]))
+        x0 = est.init(None)._replace(g_H=jnp.array([0.1, -0.2, -0.97])
+                                     / np.linalg.norm([0.1, -0.2, -0.97]))
         ys = np.concatenate([rng.normal(scale=0.3, size=(N, 3)),
-                             np.array([0.05, 0.1, -1.0]) + rng.normal(scale=0.05, size=(N, 3))], axis=1)
+                             np.array([0.05, 0.1, -1.0]) + rng.normal(scale=0.05, size=(N, 3))],
+                            axis=1)
         return est, x0, None, None, ys, DT
     if name == "tilt":
         x0 = (np.array([0.99, 0.1, -0.05, 0.0]), np.array([0.01, -0.02, 0.0]))
@@ -107,7 +111,8 @@ def _u(us, k):
 
 
 def _leaves(tree):
-    return np.concatenate([np.ravel(np.asarray(a, dtype=float)) for a in jax.tree_util.tree_leaves(tree)])
+    return np.concatenate([np.ravel(np.asarray(a, dtype=float))
+                           for a in jax.tree_util.tree_leaves(tree)])
 
 
 def _estimate(state):
@@ -138,7 +143,8 @@ def test_run_is_repeated_step(name):
     np.testing.assert_allclose(_leaves(s), _leaves(final), rtol=1e-10, atol=1e-12, equal_nan=True)
     assert not np.any(np.asarray(outs.measured)[5])
     if name in WHOLE_SAMPLE:
-        assert not bool(np.asarray(outs.measured)[9]) and bool(np.all(np.asarray(outs.measured)[10:]))
+        assert (not bool(np.asarray(outs.measured)[9])
+                and bool(np.all(np.asarray(outs.measured)[10:])))
     else:
         assert np.asarray(outs.measured)[9].tolist() == [True] * (ys.shape[1] - 1) + [False]
     assert np.all(np.isfinite(_estimate(final)))
@@ -153,7 +159,8 @@ def test_no_measurement_is_predict_and_finite_stays_finite(name):
     jit = (lambda f: f) if name == "tilt" else jax.jit
     s_nan, out = jit(est.step)(s0, _u(us, 0), jnp.full(np.shape(ys)[1], jnp.nan), dt)
     s_pred = jit(est.predict)(s0, _u(us, 0), dt)
-    for a, b in zip(jax.tree_util.tree_leaves(s_nan), jax.tree_util.tree_leaves(s_pred), strict=True):
+    for a, b in zip(jax.tree_util.tree_leaves(s_nan), jax.tree_util.tree_leaves(s_pred),
+                    strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert not np.any(np.asarray(out.measured))
     # a non-finite input: the estimate stays finite (the previous one is kept)

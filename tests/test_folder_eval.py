@@ -67,7 +67,8 @@ def test_one_output_per_recording_equal_to_the_single_file_estimate(in_process):
 def test_bad_file_is_a_row_with_its_error(in_process):
     root, summary, _ = in_process
     bad = summary.rows[0]
-    assert bad["status"] == "error" and "non-numeric cells at lines [3]" in bad["error"] and bad["output"] == ""
+    assert (bad["status"] == "error" and "non-numeric cells at lines [3]" in bad["error"]
+            and bad["output"] == "")
     assert bad["rows"] is None and bad["wall_s"] >= 0
     assert summary.n_errors == 1
     assert not (root / "out" / "broken.csv").exists()

@@ -1,4 +1,5 @@
-"""PRTS stimulus (trajectories.py) and transfer-function / coherence estimates (analysis/frequency.py)."""
+"""PRTS stimulus (trajectories.py) and transfer-function / coherence estimates
+(analysis/frequency.py)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,5 @@
-"""Head on a 2-DOF gimbal over a prescribed trunk (models/gimbal.py, P13 §3) and its joint-space PD."""
+"""Head on a 2-DOF gimbal over a prescribed trunk (models/gimbal.py, P13 §3) and its joint-space
+PD."""
 
 import functools
 
@@ -73,7 +74,8 @@ def _runs():
 
         return jax.lax.scan(block, x0, jnp.arange(400))
 
-    x0 = gimbal.GimbalState(jnp.array([[0.3, -0.2], [0.4, -0.3]]), jnp.array([[1.0, -2.0], [0.0, 0.0]]))
+    x0 = gimbal.GimbalState(jnp.array([[0.3, -0.2], [0.4, -0.3]]),
+                            jnp.array([[1.0, -2.0], [0.0, 0.0]]))
     xf, outs = jax.jit(jax.vmap(one))(x0, jnp.array([0.0, 1.0]))
     return jax.tree_util.tree_map(np.asarray, (x0, xf, outs))
 
@@ -141,6 +143,7 @@ def test_closed_forms_equal_their_definitions():
     np.testing.assert_allclose(dx.thetadot_rad_s, thdd, rtol=1e-14)
     np.testing.assert_array_equal(dx.theta_rad, x.thetadot_rad_s)
     np.testing.assert_array_equal(model.output(x), jnp.concatenate([theta, x.thetadot_rad_s]))
-    np.testing.assert_allclose(model.head_angular_velocity(x, trunk), head.omega_B_rad_s, rtol=1e-14)
+    np.testing.assert_allclose(model.head_angular_velocity(x, trunk), head.omega_B_rad_s,
+                               rtol=1e-14)
     np.testing.assert_allclose(model.head_orientation(x, trunk), head.R_I_B, rtol=1e-14)
     assert isinstance(model, base.Model)

@@ -116,7 +116,8 @@ def test_column_mapping_reordered_extra_column_ms(tmp_path, swinging_imu):
 
 
 def test_parse_columns_spec():
-    assert imu_layout.parse_columns_spec(" t = a b ,gyr_x=#w [x]") == {"t": "a b", "gyr_x": "#w [x]"}
+    assert (imu_layout.parse_columns_spec(" t = a b ,gyr_x=#w [x]")
+            == {"t": "a b", "gyr_x": "#w [x]"})
     for text in ("", "t=a,,gyr_x=b", "t", "t=", "=a", "t=a;gyr_x=b"):
         with pytest.raises(InputError, match="is not NAME=COLUMN"):
             imu_layout.parse_columns_spec(text)

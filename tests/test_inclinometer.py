@@ -29,7 +29,8 @@ def test_f44_vial_is_critically_damped_at_10_hz():
 
 def test_identified_poles_and_unit_dc_gain():
     p = incl.IdentifiedInclinometer()
-    np.testing.assert_allclose(np.sort(np.roots([p.J_s, p.b_s, p.k_s]).real), [-235.82, -15.913], rtol=1e-3)
+    np.testing.assert_allclose(np.sort(np.roots([p.J_s, p.b_s, p.k_s]).real), [-235.82, -15.913],
+                               rtol=1e-3)
     psi = 0.3
     x = incl.IdentifiedInclinometerState(jnp.asarray(psi), jnp.asarray(0.0))
     d = p.dynamics(x, _frame(theta=psi))
@@ -67,7 +68,8 @@ def test_pendulum_rest_under_acceleration_and_the_one_pendulum_equation():
     # ... and the pendulum of F §4.4's platform (the planar head carries the same one)
     head = f44_platform()
     xs = planar.PlanarState(*(jnp.asarray(v) for v in (phi, w, 0.1, W)))
-    a_head = head.dynamics(xs, planar.PlanarInput(jnp.asarray(0.0), jnp.asarray(a_h), jnp.asarray(a_z)))
+    a_head = head.dynamics(xs, planar.PlanarInput(jnp.asarray(0.0), jnp.asarray(a_h),
+                                                  jnp.asarray(a_z)))
     assert float(a_head.omega_S_rad_s) == float(ours.omega_rad_s)
 
 

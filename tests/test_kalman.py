@@ -24,7 +24,8 @@ def test_van_loan_double_integrator_matches_closed_form():
     Phi, Gamma, Qd = van_loan(A, B, np.diag([0.0, q]), dt)
     np.testing.assert_allclose(Phi, [[1, dt], [0, 1]], atol=1e-13)
     np.testing.assert_allclose(Gamma[:, 0], [dt**2 / 2, dt], atol=1e-13)
-    np.testing.assert_allclose(Qd, q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]]), rtol=1e-10)
+    np.testing.assert_allclose(Qd, q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]]),
+                               rtol=1e-10)
 
 
 def test_care_gain_satisfies_riccati_equation():

@@ -109,7 +109,8 @@ class FreeHead:
         return HeadState(x.R_I_H @ so3.exp(dx[:3]), x.omega_H_rad_s + dx[3:])
 
     def difference(self, x1, x0):
-        return jnp.concatenate([so3.log(x0.R_I_H.T @ x1.R_I_H), x1.omega_H_rad_s - x0.omega_H_rad_s])
+        return jnp.concatenate([so3.log(x0.R_I_H.T @ x1.R_I_H),
+                                x1.omega_H_rad_s - x0.omega_H_rad_s])
 
     def project(self, x):
         return HeadState(so3.orthonormalize(x.R_I_H), x.omega_H_rad_s)

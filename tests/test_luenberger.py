@@ -27,8 +27,8 @@ def test_poles_are_where_placed(obs):
     np.testing.assert_allclose(np.sort(obs.poles().real), np.sort(POLES), rtol=1e-6)
     # the discrete step contracts the error by exp((A − L C) dt): eigenvalues exp(p dt)
     M = scipy.linalg.expm(np.asarray(obs.A - obs.L @ obs.C) * DT)
-    np.testing.assert_allclose(np.sort(np.linalg.eigvals(M).real), np.sort(np.exp(np.array(POLES) * DT)),
-                               rtol=1e-6)
+    np.testing.assert_allclose(np.sort(np.linalg.eigvals(M).real),
+                               np.sort(np.exp(np.array(POLES) * DT)), rtol=1e-6)
 
 
 def _truth(model, x0, us):
@@ -41,7 +41,8 @@ def _truth(model, x0, us):
     return xs, xs @ np.asarray(model.C).T
 
 
-_U = np.stack([np.sin(np.arange(N) * DT * 7.0) * 1e-5, 3 * np.sin(np.arange(N) * DT * 10.0)], axis=1)
+_U = np.stack([np.sin(np.arange(N) * DT * 7.0) * 1e-5, 3 * np.sin(np.arange(N) * DT * 10.0)],
+              axis=1)
 
 
 @settings(max_examples=8, deadline=None)

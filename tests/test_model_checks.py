@@ -126,7 +126,8 @@ def test_figures_are_written(tmp_path):
     n = 50
     s = dict(s)
     s.update({
-        "so3_t": np.arange(n) * 0.1, "so3_err": np.full(n, 1e-16), "so3_err_unprojected": np.full(n, 1e-9),
+        "so3_t": np.arange(n) * 0.1, "so3_err": np.full(n, 1e-16),
+        "so3_err_unprojected": np.full(n, 1e-9),
         "planar_medial": np.zeros((n, 2)), "planar3d_medial": np.zeros((n, 2)),
         "planar_lateral": np.zeros((n, 3)), "planar3d_lateral": np.zeros((n, 3)),
         "lm_t": np.arange(n) * 0.01, "lm_medial": np.zeros((n, 2)), "lm_lateral": np.zeros((n, 4)),

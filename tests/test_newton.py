@@ -57,7 +57,8 @@ def exact_run():
 
     _, xs = jax.lax.scan(truth_step, x0, us)
     ys = xs.theta_S_rad - xs.theta_H_rad
-    guess = _state(_flat(x0) + np.array([0.1, 0.5, -0.2, -1.0]))  # head tilt off by 11°, rate by 1 rad/s
+    # head tilt off by 11°, rate by 1 rad/s
+    guess = _state(_flat(x0) + np.array([0.1, 0.5, -0.2, -1.0]))
     _, outs = jax.jit(obs.run)(obs.init(guess), us, ys, DT)
     return obs, us, xs, ys, outs
 
@@ -217,4 +218,5 @@ def test_bad_configuration_is_an_input_error():
     with pytest.raises(InputError, match="x0"):
         obs.init(jnp.zeros(3))
     with pytest.raises(InputError, match="x0"):
-        _linear_observer(jnp.eye(2), jnp.eye(2)[:1], newton.NewtonConfig(window=3)).init(jnp.zeros(3))
+        _linear_observer(jnp.eye(2), jnp.eye(2)[:1],
+                         newton.NewtonConfig(window=3)).init(jnp.zeros(3))

@@ -88,4 +88,5 @@ def test_planar_trunk_is_the_lissajous_trajectory():
     np.testing.assert_allclose(np.asarray(m.a_I_m_s2)[:, 1], s.a_h_I_m_s2, atol=1e-14)
     np.testing.assert_allclose(np.asarray(m.a_I_m_s2)[:, 2], s.a_z_I_m_s2, atol=1e-14)
     np.testing.assert_allclose(np.asarray(m.omega_B_rad_s)[:, 0], s.Theta_dot_rad_s, atol=1e-14)
-    np.testing.assert_allclose(np.asarray(m.omegadot_B_rad_s2)[:, 0], s.Theta_ddot_rad_s2, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(m.omegadot_B_rad_s2)[:, 0], s.Theta_ddot_rad_s2,
+                               atol=1e-13)

@@ -17,7 +17,8 @@ from verticality.models.base import EuclideanState, model_dataclass
 
 
 def _random_linear(seed, n=5, unobs=2):
-    """A linear system with an unobservable subspace of dimension ``unobs`` (hidden by a basis change)."""
+    """A linear system with an unobservable subspace of dimension ``unobs`` (hidden by a basis
+    change)."""
     rng = np.random.default_rng(seed)
     A = rng.standard_normal((n, n)) * 0.5
     A[: n - unobs, n - unobs :] = 0.0  # the last states do not feed the observed block

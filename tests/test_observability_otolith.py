@@ -48,8 +48,8 @@ def test_null_space_is_exactly_the_yaw_symmetries(table):
 
 def test_symmetry_directions_are_the_analytic_tangents(table):
     """Through the model's retraction (right perturbations), global yaw moves every frame by
-    ``δ_X = R_IXᵀ e3`` and head yaw moves the head by ``δ_H = e3``, ``ω_H`` by ``−e3 × ω_H``, ``a_H``
-    by ``−e3 × a_H`` and ``τ`` by ``−J_H (e3 × J_H⁻¹ τ)``."""
+    ``δ_X = R_IXᵀ e3`` and head yaw moves the head by ``δ_H = e3``, ``ω_H`` by ``−e3 × ω_H``,
+    ``a_H`` by ``−e3 × a_H`` and ``τ`` by ``−J_H (e3 × J_H⁻¹ τ)``."""
     case = table[("medial", "rot+trans", "unknown")]
     x, th = case.result.point
     sym = oo.symmetry_directions(case)
@@ -102,7 +102,8 @@ def test_problem_consumes_the_otolith_head_value():
     tau = th["tau_H"] + u["tau_u"] + global_stabilizer(x.head.R_I_H, x.head.omega_H_rad_s, 2.0, 1.5)
     expected = prob.model.dynamics(x, HeadInput(tau, x.head.R_I_H @ th["a_H"]))
     got = prob.vector_field(x, u, th)
-    for a, b in zip(jax.tree_util.tree_leaves(got), jax.tree_util.tree_leaves(expected), strict=True):
+    for a, b in zip(jax.tree_util.tree_leaves(got), jax.tree_util.tree_leaves(expected),
+                    strict=True):
         assert np.allclose(a, b, rtol=1e-14, atol=1e-14)
     assert np.array_equal(prob.measurement(x, u, th), prob.model.output(x))
     axis = oo.problem_for("lateral", output="axis").measurement(x, u, th)

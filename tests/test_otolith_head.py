@@ -31,7 +31,8 @@ RNG = np.random.default_rng(7)
 
 def _random_state(n_pendula, rng=RNG):
     def pend():
-        return PendulumState(so3.exp(jnp.asarray(rng.normal(size=3))), jnp.asarray(rng.normal(size=3)))
+        return PendulumState(so3.exp(jnp.asarray(rng.normal(size=3))),
+                             jnp.asarray(rng.normal(size=3)))
 
     head = HeadState(so3.exp(jnp.asarray(rng.normal(size=3))), jnp.asarray(rng.normal(size=3)))
     return oh.OtolithHeadState(tuple(pend() for _ in range(n_pendula)), head)
@@ -208,20 +209,23 @@ def _rk4(model, x0, u_of_t, n, dt=DT):
     from verticality.core.integrate import rk4_step
 
     def body(x, k):
-        x = rk4_step(lambda t, xx: model.dynamics(xx, u_of_t(t)), k * dt, x, dt, project=model.project)
+        x = rk4_step(lambda t, xx: model.dynamics(xx, u_of_t(t)), k * dt, x, dt,
+                     project=model.project)
         return x, x
 
     return jax.lax.scan(body, x0, jnp.arange(n))
 
 
 def test_closed_form_motion_is_consistent():
-    """ω of the test motion is vee(RᵀṘ) and ω̇ its derivative (so the checks below mean something)."""
+    """ω of the test motion is vee(RᵀṘ) and ω̇ its derivative (so the checks below mean
+    something)."""
     from verticality.models.kinematics import from_functions
 
     t = 0.3
     m = _motion(t)
     ref = from_functions(lambda s: jnp.stack([0.2 * jnp.sin(3 * s), 0.1 * jnp.cos(3 * s),
-                                              0.05 * jnp.sin(5 * s)]), lambda s: _motion(s).R_I_B, t)
+                                              0.05 * jnp.sin(5 * s)]),
+                         lambda s: _motion(s).R_I_B, t)
     for x, y in zip(m, ref, strict=True):
         np.testing.assert_allclose(x, y, atol=1e-12)
 
@@ -288,10 +292,13 @@ def test_planar_lateral_pivot_acceleration_signs():
     m = oh.PlanarLateral(planar.PlanarHead(), r)
     x = oh.PlanarLateralState(*(jnp.asarray(v) for v in (0.0, 0.0, 0.0, 0.0, 0.0, 2.0)))
     u = planar.PlanarInput(jnp.asarray(0.0), jnp.asarray(0.0), jnp.asarray(0.0))
-    np.testing.assert_allclose(m.pivot_acceleration_I(1.0, x, u, 3.0), (-r * 4.0, r * 3.0), atol=1e-15)
-    np.testing.assert_allclose(m.pivot_acceleration_I(-1.0, x, u, 3.0), (r * 4.0, -r * 3.0), atol=1e-15)
+    np.testing.assert_allclose(m.pivot_acceleration_I(1.0, x, u, 3.0), (-r * 4.0, r * 3.0),
+                               atol=1e-15)
+    np.testing.assert_allclose(m.pivot_acceleration_I(-1.0, x, u, 3.0), (r * 4.0, -r * 3.0),
+                               atol=1e-15)
     # F 2.19 (simplified): only the centripetal term
     f219 = oh.PlanarLateral(planar.PlanarHead(), r, euler=0.0)
-    np.testing.assert_allclose(f219.pivot_acceleration_I(1.0, x, u, 3.0), (-r * 4.0, 0.0), atol=1e-15)
+    np.testing.assert_allclose(f219.pivot_acceleration_I(1.0, x, u, 3.0), (-r * 4.0, 0.0),
+                               atol=1e-15)
     assert float(m.dynamics(x, u).omega_L_rad_s) != 0.0
     np.testing.assert_allclose(m.output(x._replace(theta_L_rad=jnp.asarray(0.2))), [0.2, 0.0])

@@ -1,4 +1,5 @@
-"""Parameter-uncertainty ("consider") process noise of the medial EKF (estimators/parameter_noise.py)."""
+"""Parameter-uncertainty ("consider") process noise of the medial EKF
+(estimators/parameter_noise.py)."""
 
 import jax.numpy as jnp
 import numpy as np
@@ -21,11 +22,13 @@ def _state(tilt_S=(0.0, 0.0, 0.0), omega_S=(0.0, 0.0, 0.0)):
 
 
 def _blocks(n, tau=(0.0, 0.0, 0.0), a_I=(0.0, 0.0, 0.0)):
-    return HeadInput(jnp.tile(jnp.asarray(tau, float), (n, 1)), jnp.tile(jnp.asarray(a_I, float), (n, 1)))
+    return HeadInput(jnp.tile(jnp.asarray(tau, float), (n, 1)),
+                     jnp.tile(jnp.asarray(a_I, float), (n, 1)))
 
 
 def test_pendulum_at_rest_in_still_head_gives_no_parameter_noise():
-    # hanging along gravity, no acceleration, no torque: the equilibrium does not depend on m, l, β, J
+    # hanging along gravity, no acceleration, no torque: the equilibrium does not depend
+    # on m, l, β, J
     Q = parameter_noise.medial_parameter_noise(MODEL, _state(), _blocks(4), DT)
     assert Q.shape == (ekf.N_ERR, ekf.N_ERR)
     assert float(jnp.max(jnp.abs(Q))) < 1e-24
@@ -46,8 +49,8 @@ def test_scaling_the_value_scales_its_parameters():
     s = jnp.log(jnp.array([1.2, 0.7, 2.0, 1.5]))
     m = parameter_noise.scaled(MODEL, s)
     p, p0 = m.pendula[0].params, MODEL.pendula[0].params
-    np.testing.assert_allclose([p.m_kg, p.l_m, p.beta_Nms], [1.2 * p0.m_kg, 0.7 * p0.l_m, 2.0 * p0.beta_Nms],
-                               rtol=1e-14)
+    np.testing.assert_allclose([p.m_kg, p.l_m, p.beta_Nms],
+                               [1.2 * p0.m_kg, 0.7 * p0.l_m, 2.0 * p0.beta_Nms], rtol=1e-14)
     ref = PendulumParams(m_kg=1.2 * p0.m_kg, l_m=0.7 * p0.l_m).resolved().J_pivot_S
     np.testing.assert_allclose(p.J_pivot_S, ref, rtol=1e-14)
     np.testing.assert_allclose(m.head.params.J_H, 1.5 * P13_EKF_HEAD.J_H, rtol=1e-14)
@@ -66,7 +69,8 @@ def test_deflected_pendulum_noise_matches_finite_differences():
         m, l, b, J = scale
         pp = PendulumParams(m_kg=p.m_kg * m, l_m=p.l_m * l, beta_Nms=p.beta_Nms * b)
         d = medial(pp, P13_EKF_HEAD._replace(J_H=P13_EKF_HEAD.J_H * J)).dynamics(x, u0)
-        return np.concatenate([np.asarray(d.pendula[0].omega_S_rad_s), np.asarray(d.head.omega_H_rad_s)])
+        return np.concatenate([np.asarray(d.pendula[0].omega_S_rad_s),
+                               np.asarray(d.head.omega_H_rad_s)])
 
     S = np.zeros((6, 4))
     for k in range(4):  # central differences in log p

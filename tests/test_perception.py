@@ -31,7 +31,8 @@ def _still(R_I_H, seconds=30.0, dt=0.01):
 @pytest.mark.parametrize("model", ["merfeld", "laurens"])
 def test_still_upright_head_perceives_nothing(model):
     r = pc.perceive(_still(np.eye(3)), model)
-    np.testing.assert_allclose(r.g_H_perceived, np.tile([0.0, 0.0, -1.0], (r.t_s.size, 1)), atol=1e-12)
+    np.testing.assert_allclose(r.g_H_perceived, np.tile([0.0, 0.0, -1.0], (r.t_s.size, 1)),
+                               atol=1e-12)
     for a in (r.omega_H_perceived_rad_s, r.a_H_perceived_m_s2, r.v_H_perceived_m_s):
         assert np.max(np.abs(a)) < 1e-12
 
@@ -70,7 +71,8 @@ def test_merfeld_yaw_step_time_constant_and_gain(preset):
 
 def test_merfeld_somatogravic_converges_to_the_gif_direction():
     r = pc.perceive(pp.somatogravic(0.2, on_s=60.0), "merfeld")
-    assert pc.pitch_up_deg(r.g_H_perceived)[-1] == pytest.approx(math.degrees(math.atan(0.2)), abs=0.05)
+    assert pc.pitch_up_deg(r.g_H_perceived)[-1] == pytest.approx(math.degrees(math.atan(0.2)),
+                                                                  abs=0.05)
 
 
 def test_laurens_one_axis_gain_solves_its_own_riccati_equation():
@@ -84,9 +86,10 @@ def test_laurens_one_axis_gain_solves_its_own_riccati_equation():
         # dlqe: x_{k+1} = A x_k + G w, y = C x + v; its P is the a-priori covariance
         _, P, _ = control.dlqe(D, np.eye(D.shape[0]), T, Q, R)
         P = np.asarray(P)
-        np.testing.assert_allclose(P, D @ (P - P @ T.T @ np.linalg.solve(T @ P @ T.T + R, T @ P)) @ D.T + Q,
-                                   rtol=1e-9, atol=1e-15)
-        np.testing.assert_allclose(K, P @ T.T @ np.linalg.inv(T @ P @ T.T + R), rtol=1e-7, atol=1e-12)
+        np.testing.assert_allclose(P, D @ (P - P @ T.T @ np.linalg.solve(T @ P @ T.T + R, T @ P))
+                                   @ D.T + Q, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(K, P @ T.T @ np.linalg.inv(T @ P @ T.T + R), rtol=1e-7,
+                                   atol=1e-12)
 
 
 def test_laurens_yaw_emergent_time_constant_and_peak_gain():
@@ -131,8 +134,8 @@ def test_stabilized_head_keeps_heading_and_acceleration_and_is_upright():
     st = pp.stabilized(rec)
     R, Rs = (np.asarray(so3.matrix_from_quat(q)) for q in (rec.q_I_H_wxyz, st.q_I_H_wxyz))
     np.testing.assert_allclose(Rs[:, :, 2], np.tile([0.0, 0.0, 1.0], (rec.t_s.size, 1)), atol=1e-12)
-    np.testing.assert_allclose(np.arctan2(Rs[:, 1, 0], Rs[:, 0, 0]), np.arctan2(R[:, 1, 0], R[:, 0, 0]),
-                               atol=1e-12)
+    np.testing.assert_allclose(np.arctan2(Rs[:, 1, 0], Rs[:, 0, 0]),
+                               np.arctan2(R[:, 1, 0], R[:, 0, 0]), atol=1e-12)
     np.testing.assert_array_equal(st.a_I_m_s2, rec.a_I_m_s2)
     assert np.max(np.abs(pc.tilt_deg(np.einsum("nji,j->ni", R, [0.0, 0.0, -1.0])))) > 1.0
 
@@ -146,7 +149,8 @@ def test_centrifuge_gif_rolls_by_atan_omega2_r_over_g_while_the_head_stays_uprig
     end = rec.t_s > 7.0
     np.testing.assert_allclose(np.degrees(np.arctan2(-f[end, 1], -f[end, 2])),
                                math.degrees(math.atan2(w * w * 1.5, G_M_S2)), atol=1e-9)
-    np.testing.assert_allclose(rec.omega_H_rad_s[end], np.tile([0.0, 0.0, w], (end.sum(), 1)), atol=1e-9)
+    np.testing.assert_allclose(rec.omega_H_rad_s[end], np.tile([0.0, 0.0, w], (end.sum(), 1)),
+                               atol=1e-9)
     assert np.max(pc.tilt_deg(pc.perceive(rec, "laurens").g_H_true)) < 1e-9
 
 
@@ -210,4 +214,5 @@ def test_roll_swing_experiment_passes_its_checks():
     assert not failed, failed
     cond = result.metrics["conditions"]
     assert abs(cond["center"]["actual"]["tilt_deg"] - 10.0) < 0.05
-    assert abs(cond["y-null"]["actual"]["peak_vy_cm_s"] - 1.22 * np.radians(10) * 2 * np.pi * 0.45 * 100) < 1.0
+    assert abs(cond["y-null"]["actual"]["peak_vy_cm_s"]
+               - 1.22 * np.radians(10) * 2 * np.pi * 0.45 * 100) < 1.0

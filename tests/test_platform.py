@@ -15,7 +15,8 @@ def _axis_state(v):
 
 
 def test_identified_axes_and_base_drag():
-    assert (pf.PITCH.J_kg_m2, pf.PITCH.b_Nms, pf.ROLL.J_kg_m2, pf.ROLL.b_Nms) == (0.008, 1.35, 0.0006, 0.137)
+    assert ((pf.PITCH.J_kg_m2, pf.PITCH.b_Nms, pf.ROLL.J_kg_m2, pf.ROLL.b_Nms)
+            == (0.008, 1.35, 0.0006, 0.137))
     x = _axis_state([0.0, 0.0, 0.0, 0.0])
     d = pf.PITCH.dynamics(x, pf.AxisInput(0.0, 0.0, 2.0))
     assert float(d.omega_rad_s) == pytest.approx(1.35 * 2.0 / 0.008)

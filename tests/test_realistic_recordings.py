@@ -39,7 +39,8 @@ def test_a_perfect_accelerometer_reads_gravity_plus_the_lever_arm_motion(pair):
 def test_the_drawn_errors_are_applied_and_the_readings_clip(pair):
     rec, ide = pair
     e = rec.errors
-    assert np.all(np.abs(e.gyr_bias_rad_s) <= np.radians(1.0)) and np.all(np.abs(e.gyr_scale) <= 0.01)
+    assert (np.all(np.abs(e.gyr_bias_rad_s) <= np.radians(1.0))
+            and np.all(np.abs(e.gyr_scale) <= 0.01))
     assert e.rate_hz in rr.RATES_HZ and np.all(np.diag(e.gyr_cross) == 0)
     expect = rr.read(ide.gyr_rad_s, e.gyr_cross, e.gyr_scale, e.gyr_bias_rad_s, 0.0,
                      e.gyr_range_rad_s)

@@ -208,7 +208,8 @@ def violations(case: dict) -> list[str]:
             _check_estimate(names, data, _data_row_count(inputs["in.csv"]), found)
         elif code == 0 and kind in ("otolith", "ambiguity", "perceive"):
             out_csv = d / {"otolith": "out.csv", "ambiguity": "a.csv", "perceive": "p.csv"}[kind]
-            names, data = _estimate_table(out_csv.read_text()) if out_csv.is_file() else (None, None)
+            names, data = (_estimate_table(out_csv.read_text()) if out_csv.is_file()
+                           else (None, None))
             if data is None or data.shape[0] != _data_row_count(inputs["m.csv"]):
                 found.append("row count")
             elif not np.all(np.isfinite(data)):
@@ -260,7 +261,8 @@ def otolith_case(seed: int) -> dict:
         argv[-1] = rng.choice(["{d}/m.csv", "{d}/./m.csv", "{d}/sub/../m.csv"])
     if rng.random() < 0.5:
         name = rng.choice(["l", "m", "beta", "Jzz", "r"])
-        argv += ["--param", f"{name}={rng.choice(['0', '-1', 'nan', 'inf', '1e-9', '1e9', '0.001', '5'])}"]
+        argv += ["--param",
+                 f"{name}={rng.choice(['0', '-1', 'nan', 'inf', '1e-9', '1e9', '0.001', '5'])}"]
     if rng.random() < 0.3:
         argv += ["--model", "lateral"]
     return {"kind": "otolith", "files": {"m.csv": raw}, "argv": argv}
@@ -466,7 +468,8 @@ def test_perceive_on_malformed_motion_files_never_breaks_an_invariant(tmp_path):
         k = 119 if col == 0 else 50
         cells = rows[k].split(",")
         cells[col] = value
-        raw = ("\n".join([MOTION_HEADER, *rows[:k], ",".join(cells), *rows[k + 1:]]) + "\n").encode()
+        raw = ("\n".join([MOTION_HEADER, *rows[:k], ",".join(cells), *rows[k + 1:]])
+               + "\n").encode()
         for model in ("merfeld", "laurens"):
             argv = ["perceive", "{d}/m.csv", "--model", model, "--out", "{d}/p.csv"]
             assert violations({"kind": "perceive", "files": {"m.csv": raw}, "argv": argv}) == []

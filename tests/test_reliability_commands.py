@@ -436,7 +436,8 @@ def broad_with_damaged_header(seed: int) -> bytes:
     t = np.arange(n) * 0.01
     with h5py.File(path, "w") as f:
         f["imu_gyr"] = np.column_stack([np.full(n, 0.3), np.zeros(n), np.zeros(n)])
-        f["imu_acc"] = np.column_stack([np.zeros(n), 9.81 * np.sin(0.3 * t), 9.81 * np.cos(0.3 * t)])
+        f["imu_acc"] = np.column_stack([np.zeros(n), 9.81 * np.sin(0.3 * t),
+                                        9.81 * np.cos(0.3 * t)])
         f["opt_quat"] = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
         f["movement"] = np.ones(n, dtype=bool)
         f.attrs["sampling_rate"] = 100.0

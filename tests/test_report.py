@@ -171,7 +171,8 @@ def _pub(kind, value, **kw):
     ("at_most", 0.5, 0.5, "meets"), ("at_most", 0.5, 0.51, "differs"),
     ("at_least", 10.0, 13.9, "meets"), ("at_least", 16, 14, "differs"),
     ("equals", True, True, "meets"), ("equals", 20, None, "differs"),
-    ("within", [[1.0, 2.0]], [[1.04, 1.95]], "meets"), ("within", [[1.0, 2.0]], [[1.2, 2.0]], "differs"),
+    ("within", [[1.0, 2.0]], [[1.04, 1.95]], "meets"),
+    ("within", [[1.0, 2.0]], [[1.2, 2.0]], "differs"),
     ("within", [[1.0, 2.0]], [1.0, 2.0], "differs"), ("context", 0.15, 0.25, "no published number"),
 ])
 def test_verdicts(kind, value, ours, status):

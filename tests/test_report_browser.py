@@ -80,7 +80,8 @@ _SECTIONS_JS = """
       let inked = 0;
       if (img.naturalWidth > 0) {
         const c = document.createElement('canvas');
-        c.width = 200; c.height = Math.max(1, Math.round(200 * img.naturalHeight / img.naturalWidth));
+        c.width = 200;
+        c.height = Math.max(1, Math.round(200 * img.naturalHeight / img.naturalWidth));
         const g = c.getContext('2d');
         g.drawImage(img, 0, 0, c.width, c.height);
         const px = g.getImageData(0, 0, c.width, c.height).data;

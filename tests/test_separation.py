@@ -1,4 +1,5 @@
-"""`separation` (F §4.4): the separation principle on the linearized loop, and the instability test."""
+"""`separation` (F §4.4): the separation principle on the linearized loop, and the instability
+test."""
 
 import numpy as np
 
@@ -35,7 +36,8 @@ def test_sensor_fed_linear_loop_is_unstable_state_fed_is_not():
 
 def test_model_error_is_ten_percent():
     a, b = sep.linear_model(1.0), sep.linear_model(1.1)
-    assert abs(float(b.A[1, 0] / a.A[1, 0]) - 1.1) < 1e-12 and abs(float(b.B[3, 0] / a.B[3, 0]) - 1 / 1.1) < 1e-12
+    assert (abs(float(b.A[1, 0] / a.A[1, 0]) - 1.1) < 1e-12
+            and abs(float(b.B[3, 0] / a.B[3, 0]) - 1 / 1.1) < 1e-12)
 
 
 def test_instability_criterion():

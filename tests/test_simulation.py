@@ -57,7 +57,8 @@ def test_fixed_condition_api_so3_and_replay_cross_check():
     assert rec.u.tau_H_Nm.shape == (300, 4, 3)
     # the tilt error is that of the probe's identity estimate
     np.testing.assert_allclose(rec.tilt_error_deg,
-                               so3.tilt_error_deg(rec.R_I_H, jnp.broadcast_to(jnp.eye(3), (300, 3, 3))),
+                               so3.tilt_error_deg(rec.R_I_H,
+                                                  jnp.broadcast_to(jnp.eye(3), (300, 3, 3))),
                                atol=1e-12)
     # pendulum stays on SO(3) through the spike
     assert float(so3.orthonormality_error(res.final_plant.pendula[0].R_I_S)) < 1e-9

@@ -69,7 +69,8 @@ def test_stabilize_on_a_recorded_jump_reproduces_ekf_jump(quick_sweeps, tmp_path
     motion = io.write_motion_csv(tmp_path / "jump.csv", _record(traj, 1000.0))
     out, png = tmp_path / "tilt.csv", tmp_path / "tilt.png"
     capsys.readouterr()
-    assert cli.main(["stabilize", str(motion), "--json", "--out", str(out), "--plot", str(png)]) == 0
+    assert cli.main(["stabilize", str(motion), "--json", "--out", str(out),
+                     "--plot", str(png)]) == 0
     report = json.loads(capsys.readouterr().out)
     ref = quick_sweeps[0]["fixed_head_rate_sigma"]["jump"]["sigma_0.001"]  # the ekf-jump setting
     for cond in ("fixed", "stabilized"):
@@ -131,7 +132,8 @@ def test_stabilize_flags_a_diverging_plant_and_an_odd_length_recording(tmp_path,
     assert report["rms_tilt_error_deg"]["stabilized"] is None
     assert report["rms_ratio_stabilized_over_fixed"] is None
     assert report["diverged"]["stabilized"][1] == "plant"
-    assert report["diverged"]["stabilized"][0] >= 1.0  # on the file's clock: the window starts at 1 s
+    # on the file's clock: the window starts at 1 s
+    assert report["diverged"]["stabilized"][0] >= 1.0
 
 
 def test_motion_window_selects_rows_on_the_file_clock_and_refuses_empty_ones():
@@ -174,8 +176,10 @@ def test_whole_periods_and_option_checks():
     assert st.whole_periods(3.0) == pytest.approx(3.0)
     assert st.EKF_PERIOD_S == 0.02
     st.check_options(3.0, 1, 0.02, 2.0)
-    for args, message in (((3.0, 0, 0.02, 2.0), "--seeds"), ((3.0, 1, float("nan"), 2.0), "--noise"),
-                          ((3.0, 1, 0.02, -1.0), "--settle"), ((2.0, 1, 0.02, 2.0), "no EKF sample")):
+    for args, message in (((3.0, 0, 0.02, 2.0), "--seeds"),
+                          ((3.0, 1, float("nan"), 2.0), "--noise"),
+                          ((3.0, 1, 0.02, -1.0), "--settle"),
+                          ((2.0, 1, 0.02, 2.0), "no EKF sample")):
         with pytest.raises(InputError, match=message):
             st.check_options(*args)
     series = {"t_s": np.array([0.02, 0.04, 0.06]), "tilt_true_deg": np.zeros((3, 2)),

@@ -67,10 +67,12 @@ def test_random_design_is_reproducible_and_in_range():
     (("kernel = \"newton-lissajous\"", "kernel = \"nope\""), "kernel must be one of"),
     (("K_rel_error = [-0.2, 0.3]", "K_rel_error = [-1.0]"), "outside (-1.0"),
     (("K_rel_error = [-0.2, 0.3]", "Q_rel_error = [0.1]"), "has no knob 'Q_rel_error'"),
-    (("head = [\"fixed\", \"stabilized\"]", "head = [\"floating\"]"), "not one of fixed, stabilized"),
+    (("head = [\"fixed\", \"stabilized\"]", "head = [\"floating\"]"),
+     "not one of fixed, stabilized"),
     (("values = [3, 5]", "values = [3, 3]"), "seeds repeat"),
     (("duration_s = 1.5", "duration_s = 1.51"), "multiple of the observer's 25 ms"),
-    (("runs_per_task = 2", "runs_per_task = 3"), "runs_per_task must be a positive multiple of batch"),
+    (("runs_per_task = 2", "runs_per_task = 3"),
+     "runs_per_task must be a positive multiple of batch"),
     (("[seeds]", "[seed]"), "unknown key(s) seed"),
     (("K_rel_error = [-0.2, 0.3]", "K_rel_error = {min = 0, max = 1}"), "random design"),
     (("[knobs]", "[knobs"), "not valid TOML"),
@@ -121,7 +123,8 @@ def test_one_worker_table_is_bit_identical(two_workers, tmp_path):
     spec, out2, _ = two_workers
     other = S.parse(TINY.replace("runs_per_task = 2", "runs_per_task = 6"))
     assert distribute.run(other, tmp_path, workers=1, progress=False).n_tasks == 2
-    assert pq.read_table(tmp_path / "results.parquet").equals(pq.read_table(out2 / "results.parquet"))
+    assert pq.read_table(tmp_path / "results.parquet").equals(
+        pq.read_table(out2 / "results.parquet"))
 
 
 def test_task_size_does_not_change_a_run(two_workers):

@@ -86,7 +86,8 @@ def test_scaled_trajectories_go_through_the_trajectory_parameters():
 
 
 @pytest.mark.parametrize("change, words", [
-    (("head = [\"fixed\", \"stabilized\"]", "head = [\"floating\"]"), "not one of fixed, stabilized"),
+    (("head = [\"fixed\", \"stabilized\"]", "head = [\"floating\"]"),
+     "not one of fixed, stabilized"),
     (("head = [\"fixed\", \"stabilized\"]", "amplitude_scale = [0.1]"),
      "knob amplitude_scale: 0.1 is outside [0.25, 3.0]"),
     (("head = [\"fixed\", \"stabilized\"]", "frequency_scale = [4.0]"), "frequency_scale: 4.0"),

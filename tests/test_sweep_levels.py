@@ -148,7 +148,8 @@ def _assert_curve_is_the_groupby(c: curves.Curve, cols) -> None:
                   "div": np.asarray(cols["diverged"], dtype=np.int64),
                   "err": cols["max_error_deg"]})
     g = {(r["head"], r["x"]): (r["div_sum"], r["div_count"])
-         for r in t.group_by(["head", "x"]).aggregate([("div", "sum"), ("div", "count")]).to_pylist()}
+         for r in t.group_by(["head", "x"]).aggregate([("div", "sum"),
+                                                       ("div", "count")]).to_pylist()}
     kept = t.filter(pa.compute.equal(t["div"], 0))
     med = {(r["head"], r["x"]): float(np.median(r["err_list"]))
            for r in kept.group_by(["head", "x"]).aggregate([("err", "list")]).to_pylist()}

@@ -281,7 +281,8 @@ def test_motion_hidden_in_a_gap_is_reacquired_flagged_and_warned_about(tmp_path,
     capsys.readouterr()
     assert cli.main(["estimate", str(path), "--out", str(tmp_path / "est.csv")]) == 0
     err_txt = capsys.readouterr().err
-    assert "1 gap(s) in the time stamps longer than 0.1 s (largest 1.01 s, ending at t = 11 s)" in err_txt
+    assert ("1 gap(s) in the time stamps longer than 0.1 s (largest 1.01 s, ending at t = 11 s)"
+            in err_txt)
     est = imu.read_estimate_csv(tmp_path / "est.csv")
     assert est.flags[k] & tilt.DT_GAP and est.flags[k_re] & tilt.REACQUIRED
 
@@ -326,9 +327,10 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
 
 
 def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
-    """``tilt_batch.blocks_needing_gaps`` tells from the data alone which blocks need the kernel's gap
-    handling. Against the kernel's own flag (the kernel with gap handling everywhere): every block
-    that starts pending or holds a gap is marked, plus at most one block per re-acquisition."""
+    """``tilt_batch.blocks_needing_gaps`` tells from the data alone which blocks need the kernel's
+    gap handling. Against the kernel's own flag (the kernel with gap handling everywhere): every
+    block that starts pending or holds a gap is marked, plus at most one block per
+    re-acquisition."""
     from verticality.tilt import batch as tilt_batch
     from verticality.tilt import kernels as tilt_kernels
 
@@ -379,8 +381,8 @@ def _error_flow(e, q_hat0, b_hat, omega_rad_s, n, dt):
         return (q, core.accumulate(sums, t)), None
 
     (q_true, sums), _ = jax.lax.scan(body, (q_true, core.empty_sums()), None, length=n)
-    x_hat = X.pack(q=q_hat0, b=b_hat, s=jnp.zeros(3), v=jnp.zeros(2), P=jnp.eye(NE).reshape(-1), acc_dev_var=0.0,
-                   rest_s=0.0, reacquire=0.0, reacq_f_E=jnp.zeros(3), reacq_t=0.0,
+    x_hat = X.pack(q=q_hat0, b=b_hat, s=jnp.zeros(3), v=jnp.zeros(2), P=jnp.eye(NE).reshape(-1),
+                   acc_dev_var=0.0, rest_s=0.0, reacquire=0.0, reacq_f_E=jnp.zeros(3), reacq_t=0.0,
                    vel_inn=jnp.zeros(2), vel_fix=jnp.zeros(5), speed_var=0.0, dv_var=0.0)
     c = core.block_inputs(sums, p)
     q_end, _, v_end = core.block_prediction(x_hat, c)
@@ -396,10 +398,10 @@ def test_error_transition_is_the_jacobian_of_the_block_prediction(omega, b_hat):
     block's samples and predict with the core → difference), at a block of 32 samples of 3.5 ms.
 
     Sensor still, bias known: equal to rounding, except that the velocity's response to a bias
-    (or scale) error is larger by 1 + 1/N: the pre-integration rotates each sample's force by the rotation
-    at the sample's end, a right Riemann sum of ∫ t dt = T²/2. Sensor turning at |ω| = 1 rad/s:
-    ``F`` holds the block-end rotation over the block (F = exp(F_c T) with R frozen), so they
-    differ at first order in |ω|T: by less than |ω|T / 2 of F's largest entry."""
+    (or scale) error is larger by 1 + 1/N: the pre-integration rotates each sample's force by the
+    rotation at the sample's end, a right Riemann sum of ∫ t dt = T²/2. Sensor turning at
+    |ω| = 1 rad/s: ``F`` holds the block-end rotation over the block (F = exp(F_c T) with R
+    frozen), so they differ at first order in |ω|T: by less than |ω|T / 2 of F's largest entry."""
     import jax
 
     from verticality.tilt import core

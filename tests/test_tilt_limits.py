@@ -128,8 +128,8 @@ def test_keeping_clipped_accelerometer_samples_beats_dropping_them():
     dropped = np.where(lim.acc_clipped[:, None], np.nan, rec.acc_m_s2)
 
     def rmse(acc, **kw):
-        return rr.inclination_rmse_deg(tilt.estimate(rec.gyr_rad_s, acc, period_s=rec.dt_s, **kw).quat_E_S,
-                                       rec)
+        return rr.inclination_rmse_deg(
+            tilt.estimate(rec.gyr_rad_s, acc, period_s=rec.dt_s, **kw).quat_E_S, rec)
 
     kept, off = rmse(rec.acc_m_s2), rmse(rec.acc_m_s2, detect_clipping=False)
     assert kept < 0.4 * rmse(dropped) and kept < 1.2 * off
@@ -181,7 +181,8 @@ def test_no_clip_level_below_the_smallest_ranges_or_without_a_flat_top():
 @pytest.mark.parametrize("bad", [0.0, -1.0, np.nan, [1.0, 2.0], "x"])
 def test_a_bad_range_is_refused(bad):
     with pytest.raises(InputError, match="range"):
-        tilt.estimate(np.zeros((10, 3)), np.tile([0, 0, G], (10, 1)), period_s=0.01, gyr_range_rad_s=bad)
+        tilt.estimate(np.zeros((10, 3)), np.tile([0, 0, G], (10, 1)), period_s=0.01,
+                      gyr_range_rad_s=bad)
 
 
 def test_held_rows_are_flagged_bit_for_bit():

@@ -1,8 +1,8 @@
 """The tilt filter's paths against each other, case by case: the JAX core's batch ``run``, its
 per-sample ``step`` under ``lax.scan`` (the sequential reference of ``run``), the packed real-time
-``Stepper``, and the plain-Python ``verticality.tilt.stream.Stream``, an independent implementation of the
-same filter (as PyVQF stands beside VQF's C++). The cases: a BROAD slice, NaNs in every channel,
-readings beyond any IMU, irregular Δt, gaps (two while one is pending), dropouts of either
+``Stepper``, and the plain-Python ``verticality.tilt.stream.Stream``, an independent implementation
+of the same filter (as PyVQF stands beside VQF's C++). The cases: a BROAD slice, NaNs in every
+channel, readings beyond any IMU, irregular Δt, gaps (two while one is pending), dropouts of either
 sensor, a start in motion, rest, rotations beyond the batch kernel's Taylor range, a given initial
 state, no usable accelerometer at all; the σ of every path."""
 
@@ -137,7 +137,8 @@ def _kicks_and_shaking():
     return (gyr, acc, np.full(gyr.shape[0], dt)), None
 
 
-CASES = {"broad_slice": _broad_slice, "kicks_and_shaking": _kicks_and_shaking, "nans_irregular_gap": _nans_irregular_gap,
+CASES = {"broad_slice": _broad_slice, "kicks_and_shaking": _kicks_and_shaking,
+         "nans_irregular_gap": _nans_irregular_gap,
          "nan_every_channel": _nan_every_channel, "beyond_limits": _beyond_limits,
          "gaps_and_dropouts": _gaps_and_dropouts,
          "start_in_motion": _start_in_motion, "large_rotations": _large_rotations,
@@ -341,7 +342,8 @@ def test_reference_stream_clipping_and_held_rows_equal_core():
         sigma.append(s.tilt_sigma_rad)
     np.testing.assert_array_equal(np.array([r[5] for r in rows]), f)
     np.testing.assert_allclose(np.array([r[2] for r in rows]), out.up_S, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(sigma, tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sigma, tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS), rtol=0,
+                               atol=1e-9)
     lim = estimator.recording_limits(gyr, acc, dts, **ranges)
     assert np.all(lim.tilt_var_rad2 >= 0) and lim.tilt_var_rad2.max() > 0
     assert np.all(lim.vel_var_m2_s2 >= 0) and lim.vel_var_m2_s2.max() > 0

@@ -222,7 +222,8 @@ def test_estimate_offline_command(tmp_path, capsys, monkeypatch):
     assert cli.main(["estimate", str(path), "--out", str(tmp_path / "e2.csv"), "--offline",
                      "--filter", "vqf"]) != 0
     assert "offline smoother" in capsys.readouterr().err
-    monkeypatch.setattr(verticality.core.sizing, "MAX_WORK_BYTES", 1000 * tilt_smoother.BYTES_PER_SAMPLE)
+    monkeypatch.setattr(verticality.core.sizing, "MAX_WORK_BYTES",
+                        1000 * tilt_smoother.BYTES_PER_SAMPLE)
     assert cli.main(["estimate", str(path), "--out", str(tmp_path / "e3.csv"), "--offline"]) != 0
     assert "offline smoother" in capsys.readouterr().err and not (tmp_path / "e3.csv").exists()
 

@@ -49,7 +49,8 @@ def cut(broad_dir: Path, out_dir: Path = HERE) -> list[Path]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("broad_dir", type=Path, metavar="BROAD_DIR", help="folder of BROAD .hdf5 trials")
+    ap.add_argument("broad_dir", type=Path, metavar="BROAD_DIR",
+                    help="folder of BROAD .hdf5 trials")
     args = ap.parse_args(argv)
     for path in cut(args.broad_dir):
         print(f"{path.name}: {path.stat().st_size / 1e6:.2f} MB")
