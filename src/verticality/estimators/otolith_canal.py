@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from verticality.core.constants import G_M_S2
 from verticality.estimators.kalman import (
     ContinuousObserver,
     KalmanFilter,
@@ -35,7 +36,6 @@ from verticality.estimators.kalman import (
     kalman_filter,
     steady_state_kalman_filter,
 )
-from verticality.models.params import G_M_S2
 
 STATE_NAMES = ("phi_rad", "omega_rad_s", "omega_drift_rad_s")
 MEASUREMENT_NAMES = ("omega_g_rad_s", "a_xa_m_s2")

@@ -3,7 +3,7 @@ Fig. 5–8): ``tahboub-gains``, ``tahboub-step``, ``tahboub-sine``, ``tahboub-pr
 
 Readings and choices (the paper leaves them open; docs/reproduction.md fixes the first ones):
 
-* Filter: F_v, H_v of T eq. 7–8 with g = 9.81, measurement order ``(ω_g, a_xa)``, Q and R of
+* Filter: F_v, H_v of T eq. 7–8 with g = ``G_M_S2``, measurement order ``(ω_g, a_xa)``, Q and R of
   T eq. 20–21 read as continuous noise intensities; steady-state gain from the CARE (T eq. 10–11).
   Run in its steady-state form (T eq. 9), discretized exactly at 100 Hz with the samples held.
   Started at the true initial lean (``phi0_rad``; 0 here, the body starts upright), ω̂0 = 0, no
@@ -40,11 +40,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.analysis import frequency
+from verticality.core.constants import G_M_S2
 from verticality.core.integrate import zoh
 from verticality.estimators import otolith_canal
 from verticality.experiments import Result, check, register
 from verticality.models.body import POSTUROB, SingleSegmentBody
-from verticality.models.params import G_M_S2
 from verticality.simulation.trajectories import PRTS_DT_S, PRTS_LENGTH, prts_stimulus
 
 FS_HZ = 100.0

@@ -50,10 +50,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.estimators.base import keep_finite, scan_steps, split_measurement
 from verticality.estimators.kalman import discrete_steady_gain
 from verticality.models.base import model_dataclass
-from verticality.models.params import G_M_S2
 from verticality.perception.params import LaurensParams
 
 

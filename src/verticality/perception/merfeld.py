@@ -46,9 +46,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from verticality.core.constants import G_M_S2
 from verticality.estimators.base import keep_finite, scan_steps, split_measurement
 from verticality.models.base import model_dataclass, static_field
-from verticality.models.params import G_M_S2
 from verticality.perception.params import MerfeldParams
 
 

@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.io.motion import MotionRecord
-from verticality.models.params import G_M_S2
 
 DT_S = 0.01
 

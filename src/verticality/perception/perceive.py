@@ -30,12 +30,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2, gravity_I
 from verticality.core.errors import InputError
 from verticality.core.sizing import check_work_size
 from verticality.io.motion import MotionRecord
 from verticality.models import canal as canal_models
 from verticality.models.base import step_rk4
-from verticality.models.params import G_M_S2, gravity_I
 from verticality.perception.laurens import laurens_angelaki
 from verticality.perception.merfeld import MerfeldZupan
 from verticality.perception.params import LaurensParams, MerfeldParams, perception_params

@@ -17,6 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from verticality.core.constants import G_M_S2
+
 MetricPath = tuple[str | int, ...]  # keys and list indices into an experiment's metrics
 
 #: How ours is judged against a published figure.
@@ -133,7 +135,7 @@ CLAIMS: dict[str, Claim] = {
         claim="The otolith–canal Kalman filter's steady-state gain follows from T's noise "
               "intensities alone: solving the continuous Riccati equation with T's matrices gives "
               "the gain T prints.",
-        settings=("F_v, H_v of T eq. 7–8 with g = 9.81 m/s²; measurements ordered [ω_g, a_xa]",
+        settings=(f"F_v, H_v of T eq. 7–8 with g = {G_M_S2} m/s²; measurements ordered [ω_g, a_xa]",
                   "Q = diag(0, 1e-1, 1e-6), R = diag(1e-5, 10) (T eq. 20–21), continuous "
                   "intensities"),
         readings=("Q and R read as continuous intensities (the reading under which T's gain "
@@ -985,7 +987,7 @@ DIFFERENCES: tuple[Difference, ...] = (
               "F eq. 5.2 (inclinometer input).",
         ours="T eq. 4 prints +(L2+Lv)θ̈ in the accelerometer signal; a real accelerometer reading "
              "+g sin φ for a forward lean reads −h φ̈ for a forward angular acceleration, and we "
-             "simulate the physics. F's arm S l = (0, 0, l) with g = (0, 0, −9.81) read literally "
+             f"simulate the physics. F's arm S l = (0, 0, l) with g = (0, 0, −{G_M_S2}) read literally "
              "is an inverted pendulum; we model the hanging one (the frame's z from mass to "
              "pivot). F eq. 2.8–2.9 read row 3 of R_HS, which depends on the pendulum's turn "
              "about its own arm, while F's prose describes column 3 (the arm's direction); we "

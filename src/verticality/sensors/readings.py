@@ -15,7 +15,7 @@ on the inclinometer angles and gyro rates):
     gyro          ω_m = ω_B + b + n,     ḃ = w,   n ~ N(0, σ²),  w white, E[w w] = q δ(t)
                   (discrete: b_{k+1} = b_k + √(q·dt) N(0, 1))
     accelerometer f_m = R_IBᵀ (a_P − g_I) + n   specific force at a point P of the body, in the
-                  sensor (body) frame, gravity included: a level body at rest reads (0, 0, +9.81);
+                  sensor (body) frame, gravity included: a level body at rest reads (0, 0, +g);
                   a_P = a_C + R_IB (ω̇ × r + ω × (ω × r)) for a sensor at r from the centre (T eq. 4)
     inclinometer  φ_m = φ + n, optionally quantized (an n-bit ADC over ±full scale)
 """
@@ -27,8 +27,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from verticality.core.constants import gravity_I
 from verticality.models.kinematics import RigidMotion
-from verticality.models.params import gravity_I
 
 
 class GyroParams(NamedTuple):

@@ -59,9 +59,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.tilt.flags import CLIPPED, HELD
-from verticality.tilt.params import G_M_S2
 
 MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make it a clip level
 GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s

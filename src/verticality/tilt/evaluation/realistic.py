@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.io.broad import inclination_error_deg
 from verticality.sensors.readings import specific_force_B
 from verticality.simulation import trajectories
@@ -71,14 +72,17 @@ def draw_errors(rng: np.random.Generator) -> SensorErrors:
         np.fill_diagonal(m, 0.0)
         return m
 
+    # Data sheets state accelerometer quantities in g (standard gravity, 9.80665 m/s²); they are
+    # converted with the simulation's own gravity so that a range of 16 g is 16 times the gravity
+    # the simulated sensor reads at rest.
     return SensorErrors(
         gyr_bias_rad_s=rng.uniform(-1.0, 1.0, 3) * DEG, gyr_scale=rng.uniform(-0.01, 0.01, 3),
         gyr_cross=cross(0.01), gyr_noise_rad_s_sqrt_hz=0.01 * DEG,
         gyr_bias_walk_rad_s_sqrt_s=1e-4,
         gyr_range_rad_s=(2000.0 if rng.uniform() < 0.5 else 500.0) * DEG,
-        acc_bias_m_s2=rng.uniform(-0.01, 0.01, 3) * 9.81, acc_scale=rng.uniform(-0.01, 0.01, 3),
-        acc_cross=cross(0.01), acc_noise_m_s2_sqrt_hz=200e-6 * 9.81,
-        acc_range_m_s2=(16.0 if rng.uniform() < 0.5 else 4.0) * 9.81,
+        acc_bias_m_s2=rng.uniform(-0.01, 0.01, 3) * G_M_S2, acc_scale=rng.uniform(-0.01, 0.01, 3),
+        acc_cross=cross(0.01), acc_noise_m_s2_sqrt_hz=200e-6 * G_M_S2,
+        acc_range_m_s2=(16.0 if rng.uniform() < 0.5 else 4.0) * G_M_S2,
         rate_hz=float(rng.choice(RATES_HZ)))
 
 
@@ -180,7 +184,7 @@ def recording(kind: str, seed: int, duration_s: float = 60.0, ideal: bool = Fals
     rng = np.random.default_rng([seed, ALL_MOTIONS.index(kind)])
     e = draw_errors(rng)
     if kind == VIGOROUS:  # a ±500 °/s gyro (common industrial IMUs' range), a ±16 g accelerometer
-        e = e._replace(gyr_range_rad_s=500.0 * DEG, acc_range_m_s2=16.0 * 9.81)
+        e = e._replace(gyr_range_rad_s=500.0 * DEG, acc_range_m_s2=16.0 * G_M_S2)
     if rate_hz is not None:
         e = e._replace(rate_hz=float(rate_hz))
     e = perfect(e) if ideal else e
