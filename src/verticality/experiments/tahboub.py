@@ -44,6 +44,7 @@ from verticality.core.constants import G_M_S2
 from verticality.core.integrate import zoh
 from verticality.estimators import otolith_canal
 from verticality.experiments import Result, check, register
+from verticality.models import tahboub
 from verticality.models.body import POSTUROB, SingleSegmentBody
 from verticality.simulation.trajectories import PRTS_DT_S, PRTS_LENGTH, prts_stimulus
 
@@ -156,7 +157,7 @@ def _gain_figures(result: Result, out_dir: Path):
           source="T eq. 7–13, 20–22", figures=_gain_figures)
 def run_gains(quick: bool = False) -> Result:
     L = otolith_canal.steady_state_gain()
-    pub = otolith_canal.TAHBOUB_GAIN_PUBLISHED
+    pub = tahboub.TAHBOUB_GAIN_PUBLISHED
     rel = np.abs(L - pub) / np.abs(pub)
     return Result(
         metrics={"gain": L.tolist(), "relative_difference": rel.tolist(),

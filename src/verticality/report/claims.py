@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from verticality.core.constants import G_M_S2
+from verticality.models.tahboub import TAHBOUB_GAIN_PUBLISHED
 
 MetricPath = tuple[str | int, ...]  # keys and list indices into an experiment's metrics
 
@@ -129,6 +130,15 @@ AMBIGUITY_UPRIGHT_READING = (
 PERCEPTION_SOURCE = ("Merfeld & Zupan 2002 (the observer F §1.4.3 reviews); Laurens & Angelaki "
                      "2017 (not in F, whose §1.4.3 reviews Laurens & Droulez 2007)")
 
+
+def _printed_matrix(m) -> str:
+    """A matrix as a paper prints it: one significant decimal, ``9.9e-1``, ``−3.1e-4``."""
+    def number(x) -> str:
+        mantissa, exponent = f"{x:.1e}".split("e")
+        return f"{mantissa.replace('-', '−')}e{int(exponent)}"
+    return "[" + ", ".join("[" + ", ".join(number(x) for x in row) + "]" for row in m) + "]"
+
+
 CLAIMS: dict[str, Claim] = {
     "tahboub-gains": Claim(
         source="T §III.A.1, eq. 20–22",
@@ -141,9 +151,8 @@ CLAIMS: dict[str, Claim] = {
         readings=("Q and R read as continuous intensities (the reading under which T's gain "
                   "comes out of the continuous Riccati equation)",),
         published=(Published("steady-state gain L (3×2)", "T eq. 22",
-                             "[[9.9e-1, 8.0e-3], [9.9e1, 3.2e-4], [1.0e-3, −3.1e-4]]",
-                             ("gain",), "within",
-                             [[0.99, 0.008], [99.0, 0.00032], [0.001, -0.00031]], rel=0.05,
+                             _printed_matrix(TAHBOUB_GAIN_PUBLISHED),
+                             ("gain",), "within", TAHBOUB_GAIN_PUBLISHED.tolist(), rel=0.05,
                              headline=True),),
         pages=("linear-tahboub.md",),
     ),
