@@ -46,6 +46,7 @@ from verticality.estimators import otolith_canal
 from verticality.experiments import Result, check, register
 from verticality.models import tahboub
 from verticality.models.body import POSTUROB, SingleSegmentBody
+from verticality.sensors import readings
 from verticality.simulation.trajectories import PRTS_DT_S, PRTS_LENGTH, prts_stimulus
 
 FS_HZ = 100.0
@@ -79,13 +80,13 @@ def sensor_readings(key, phi, phi_dot, phi_ddot, fs_hz: float = FS_HZ,
                     body: SingleSegmentBody = POSTUROB):
     """Noisy ``(ω_g, a_xa)`` samples (n, 2) and the true drift (n,)."""
     n = phi.shape[0]
-    k1, k2, k3 = jax.random.split(key, 3)
-    dt = 1.0 / fs_hz
-    steps = jnp.sqrt(DRIFT_INTENSITY * dt) * jax.random.normal(k1, (n,))
-    drift = jnp.cumsum(steps.at[0].set(0.0))  # random walk starting at 0
+    k_drift, k_gyro, k_acc = jax.random.split(key, 3)
+    steps = readings.random_walk_increments(k_drift, (n,), DRIFT_INTENSITY, 1.0 / fs_hz)
+    drift = readings.random_walk(steps.at[0].set(0.0))  # the drift starts at 0 at the first sample
     omega, a_x = body.sensors(phi, phi_dot, phi_ddot)
-    gyro = omega + drift + GYRO_SIGMA_RAD_S * jax.random.normal(k2, (n,))
-    acc = a_x + ACC_SIGMA_M_S2 * jax.random.normal(k3, (n,))
+    gyro_params = readings.GyroParams(GYRO_SIGMA_RAD_S, DRIFT_INTENSITY)
+    gyro = readings.gyro_reading(omega, drift, readings.gyro_white_noise(k_gyro, (n,), gyro_params))
+    acc = readings.white(k_acc, a_x, ACC_SIGMA_M_S2)
     return jnp.stack([gyro, acc], axis=1), drift
 
 
