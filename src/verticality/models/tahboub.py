@@ -21,9 +21,6 @@ import numpy as np
 
 from verticality.core.constants import G_M_S2
 
-STATE_NAMES = ("phi_rad", "omega_rad_s", "omega_drift_rad_s")
-MEASUREMENT_NAMES = ("omega_g_rad_s", "a_xa_m_s2")
-
 TAHBOUB_Q = np.diag([0.0, 1e-1, 1e-6])  # T eq. 20
 TAHBOUB_R = np.diag([1e-5, 10.0])  # T eq. 21, order (omega_g, a_xa)
 TAHBOUB_GAIN_PUBLISHED = np.array(  # T eq. 22

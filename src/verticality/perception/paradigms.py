@@ -202,8 +202,3 @@ def stabilized(record: MotionRecord) -> MotionRecord:
     R = np.asarray(so3.matrix_from_quat(record.q_I_H_wxyz))
     yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
     return _record(record.t_s, _rz(np.unwrap(yaw)), record.a_I_m_s2)
-
-
-PARADIGMS = {"yaw-step": yaw_step, "somatogravic": somatogravic, "ovar": ovar,
-             "post-rotatory-tilt": post_rotatory_tilt, "centrifuge": centrifuge,
-             "roll-swing": roll_swing}
