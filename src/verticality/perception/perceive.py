@@ -4,7 +4,7 @@
 rows, recorded or from :mod:`verticality.perception.paradigms`) and returns the perceived gravity
 (tilt), angular velocity, linear acceleration and velocity on the same rows, beside the true ones.
 
-Sensors (the options of the issue the models were built for):
+Sensors (the ``canal`` and ``otolith`` options):
 
 * canals — ``high-pass``: the model's own first-order canal (τ and adaptation of the perception
   model's parameters: Merfeld–Zupan τ, τ_a; Laurens–Angelaki τc); ``torsion``: the torsion
