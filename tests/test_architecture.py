@@ -22,6 +22,7 @@ import numpy as np
 from verticality.analysis import model_checks as mc
 from verticality.analysis import observability as obs
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.estimators import ekf
 from verticality.estimators.newton import NewtonConfig, NewtonObserver
 from verticality.models import otolith_head
@@ -30,7 +31,7 @@ from verticality.models.gimbal import GimbalHead
 from verticality.models.gimbal_plant import GimbalPlant
 from verticality.models.head import HeadInput, HeadState
 from verticality.models.linearize import linearize, to_statespace
-from verticality.models.params import G_M_S2, P13_HEAD, P13_PENDULUM
+from verticality.models.params import P13_HEAD, P13_PENDULUM
 from verticality.models.pendulum import PendulumState
 from verticality.simulation import closed_loop as sim
 from verticality.simulation import trajectories as tr
@@ -233,3 +234,11 @@ def test_the_tilt_filter_lives_in_one_subpackage():
                 continue
             offenders += [f"{module}: {n}" for n in sorted(names & internals)]
     assert offenders == []
+
+
+def test_gravity_is_written_once():
+    # Every model, sensor, estimator and report takes g from core/constants.py, so changing it
+    # there changes it everywhere.
+    hits = sorted(str(p.relative_to(SRC)) for p in SRC.rglob("*.py")
+                  if "9.81" in p.read_text(encoding="utf-8"))
+    assert hits == ["core/constants.py"]

@@ -7,11 +7,12 @@ import numpy as np
 from verticality.estimators import otolith_canal
 from verticality.estimators.ground import ground_from_states
 from verticality.experiments.tahboub import estimate_lean, sensor_readings, servo_response
+from verticality.models import tahboub
 
 
 def test_steady_state_gain_equals_t_eq_22_to_printed_digits():
     L = otolith_canal.steady_state_gain()
-    pub = otolith_canal.TAHBOUB_GAIN_PUBLISHED
+    pub = tahboub.TAHBOUB_GAIN_PUBLISHED
     rel = np.abs(L - pub) / np.abs(pub)
     assert np.all(rel <= 0.05), rel
     assert np.all(np.sign(L) == np.sign(pub))

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from verticality.core import so3
+from verticality.sensors import readings
 from verticality.tilt.evaluation import realistic as rr
 
 
@@ -42,12 +43,12 @@ def test_the_drawn_errors_are_applied_and_the_readings_clip(pair):
     assert (np.all(np.abs(e.gyr_bias_rad_s) <= np.radians(1.0))
             and np.all(np.abs(e.gyr_scale) <= 0.01))
     assert e.rate_hz in rr.RATES_HZ and np.all(np.diag(e.gyr_cross) == 0)
-    expect = rr.read(ide.gyr_rad_s, e.gyr_cross, e.gyr_scale, e.gyr_bias_rad_s, 0.0,
-                     e.gyr_range_rad_s)
+    expect = readings.axes_reading(ide.gyr_rad_s, e.gyr_cross, e.gyr_scale, e.gyr_bias_rad_s, 0.0,
+                                   e.gyr_range_rad_s)
     # what remains is the white noise and the bias walk
     resid = rec.gyr_rad_s - expect
     assert np.std(resid) < 5 * e.gyr_noise_rad_s_sqrt_hz * np.sqrt(e.rate_hz / 2) + 1e-3
-    clipped = rr.read(ide.acc_m_s2 * 10, np.zeros((3, 3)), np.zeros(3), np.zeros(3), 0.0, 20.0)
+    clipped = readings.axes_reading(ide.acc_m_s2 * 10, np.zeros((3, 3)), np.zeros(3), np.zeros(3), 0.0, 20.0)
     assert clipped.max() == 20.0 and clipped.min() == -20.0
 
 

@@ -6,7 +6,7 @@ the gravito-inertial vector that an accelerometer reads,
     f_H = a_H − g_H = a_H + g u_H,        u_H = R_IHᵀ e3  (the world's up in the head frame),
 
 with ``a_H`` the head's linear acceleration in head-frame components (gravity excluded, z up) and
-``g = 9.81 m/s²``. The steady state of the project's pendulum model
+``g = G_M_S2`` (core/constants.py). The steady state of the project's pendulum model
 (:class:`verticality.models.pendulum.Pendulum`, at rest relative to a still or uniformly accelerated
 head, the pendulum's turn about its own arm being the smallest rotation from the head) has its
 arm along ``−f_H``, and the otolith angles of F 2.8–2.9 (``φ_x = atan2([R_HS]32, [R_HS]33)``,
@@ -75,7 +75,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from verticality.models.params import G_M_S2
+from verticality.core.constants import G_M_S2
 
 
 def up_H(theta_x_rad, theta_y_rad):

@@ -71,11 +71,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.core.integrate import rk4_step
 from verticality.models import otolith_head, planar
 from verticality.models.head import FreeHead, HeadInput, HeadState
 from verticality.models.kinematics import RigidMotion, tabulate
-from verticality.models.params import G_M_S2, LATERAL_R_M, P13_HEAD, P13_PENDULUM, lateral_pendulums
+from verticality.models.params import LATERAL_R_M, P13_HEAD, P13_PENDULUM, lateral_pendulums
 from verticality.models.pendulum import (
     R_H_S,
     Pendulum,

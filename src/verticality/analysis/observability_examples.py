@@ -19,10 +19,10 @@ import numpy as np
 
 from verticality.analysis.observability import Problem, random_rotation
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.models import planar
 from verticality.models.base import EuclideanState, model_dataclass, static_field
 from verticality.models.kinematics import rotation_difference, rotation_retract
-from verticality.models.params import G_M_S2
 
 
 def kalman_rank(A, C) -> int:
@@ -96,7 +96,7 @@ class RatePendulum(EuclideanState):
         return x[1:]
 
 
-def pendulum_from_rate(g_over_l: float = 9.81, damping: float = 0.3) -> Problem:
+def pendulum_from_rate(g_over_l: float = G_M_S2, damping: float = 0.3) -> Problem:
     """θ̈ = −(g/l) sin θ − b θ̇: unit mass, length and inertia, ``g = g/l``, ``β = b``."""
     params = planar.PlanarHead(m_kg=1.0, l_m=1.0, J_kg_m2=1.0, beta_Nms=damping, g_m_s2=g_over_l)
     return Problem(model=RatePendulum(params), state=jnp.zeros(2), leaf_names=("q",),

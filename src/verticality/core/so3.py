@@ -3,7 +3,7 @@
 Conventions (see docs/conventions.md):
 - ``R_A_B`` maps vectors expressed in frame B into frame A (orientation of B in A).
 - Quaternions are scalar first ``(w, x, y, z)``; ``q_I_H`` rotates head vectors into frame I.
-- Frame I has z up, gravity ``(0, 0, -9.81)``.
+- Frame I has z up, gravity ``(0, 0, -g)`` (``core.constants.gravity_I``).
 
 Every function is written in ``jax.numpy`` and accepts leading batch axes only where stated;
 use ``jax.vmap`` for batches.

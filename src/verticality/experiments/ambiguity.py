@@ -70,6 +70,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.analysis import ambiguity as am
+from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.core.integrate import rk4_step_staged
 from verticality.estimators import luenberger as lu
@@ -82,7 +83,6 @@ from verticality.models.params import (
     F452_HEAD_INERTIA_KG_M2,
     F452_OTOLITH_DAMPING_RATIO,
     F452_OTOLITH_NATURAL_HZ,
-    G_M_S2,
 )
 from verticality.models.planar import (
     AccelerationState,
@@ -480,7 +480,7 @@ def _relation_maps(fig, axes, rows, sweep_values):
     ax.set_ylabel("deg")
     ax.legend(fontsize=7)
     tilt = np.radians(np.linspace(-30, 30, 61))[:, None]
-    acc = np.linspace(-1.0, 1.0, 41)[None, :] * 9.81
+    acc = np.linspace(-1.0, 1.0, 41)[None, :] * G_M_S2
     for ax, err, title in (
             (axes[1], am.small_angle_error_m_s2(tilt, acc), "F 3.17 (small angle) − exact"),
             (axes[2], am.upright_assumption_error_m_s2(tilt, acc), "upright assumption − exact")):
@@ -548,7 +548,7 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
         ax.legend(fontsize=7)
         ax = axes[2, 2]
         tilt = np.radians(np.linspace(0, 30, 61))[:, None]
-        acc = np.linspace(-0.5, 0.5, 41)[None, :] * 9.81
+        acc = np.linspace(-0.5, 0.5, 41)[None, :] * G_M_S2
         err = np.asarray(am.upright_assumption_error_m_s2(tilt, acc))
         im = ax.pcolormesh(acc[0], np.degrees(tilt[:, 0]), np.abs(err), shading="auto")
         fig.colorbar(im, ax=ax, label="|error| [m/s²]")

@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from verticality.core.constants import G_M_S2
 from verticality.experiments import Result, check, register
-from verticality.models.params import G_M_S2
 from verticality.perception import paradigms as pp
 from verticality.perception import perceive as pc
 from verticality.perception.params import MERFELD_PRESETS

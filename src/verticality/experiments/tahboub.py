@@ -3,7 +3,7 @@ Fig. 5–8): ``tahboub-gains``, ``tahboub-step``, ``tahboub-sine``, ``tahboub-pr
 
 Readings and choices (the paper leaves them open; docs/reproduction.md fixes the first ones):
 
-* Filter: F_v, H_v of T eq. 7–8 with g = 9.81, measurement order ``(ω_g, a_xa)``, Q and R of
+* Filter: F_v, H_v of T eq. 7–8 with g = ``G_M_S2``, measurement order ``(ω_g, a_xa)``, Q and R of
   T eq. 20–21 read as continuous noise intensities; steady-state gain from the CARE (T eq. 10–11).
   Run in its steady-state form (T eq. 9), discretized exactly at 100 Hz with the samples held.
   Started at the true initial lean (``phi0_rad``; 0 here, the body starts upright), ω̂0 = 0, no
@@ -40,11 +40,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.analysis import frequency
+from verticality.core.constants import G_M_S2
 from verticality.core.integrate import zoh
 from verticality.estimators import otolith_canal
 from verticality.experiments import Result, check, register
+from verticality.models import tahboub
 from verticality.models.body import POSTUROB, SingleSegmentBody
-from verticality.models.params import G_M_S2
+from verticality.sensors import readings
 from verticality.simulation.trajectories import PRTS_DT_S, PRTS_LENGTH, prts_stimulus
 
 FS_HZ = 100.0
@@ -78,13 +80,13 @@ def sensor_readings(key, phi, phi_dot, phi_ddot, fs_hz: float = FS_HZ,
                     body: SingleSegmentBody = POSTUROB):
     """Noisy ``(ω_g, a_xa)`` samples (n, 2) and the true drift (n,)."""
     n = phi.shape[0]
-    k1, k2, k3 = jax.random.split(key, 3)
-    dt = 1.0 / fs_hz
-    steps = jnp.sqrt(DRIFT_INTENSITY * dt) * jax.random.normal(k1, (n,))
-    drift = jnp.cumsum(steps.at[0].set(0.0))  # random walk starting at 0
+    k_drift, k_gyro, k_acc = jax.random.split(key, 3)
+    steps = readings.random_walk_increments(k_drift, (n,), DRIFT_INTENSITY, 1.0 / fs_hz)
+    drift = readings.random_walk(steps.at[0].set(0.0))  # the drift starts at 0 at the first sample
     omega, a_x = body.sensors(phi, phi_dot, phi_ddot)
-    gyro = omega + drift + GYRO_SIGMA_RAD_S * jax.random.normal(k2, (n,))
-    acc = a_x + ACC_SIGMA_M_S2 * jax.random.normal(k3, (n,))
+    gyro_params = readings.GyroParams(GYRO_SIGMA_RAD_S, DRIFT_INTENSITY)
+    gyro = readings.gyro_reading(omega, drift, readings.gyro_white_noise(k_gyro, (n,), gyro_params))
+    acc = readings.white(k_acc, a_x, ACC_SIGMA_M_S2)
     return jnp.stack([gyro, acc], axis=1), drift
 
 
@@ -156,7 +158,7 @@ def _gain_figures(result: Result, out_dir: Path):
           source="T eq. 7–13, 20–22", figures=_gain_figures)
 def run_gains(quick: bool = False) -> Result:
     L = otolith_canal.steady_state_gain()
-    pub = otolith_canal.TAHBOUB_GAIN_PUBLISHED
+    pub = tahboub.TAHBOUB_GAIN_PUBLISHED
     rel = np.abs(L - pub) / np.abs(pub)
     return Result(
         metrics={"gain": L.tolist(), "relative_difference": rel.tolist(),

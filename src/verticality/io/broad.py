@@ -23,8 +23,6 @@ from verticality.core import so3
 from verticality.core.errors import InputError
 from verticality.io.paths import check_input_file
 
-REQUIRED = ("imu_gyr", "imu_acc", "opt_quat", "movement")
-
 
 class BroadTrial(NamedTuple):
     name: str

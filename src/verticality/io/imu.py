@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.io import imu_layout as layout
 from verticality.io import imu_rows
@@ -32,7 +33,6 @@ IMU_COLUMNS = layout.IMU_COLUMNS
 ESTIMATE_COLUMNS = ("t", "roll_rad", "pitch_rad", "gx", "gy", "gz", "bias_x", "bias_y", "bias_z",
                     "flags")
 SIGMA_COLUMN = "tilt_sigma_rad"  # appended when the filter reports its uncertainty
-G_M_S2 = 9.81
 GYR_UNITS = {"rad/s": 1.0, "deg/s": np.pi / 180.0}
 ACC_UNITS = {"m/s2": 1.0, "m/s^2": 1.0, "g": G_M_S2}
 MAX_PLAUSIBLE_RATE_RAD_S = 35.0  # ~2000 deg/s: the largest range of common MEMS gyros

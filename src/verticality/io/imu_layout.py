@@ -247,18 +247,6 @@ def time_to_seconds(t_raw: np.ndarray, unit: str, origin=None) -> tuple[np.ndarr
     return rel.astype(np.float64) / TIME_UNITS[unit], t0
 
 
-def data_lines(lines: list[str]) -> tuple[list[str], list[int]]:
-    """The data rows after the header and their 1-based line numbers (blank and ``#`` lines are
-    skipped, as ``np.genfromtxt`` skips them)."""
-    rows, numbers = [], []
-    for k, line in enumerate(lines[1:], start=2):
-        text = line.strip()
-        if text and not text.startswith("#"):
-            rows.append(line)
-            numbers.append(k)
-    return rows, numbers
-
-
 class Layout(NamedTuple):
     """Where our seven quantities are in a file and the unit of its time column."""
 

@@ -152,7 +152,7 @@ def from_broad_trial(trial, start_s: float = 0.0, duration_s: float | None = Non
     removed). Rows without an optical reference are not filled in: a window that holds one raises
     :class:`InputError` naming it and the longest clean stretch of the trial."""
     from verticality.core import so3
-    from verticality.models.params import G_M_S2
+    from verticality.core.constants import G_M_S2
 
     t = trial.t_s
     sel = window_mask(t, start_s, duration_s, trial.name, end_tol_s=0.5 / trial.sampling_rate_hz)

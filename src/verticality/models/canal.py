@@ -25,8 +25,9 @@ default τ1 = 5.7 s, τ2 = 0.005 s.
 ``tau_a_s = inf`` (the default) means no adaptation (the d state stays zero). τ ≈ 5–6 s, τ_a ≈ 80 s
 (Merfeld & Zupan 2002; Rader et al. 2009 Table 4: 5.7 s, 80 s).
 
-:func:`transfer_function` gives each model's ``y/ω`` at complex frequencies, the reference the
-tests compare the state-space models with.
+:func:`implicit_euler_coefficients` gives the high-pass canal's implicit-Euler step, the canal of
+the discrete-time perception model; :func:`transfer_function` gives each model's ``y/ω`` at
+complex frequencies, the reference the tests compare the state-space models with.
 """
 
 from __future__ import annotations
@@ -114,6 +115,14 @@ def high_pass(tau_s: float = 5.7, tau_a_s: float | None = None) -> HighPassCanal
         raise InputError("canal: time constants must be positive")
     return HighPassCanal(jnp.asarray(float(tau_s)),
                          jnp.asarray(float("inf") if tau_a_s is None else float(tau_a_s)))
+
+
+def implicit_euler_coefficients(tau_s, dt_s):
+    """``(k₁, k₂)`` of the high-pass canal's low-passed state stepped by implicit Euler,
+    ``c_t = k₁ c_{t−1} + k₂ ω_t``: ``ċ = (ω − c)/τ`` (:meth:`HighPassCanal.dynamics`) taken at the
+    end of the step gives ``k₁ = τ/(τ + δt)``, ``k₂ = δt/(τ + δt)``; stable for every step, as the
+    discrete-time perception models (Laurens & Angelaki 2017) need."""
+    return tau_s / (tau_s + dt_s), dt_s / (tau_s + dt_s)
 
 
 def transfer_function(canal, s) -> np.ndarray:

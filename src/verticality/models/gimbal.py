@@ -100,7 +100,7 @@ def _omega_and_bias(x: GimbalState, trunk: RigidMotion):
 
 def _solve_spd_2x2(M, b):
     """M⁻¹ b by Cramer's rule for the 2×2 joint-space inertia (SPD, det > 0); inside the 1 ms loop
-    a LAPACK call costs ~10× the rest of the gimbal's dynamics."""
+    a LAPACK call would cost more than the rest of the gimbal's dynamics (docs/simulation.md)."""
     det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
     return jnp.stack([M[1, 1] * b[0] - M[0, 1] * b[1], M[0, 0] * b[1] - M[1, 0] * b[0]]) / det
 

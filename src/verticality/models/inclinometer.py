@@ -40,9 +40,9 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
+from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.models.base import EuclideanState, model_dataclass
-from verticality.models.params import G_M_S2
 from verticality.models.planar import FrameMotion, PlanarPendulum
 
 F44_G_OVER_L_S2 = 3943.8  # F §4.4.3: 10 Hz vial

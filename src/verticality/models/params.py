@@ -14,13 +14,9 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-G_M_S2 = 9.81
-"""Magnitude of gravity used throughout (docs/conventions.md: g_I = (0, 0, -9.81))."""
-
-
-def gravity_I():
-    """Gravity vector in the inertial frame I (z up), m/s^2."""
-    return jnp.array([0.0, 0.0, -G_M_S2])
+# Gravity lives in core.constants; re-exported here for the modules that read it beside the
+# parameter sets.
+from verticality.core.constants import G_M_S2, gravity_I  # noqa: F401
 
 
 class PendulumParams(NamedTuple):

@@ -11,10 +11,10 @@ the pivot, in the pendulum's own frame S:
 with the pivot acceleration a_P_I = a_C_I + R_IH (ε ω̇_H × r_H + κ ω_H × (ω_H × r_H)) for a pivot at
 r_H from the head centre C (ε = params.euler, κ = params.centripetal).
 
-Frame S convention. The thesis writes the arm as ``S l = (0, 0, l)`` with gravity ``(0, 0, −9.81)``,
+Frame S convention. The thesis writes the arm as ``S l = (0, 0, l)`` with gravity ``(0, 0, −g)``,
 which taken literally is an inverted (unstable) pendulum; its planar form (F p. 36) is stable only
-if g is read as −9.81. We keep the physics of a hanging pendulum and put the z axis of S *from the
-mass to the pivot*: the centre of mass is at ``c_S = (0, 0, −l)``. The z axis of S is then the
+if g is read as negative. We keep the physics of a hanging pendulum and put the z axis of S *from
+the mass to the pivot*: the centre of mass is at ``c_S = (0, 0, −l)``. The z axis of S is then the
 normal of the liquid surface of an inclinometer (the gravito-inertial "up"), a pendulum at rest in a
 level head has ``R_HS = I``, and the otolith angles of F 2.8–2.9 read zero. ``s_H``
 (docs/conventions.md: unit vector from pivot to mass, head frame) is ``−R_HS e3``.
@@ -35,9 +35,10 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 from verticality.core import so3
+from verticality.core.constants import gravity_I
 from verticality.models.base import model_dataclass
 from verticality.models.kinematics import RigidMotion, RotationAndRate
-from verticality.models.params import PendulumParams, gravity_I
+from verticality.models.params import PendulumParams
 
 
 class PendulumState(NamedTuple):

@@ -39,8 +39,8 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
+from verticality.core.constants import G_M_S2
 from verticality.models.base import EuclideanState, model_dataclass
-from verticality.models.params import G_M_S2
 
 
 class PendulumState(NamedTuple):

@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
+from verticality.core.constants import G_M_S2
 from verticality.models.base import EuclideanState, model_dataclass
 from verticality.models.inclinometer import (
     F44_BETA_OVER_ML2_S,
@@ -33,7 +34,6 @@ from verticality.models.inclinometer import (
     IdentifiedInclinometerState,
     pendulum_from_ratios,
 )
-from verticality.models.params import G_M_S2
 from verticality.models.planar import FrameMotion, PlanarHead
 
 

@@ -8,7 +8,8 @@ state; sensory signal ``V`` (canal)::
 
     Ω_t = Ωε_t                                  (σΩ: passive rotation is unpredictable)
     C_t = k₁ C_{t−1} + k₂ Ω_t                   (first-order canal, τc: k₁ = τc/(τc + δt),
-                                                 k₂ = δt/(τc + δt), the implicit step)
+                                                 k₂ = δt/(τc + δt), the implicit step; the
+                                                 authors' reading, models.canal)
     V_t = Ω_t − C_t + Vη_t                      (σV)
 
 *Tilt and translation* (pitch or roll) — states ``X = (Ω, C, G, A)``: adds the tilt G (integral of
@@ -50,22 +51,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.estimators.base import keep_finite, scan_steps, split_measurement
 from verticality.estimators.kalman import discrete_steady_gain
+from verticality.models import canal
 from verticality.models.base import model_dataclass
-from verticality.models.params import G_M_S2
 from verticality.perception.params import LaurensParams
-
-
-def canal_coefficients(dt_s, tau_c_s):
-    """``(k₁, k₂)`` of the canal's discrete step ``C_t = k₁ C_{t−1} + k₂ Ω_t`` (implicit Euler of
-    ``Ċ = (Ω − C)/τc``; reading: the model's authors discretize it so)."""
-    return tau_c_s / (tau_c_s + dt_s), dt_s / (tau_c_s + dt_s)
 
 
 def yaw_model(p: LaurensParams):
     """``(D, T, Q, R)`` of the yaw variant: ``X_t = D X_{t−1} + ε``, ``S_t = T X_t + η``."""
-    a, b = canal_coefficients(p.dt_s, p.tau_c_s)
+    a, b = canal.implicit_euler_coefficients(p.tau_c_s, p.dt_s)
     D = np.diag([0.0, a])
     E = np.array([[1.0], [b]])
     return D, np.array([[1.0, -1.0]]), E @ E.T * p.sigma_omega_rad_s**2, np.array([[p.sigma_v_rad_s**2]])
@@ -73,7 +69,7 @@ def yaw_model(p: LaurensParams):
 
 def tilt_model(p: LaurensParams):
     """``(D, T, Q, R)`` of the tilt/translation variant, states (Ω, C, G, A), signals (V, F)."""
-    (a, b), dt = canal_coefficients(p.dt_s, p.tau_c_s), p.dt_s
+    (a, b), dt = canal.implicit_euler_coefficients(p.tau_c_s, p.dt_s), p.dt_s
     D = np.diag([0.0, a, 1.0, 0.0])
     E = np.array([[1.0, 0.0], [b, 0.0], [dt, 0.0], [0.0, 1.0]])  # columns: Ωε, Aε
     Q = E @ np.diag([p.sigma_omega_rad_s**2, p.sigma_a_g**2]) @ E.T
@@ -123,7 +119,7 @@ class LaurensAngelaki:
 
     def step(self, state: LaurensState, u, y, dt):
         y_safe, measured = split_measurement(y)
-        c_p = canal_coefficients(dt, self.tau_c_s)[0] * state.c_rad_s
+        c_p = canal.implicit_euler_coefficients(self.tau_c_s, dt)[0] * state.c_rad_s
         g = state.g_H / jnp.linalg.norm(state.g_H)
         dV = jnp.where(measured[:3], y_safe[:3] + c_p, 0.0)
         dF = jnp.where(measured[3:], y_safe[3:] - g, 0.0)

@@ -9,8 +9,9 @@ rest reads ``f = (0, 0, −1)``.
 
 Internal model and the four feedback channels (head frame; the estimates carry hats)::
 
-    α̂_scc = canal(ω̂)                        internal canal model: ĉ' = (ω̂ − ĉ)/τ,
-                                              d̂' = (ω̂ − ĉ − d̂)/τ_a, α̂ = ω̂ − ĉ − d̂
+    α̂_scc = canal(ω̂)                        internal canal model (models.canal.HighPassCanal):
+                                              ĉ' = (ω̂ − ĉ)/τ, d̂' = (ω̂ − ĉ − d̂)/τ_a,
+                                              α̂ = ω̂ − ĉ − d̂
     ω̂ = kω (α_scc − α̂_scc) + kfω e_f          (angular velocity)
     ĝ' = −(ω̂ + kf e_f) × ĝ                   (F eq. 1.4, plus the GIF correction)
     f̂ = ĝ − â,    â = ka (f − f̂)              (linear acceleration, in g)
@@ -46,9 +47,11 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from verticality.core.constants import G_M_S2
+from verticality.core.integrate import rk4_step
 from verticality.estimators.base import keep_finite, scan_steps, split_measurement
 from verticality.models.base import model_dataclass, static_field
-from verticality.models.params import G_M_S2
+from verticality.models.canal import HighPassCanal, HighPassState
 from verticality.perception.params import MerfeldParams
 
 
@@ -71,6 +74,12 @@ def upright_state() -> MerfeldState:
     """Perceived upright and still: ĝ = (0, 0, −1), internal canal at rest."""
     z = jnp.zeros(3)
     return MerfeldState(jnp.array([0.0, 0.0, -1.0]), z, z, z)
+
+
+def high_pass_canal(p: MerfeldParams) -> HighPassCanal:
+    """The observer's internal canal model: the high-pass canal of :mod:`verticality.models.canal`
+    with the preset's time constants."""
+    return HighPassCanal(p.tau_s, p.tau_a_s)
 
 
 def rotation_error(f, f_hat):
@@ -106,29 +115,26 @@ class MerfeldZupan:
     def rates(self, x: MerfeldState, alpha, f, canal_ok) -> MerfeldState:
         p = self.params
         w_hat, a_hat, e_f = self.signals(x, alpha, f, canal_ok)
-        v_c = w_hat - x.c_rad_s
+        # the internal canal is the canal model itself, driven by the perceived rotation ω̂
+        canal_rates = high_pass_canal(p).dynamics(HighPassState(x.c_rad_s, x.d_rad_s), w_hat)
         return MerfeldState(
             g_H=-jnp.cross(w_hat + p.k_f * e_f, x.g_H),
-            c_rad_s=v_c / p.tau_s,
-            d_rad_s=(v_c - x.d_rad_s) / p.tau_a_s,
+            c_rad_s=canal_rates.c_rad_s,
+            d_rad_s=canal_rates.d_rad_s,
             v_H_m_s=G_M_S2 * a_hat - jnp.cross(w_hat, x.v_H_m_s) - x.v_H_m_s / p.tau_v_s,
         )
 
     def _advance(self, x: MerfeldState, alpha, f, canal_ok, dt):
         h = dt / self.substeps
 
-        def f_(s):
+        def rates(t, s):
             return self.rates(s, alpha, f, canal_ok)
 
+        def unit_gravity(s: MerfeldState) -> MerfeldState:
+            return s._replace(g_H=s.g_H / jnp.linalg.norm(s.g_H))
+
         def rk4(s, _):
-            add = lambda a, b, c: jax.tree_util.tree_map(lambda u, v: u + c * v, a, b)  # noqa: E731
-            k1 = f_(s)
-            k2 = f_(add(s, k1, 0.5 * h))
-            k3 = f_(add(s, k2, 0.5 * h))
-            k4 = f_(add(s, k3, h))
-            new = jax.tree_util.tree_map(lambda a, b1, b2, b3, b4: a + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4),
-                                         s, k1, k2, k3, k4)
-            return new._replace(g_H=new.g_H / jnp.linalg.norm(new.g_H)), None
+            return rk4_step(rates, 0.0, s, h, project=unit_gravity), None
 
         return jax.lax.scan(rk4, x, None, length=self.substeps)[0]
 

@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.io.motion import MotionRecord
-from verticality.models.params import G_M_S2
 
 DT_S = 0.01
 
@@ -202,8 +202,3 @@ def stabilized(record: MotionRecord) -> MotionRecord:
     R = np.asarray(so3.matrix_from_quat(record.q_I_H_wxyz))
     yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
     return _record(record.t_s, _rz(np.unwrap(yaw)), record.a_I_m_s2)
-
-
-PARADIGMS = {"yaw-step": yaw_step, "somatogravic": somatogravic, "ovar": ovar,
-             "post-rotatory-tilt": post_rotatory_tilt, "centrifuge": centrifuge,
-             "roll-swing": roll_swing}

@@ -4,7 +4,7 @@
 rows, recorded or from :mod:`verticality.perception.paradigms`) and returns the perceived gravity
 (tilt), angular velocity, linear acceleration and velocity on the same rows, beside the true ones.
 
-Sensors (the options of the issue the models were built for):
+Sensors (the ``canal`` and ``otolith`` options):
 
 * canals — ``high-pass``: the model's own first-order canal (τ and adaptation of the perception
   model's parameters: Merfeld–Zupan τ, τ_a; Laurens–Angelaki τc); ``torsion``: the torsion
@@ -30,12 +30,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2, gravity_I
 from verticality.core.errors import InputError
 from verticality.core.sizing import check_work_size
 from verticality.io.motion import MotionRecord
 from verticality.models import canal as canal_models
 from verticality.models.base import step_rk4
-from verticality.models.params import G_M_S2, gravity_I
 from verticality.perception.laurens import laurens_angelaki
 from verticality.perception.merfeld import MerfeldZupan
 from verticality.perception.params import LaurensParams, MerfeldParams, perception_params

@@ -17,6 +17,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from verticality.core.constants import G_M_S2
+from verticality.models.tahboub import TAHBOUB_GAIN_PUBLISHED
+
 MetricPath = tuple[str | int, ...]  # keys and list indices into an experiment's metrics
 
 #: How ours is judged against a published figure.
@@ -127,21 +130,29 @@ AMBIGUITY_UPRIGHT_READING = (
 PERCEPTION_SOURCE = ("Merfeld & Zupan 2002 (the observer F §1.4.3 reviews); Laurens & Angelaki "
                      "2017 (not in F, whose §1.4.3 reviews Laurens & Droulez 2007)")
 
+
+def _printed_matrix(m) -> str:
+    """A matrix as a paper prints it: one significant decimal, ``9.9e-1``, ``−3.1e-4``."""
+    def number(x) -> str:
+        mantissa, exponent = f"{x:.1e}".split("e")
+        return f"{mantissa.replace('-', '−')}e{int(exponent)}"
+    return "[" + ", ".join("[" + ", ".join(number(x) for x in row) + "]" for row in m) + "]"
+
+
 CLAIMS: dict[str, Claim] = {
     "tahboub-gains": Claim(
         source="T §III.A.1, eq. 20–22",
         claim="The otolith–canal Kalman filter's steady-state gain follows from T's noise "
               "intensities alone: solving the continuous Riccati equation with T's matrices gives "
               "the gain T prints.",
-        settings=("F_v, H_v of T eq. 7–8 with g = 9.81 m/s²; measurements ordered [ω_g, a_xa]",
+        settings=(f"F_v, H_v of T eq. 7–8 with g = {G_M_S2} m/s²; measurements ordered [ω_g, a_xa]",
                   "Q = diag(0, 1e-1, 1e-6), R = diag(1e-5, 10) (T eq. 20–21), continuous "
                   "intensities"),
         readings=("Q and R read as continuous intensities (the reading under which T's gain "
                   "comes out of the continuous Riccati equation)",),
         published=(Published("steady-state gain L (3×2)", "T eq. 22",
-                             "[[9.9e-1, 8.0e-3], [9.9e1, 3.2e-4], [1.0e-3, −3.1e-4]]",
-                             ("gain",), "within",
-                             [[0.99, 0.008], [99.0, 0.00032], [0.001, -0.00031]], rel=0.05,
+                             _printed_matrix(TAHBOUB_GAIN_PUBLISHED),
+                             ("gain",), "within", TAHBOUB_GAIN_PUBLISHED.tolist(), rel=0.05,
                              headline=True),),
         pages=("linear-tahboub.md",),
     ),
@@ -992,7 +1003,7 @@ DIFFERENCES: tuple[Difference, ...] = (
               "F eq. 5.2 (inclinometer input).",
         ours="T eq. 4 prints +(L2+Lv)θ̈ in the accelerometer signal; a real accelerometer reading "
              "+g sin φ for a forward lean reads −h φ̈ for a forward angular acceleration, and we "
-             "simulate the physics. F's arm S l = (0, 0, l) with g = (0, 0, −9.81) read literally "
+             f"simulate the physics. F's arm S l = (0, 0, l) with g = (0, 0, −{G_M_S2}) read literally "
              "is an inverted pendulum; we model the hanging one (the frame's z from mass to "
              "pivot). F eq. 2.8–2.9 read row 3 of R_HS, which depends on the pendulum's turn "
              "about its own arm, while F's prose describes column 3 (the arm's direction); we "

@@ -9,13 +9,18 @@ batchable (``vmap`` over keys). Two forms are offered for each sensor:
 - a whole record: ``gyro_record(key, omega_series, dt, p) -> (readings, biases)`` (vectorised,
   the random-walk bias by a cumulative sum, no Python loop).
 
+The error primitives (``random_walk_increments``, ``random_walk``, ``white``, ``white_noise_std``,
+``axes_reading``: scale, misalignment, offset, noise, range) are the one sensor-error model; the
+gyro and accelerometer above and every experiment's or evaluation's simulated IMU are built
+from them.
+
 Models (T §III.A for the noise levels of docs/reproduction.md `tahboub-*`; P13 §5 for white noise
 on the inclinometer angles and gyro rates):
 
     gyro          ω_m = ω_B + b + n,     ḃ = w,   n ~ N(0, σ²),  w white, E[w w] = q δ(t)
                   (discrete: b_{k+1} = b_k + √(q·dt) N(0, 1))
     accelerometer f_m = R_IBᵀ (a_P − g_I) + n   specific force at a point P of the body, in the
-                  sensor (body) frame, gravity included: a level body at rest reads (0, 0, +9.81);
+                  sensor (body) frame, gravity included: a level body at rest reads (0, 0, +g);
                   a_P = a_C + R_IB (ω̇ × r + ω × (ω × r)) for a sensor at r from the centre
                   (T eq. 4)
     inclinometer  φ_m = φ + n, optionally quantized (an n-bit ADC over ±full scale)
@@ -27,9 +32,10 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
+from verticality.core.constants import gravity_I
 from verticality.models.kinematics import RigidMotion
-from verticality.models.params import gravity_I
 
 
 class GyroParams(NamedTuple):
@@ -62,7 +68,7 @@ def gyro_reading(omega_B_rad_s, bias_rad_s, noise_rad_s):
 def gyro_bias_step(key, bias_rad_s, dt_s, p: GyroParams):
     """The bias random walk over ``dt_s``: b + √(q·dt) N(0, 1)."""
     bias = jnp.asarray(bias_rad_s, float)
-    return bias + jnp.sqrt(p.bias_rw_q_rad2_s3 * dt_s) * jax.random.normal(key, bias.shape)
+    return bias + random_walk_increments(key, bias.shape, p.bias_rw_q_rad2_s3, dt_s)
 
 
 def gyro_step(key, bias_rad_s, omega_B_rad_s, dt_s, p: GyroParams):
@@ -81,9 +87,43 @@ def gyro_record(key, omega_B_rad_s, dt_s, p: GyroParams, bias0_rad_s=0.0):
     """
     omega = jnp.asarray(omega_B_rad_s, float)
     k_n, k_b = jax.random.split(key)
-    steps = jnp.sqrt(p.bias_rw_q_rad2_s3 * dt_s) * jax.random.normal(k_b, omega.shape)
-    bias = bias0_rad_s + jnp.concatenate([jnp.zeros_like(steps[:1]), jnp.cumsum(steps[:-1], 0)], 0)
+    steps = random_walk_increments(k_b, omega.shape, p.bias_rw_q_rad2_s3, dt_s)
+    # the reading at t_k carries the bias before the k-th increment, as gyro_step's does
+    bias = bias0_rad_s + jnp.concatenate([jnp.zeros_like(steps[:1]), random_walk(steps[:-1])], 0)
     return gyro_reading(omega, bias, gyro_white_noise(k_n, omega.shape, p)), bias
+
+
+# -------------------------------------------------------------------------------------------
+# Error primitives shared by every simulated sensor
+# -------------------------------------------------------------------------------------------
+
+
+def random_walk_increments(key, shape, intensity, dt_s):
+    """The increments of a random walk of intensity ``q`` sampled every ``dt_s``: √(q·dt) N(0, 1)
+    (``q`` the spectral density of the white noise it integrates, e.g. rad²/s³ for a gyro bias)."""
+    return jnp.sqrt(intensity * dt_s) * jax.random.normal(key, shape)
+
+
+def random_walk(increments, start=0.0):
+    """The walk after each increment along axis 0: ``w_k = start + Σ_{j≤k} increments_j``.
+    NumPy increments give a NumPy walk, JAX increments a JAX one (the summation is theirs)."""
+    return start + increments.cumsum(axis=0)
+
+
+def white_noise_std(density_per_sqrt_hz, rate_hz):
+    """Per-sample standard deviation of white noise of the data-sheet density (unit/√Hz) sampled
+    at ``rate_hz``: density · √(rate/2), the noise within the Nyquist band."""
+    return density_per_sqrt_hz * np.sqrt(rate_hz / 2)
+
+
+def axes_reading(true_B, cross, scale, bias, noise, range_):
+    """A three-axis sensor's readings of ``true_B`` (N, 3): scaled by ``1 + scale`` per axis,
+    mixed by the misalignment ``I + cross`` (off-diagonal cross-axis sensitivities), offset by
+    ``bias``, plus ``noise``, clipped at ``±range_`` (the part's measurement range).
+    NumPy in, NumPy out."""
+    m = np.eye(3) + cross
+    out = (true_B * (1.0 + scale)) @ m.T + bias + noise
+    return out.clip(-range_, range_)
 
 
 # -------------------------------------------------------------------------------------------

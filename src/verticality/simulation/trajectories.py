@@ -31,9 +31,9 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.special import ndtr
 
+from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.models.kinematics import RigidMotion
-from verticality.models.params import G_M_S2
 
 
 class Trajectory(NamedTuple):

@@ -32,7 +32,7 @@ CHUNK_BLOCKS = 256
 PIECE_SAMPLES = 2**18  # a long recording is filtered piece by piece (tilt.estimate, estimate's
 # streaming read), each piece ending at a block boundary (piece_cut), so that reading and writing
 # in pieces gives the numbers of the in-memory run bit for bit
-GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: it costs ~1.4x per sample
+GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: a sample costs more with it
 
 
 def _acc_ok(acc, dts):
@@ -49,9 +49,9 @@ _OUTPUT_FIELDS = (((), np.float64), ((), np.float64), ((3,), np.float64), ((4,),
 def empty_output(n: int, alloc=np.zeros) -> core.TiltOutput:
     """A :class:`~verticality.tilt.core.TiltOutput` of ``n`` samples to be filled
     (``alloc=np.empty`` when every sample will be written). Each field is a C-contiguous array
-    carved from one allocation: the operating system maps one large allocation in huge pages,
-    which is written several times faster the first time than eight separate arrays (on a
-    recording of 57 000 samples, ~0.6 ms instead of up to ~4 ms of page faults)."""
+    carved from one allocation: the operating system maps one large allocation in huge pages, so
+    its first writes take far fewer page faults than eight separate arrays' (docs/tilt.md,
+    "Benchmark")."""
     sizes = [n * int(np.prod(shape, dtype=np.int64)) * np.dtype(dt).itemsize
              for shape, dt in _OUTPUT_FIELDS]
     buf = alloc(sum(sizes), dtype=np.uint8)

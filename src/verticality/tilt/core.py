@@ -519,7 +519,7 @@ def block_update(x, c, p, gaps: bool = True):
 
     ``gaps=False`` leaves out the handling of gaps and re-acquisitions (for a block with no gap
     while no re-acquisition is pending: the results are then the same, and the batch kernel's
-    scan runs ~1.4x faster)."""
+    scan is cheaper without the branches; docs/tilt.md, "Two batch kernels")."""
     g = p.g_m_s2
     b, P0 = x[X.b], x[X.P].reshape(NE, NE)
     reacquire0 = x[X.reacquire] > 0.5

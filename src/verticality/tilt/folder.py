@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from verticality.core.errors import InputError
-from verticality.tilt import flags as F
+from verticality.tilt.flags import FLAG_KEYS
 
 RECORDING_SUFFIXES = (".csv", ".hdf5", ".h5")
 SUMMARY_NAMES = ("summary.csv", "summary.json", "folder.json")  # in OUT beside the outputs
@@ -35,7 +35,7 @@ FILE_SUFFIXES = (".csv", ".json", ".parquet", ".h5", ".hdf5", ".txt", ".png")
 ROWS_DIR = "rows"
 MANIFEST = "made_from"  # the row file's proof: the input's and the output's fingerprints
 # the summary's count of samples carrying each flag bit (tilt_flags), by column
-FLAG_COLUMNS = {bit: f"n_{key}" for bit, key in F.FLAG_KEYS.items()}
+FLAG_COLUMNS = {bit: f"n_{key}" for bit, key in FLAG_KEYS.items()}
 SUMMARY_COLUMNS = (("file", "output", "status", "error", "rows", "duration_s", "share_flagged",
                     "mean_sigma_deg") + tuple(FLAG_COLUMNS.values()) + ("wall_s",))
 

@@ -148,7 +148,8 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
         c, j = cj
         xn, disturbed, reacq, tr = core.block_update(xc, c, p, gaps)
         xn = jnp.where(j < head[HEAD.n_update], xn, xc)
-        # (reading the re-acquisition state costs ~30 % when no gap is in the chunk)
+        # (only the kernel with gap handling reads the re-acquisition state: the other has no use
+        # for it and would pay for the reads; docs/tilt.md, "Two batch kernels")
         pend = (xc[X.reacquire], xn[X.reacquire]) if gaps else (0.0, 0.0)
         row = ROW.pack(q0=xc[X.q], b0=xc[X.b], s0=xc[X.s], var0=xc[P_DIAG], q1=xn[X.q], b1=xn[X.b],
                        var1=xn[P_DIAG], disturbed=disturbed, reacquired=reacq,

@@ -35,10 +35,10 @@ What the filter does with a clipped reading, by physics:
   gyro: an unknown constant of σ = ``EXCESS_FRACTION`` × the clip level over the clipped run, so
   the velocity the filter integrates is off by an unknown amount of variance ``(σ t)²`` after ``t``
   s; each sample adds its increment to both horizontal velocity variances
-  (:attr:`Limits.vel_var_m2_s2`, the velocity's process noise). Dropping the sample instead (a
-  first version did) treats a reading known to be beyond the range as an unknown of the size of an
-  ordinary motion's: on a shake that clips more on one side than the other the velocity then
-  misses the clipped side's impulse, biased, and the tilt follows (a synthetic fast translation
+  (:attr:`Limits.vel_var_m2_s2`, the velocity's process noise). Dropping the sample instead would
+  treat a reading known to be beyond the range as an unknown of the size of an ordinary motion's:
+  on a shake that clips more on one side than the other the velocity would then miss the clipped
+  side's impulse, biased, and the tilt would follow (a synthetic fast translation
   read by a ±4 g accelerometer, 4 % of its samples clipped: 2.16° dropped, 0.57° kept).
 
 Either way the sample is flagged ``CLIPPED``.
@@ -59,9 +59,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.tilt.flags import CLIPPED, HELD
-from verticality.tilt.params import G_M_S2
 
 MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make it a clip level
 GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s

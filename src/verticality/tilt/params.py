@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-G_M_S2 = 9.81
+from verticality.core.constants import G_M_S2
 
 
 class TiltParams(NamedTuple):

@@ -3,8 +3,8 @@ type as :func:`verticality.tilt.estimate` (one sample of a
 :class:`~verticality.tilt.output.TiltEstimate`).
 
 It runs the plain-Python implementation (:class:`verticality.tilt.stream.Stream`: scalar ``math``
-per sample, NumPy at each Kalman update, ~20 µs a sample; a jitted JAX call per sample costs
-~90 µs), which is tested against the filter's core to 1e-9; this class adds the time (stamps or a
+per sample, NumPy at each Kalman update: cheaper per sample than a jitted JAX call, which pays
+a dispatch each time; docs/tilt.md, "Python API"), which is tested against the filter's core to 1e-9; this class adds the time (stamps or a
 fixed period) and the output type.
 """
 

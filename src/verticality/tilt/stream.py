@@ -1,7 +1,7 @@
 """Plain-Python/NumPy reference implementation of the 3-D tilt filter, for real-time loops.
 
-A jitted JAX step costs ~90 µs per call on a CPU (dispatch plus ~50 small XLA kernels), too slow
-for a 1 kHz robot loop within 5 % of a core. This module runs the filter of
+A jitted JAX step pays a dispatch and ~50 small XLA kernels per call on a CPU, too slow for a 1 kHz
+robot loop within 5 % of a core (docs/tilt.md, "Python API"). This module runs the filter of
 :mod:`verticality.tilt` (the equations of ``tilt_core.step``; the every-``block``-samples
 Kalman update is ``tilt_core.block_update``) with scalar ``math`` for the per-sample
 pre-integration and NumPy for the block update. It is deliberately written apart from the JAX

@@ -77,7 +77,7 @@ def sensor_ranges(gyr_range_deg_s, acc_range_g) -> dict:
     """``--gyr-range`` (°/s) and ``--acc-range`` (g) as ``tilt.estimate``'s ranges in SI units."""
     import math
 
-    from verticality.tilt.params import G_M_S2
+    from verticality.core.constants import G_M_S2
 
     return {"gyr_range_rad_s": None if gyr_range_deg_s is None else math.radians(gyr_range_deg_s),
             "acc_range_m_s2": None if acc_range_g is None else acc_range_g * G_M_S2}

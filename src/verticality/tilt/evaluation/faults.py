@@ -24,7 +24,7 @@ import numpy as np
 
 from verticality import tilt
 from verticality.core import so3
-from verticality.tilt.params import G_M_S2
+from verticality.core.constants import G_M_S2
 
 FAULTS = ("clean", "bias_0.1", "bias_0.2", "shake", "clipped_2g", "taps", "kicks")
 

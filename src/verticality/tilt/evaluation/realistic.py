@@ -31,8 +31,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.io.broad import inclination_error_deg
-from verticality.sensors.readings import specific_force_B
+from verticality.sensors import readings
 from verticality.simulation import trajectories
 
 MOTIONS = ("slow_rotation", "fast_rotation", "slow_translation", "fast_translation",
@@ -48,7 +49,8 @@ DEG = np.pi / 180.0
 
 class SensorErrors(NamedTuple):
     """One IMU's errors: a reading is ``clip(M (1 + scale) true + bias + noise, ±range)``, ``M``
-    the misalignment (identity plus the cross-axis terms)."""
+    the misalignment (identity plus the cross-axis terms), as ``sensors.readings.axes_reading``
+    applies them."""
 
     gyr_bias_rad_s: np.ndarray  # (3,)
     gyr_scale: np.ndarray  # (3,) relative
@@ -71,14 +73,17 @@ def draw_errors(rng: np.random.Generator) -> SensorErrors:
         np.fill_diagonal(m, 0.0)
         return m
 
+    # Data sheets state accelerometer quantities in g (standard gravity, 9.80665 m/s²); they are
+    # converted with the simulation's own gravity so that a range of 16 g is 16 times the gravity
+    # the simulated sensor reads at rest.
     return SensorErrors(
         gyr_bias_rad_s=rng.uniform(-1.0, 1.0, 3) * DEG, gyr_scale=rng.uniform(-0.01, 0.01, 3),
         gyr_cross=cross(0.01), gyr_noise_rad_s_sqrt_hz=0.01 * DEG,
         gyr_bias_walk_rad_s_sqrt_s=1e-4,
         gyr_range_rad_s=(2000.0 if rng.uniform() < 0.5 else 500.0) * DEG,
-        acc_bias_m_s2=rng.uniform(-0.01, 0.01, 3) * 9.81, acc_scale=rng.uniform(-0.01, 0.01, 3),
-        acc_cross=cross(0.01), acc_noise_m_s2_sqrt_hz=200e-6 * 9.81,
-        acc_range_m_s2=(16.0 if rng.uniform() < 0.5 else 4.0) * 9.81,
+        acc_bias_m_s2=rng.uniform(-0.01, 0.01, 3) * G_M_S2, acc_scale=rng.uniform(-0.01, 0.01, 3),
+        acc_cross=cross(0.01), acc_noise_m_s2_sqrt_hz=200e-6 * G_M_S2,
+        acc_range_m_s2=(16.0 if rng.uniform() < 0.5 else 4.0) * G_M_S2,
         rate_hz=float(rng.choice(RATES_HZ)))
 
 
@@ -152,14 +157,6 @@ class Recording(NamedTuple):
     kind: str
 
 
-def read(true_B, cross, scale, bias, noise, rng_range):
-    """A sensor's readings of ``true_B`` (N, 3): misaligned, scaled, offset, noisy, clipped at
-    ``±rng_range``."""
-    m = np.eye(3) + cross
-    out = (true_B * (1.0 + scale)) @ m.T + bias + noise
-    return np.clip(out, -rng_range, rng_range)
-
-
 def perfect(e: SensorErrors) -> SensorErrors:
     """``e`` without its errors: no offset, scale, cross-axis, noise or range (the rate kept)."""
     z = np.zeros(3)
@@ -180,7 +177,7 @@ def recording(kind: str, seed: int, duration_s: float = 60.0, ideal: bool = Fals
     rng = np.random.default_rng([seed, ALL_MOTIONS.index(kind)])
     e = draw_errors(rng)
     if kind == VIGOROUS:  # a ±500 °/s gyro (common industrial IMUs' range), a ±16 g accelerometer
-        e = e._replace(gyr_range_rad_s=500.0 * DEG, acc_range_m_s2=16.0 * 9.81)
+        e = e._replace(gyr_range_rad_s=500.0 * DEG, acc_range_m_s2=16.0 * G_M_S2)
     if rate_hz is not None:
         e = e._replace(rate_hz=float(rate_hz))
     e = perfect(e) if ideal else e
@@ -189,15 +186,20 @@ def recording(kind: str, seed: int, duration_s: float = 60.0, ideal: bool = Fals
     dt = 1.0 / e.rate_hz
     t = np.arange(int(round(duration_s * e.rate_hz))) * dt
     m = trajectories.sample(traj, t)
-    f_B = np.asarray(jax.vmap(lambda mm: specific_force_B(mm, jnp.asarray(lever_B_m)))(m))
+    f_B = np.asarray(jax.vmap(lambda mm: readings.specific_force_B(mm, jnp.asarray(lever_B_m)))(m))
     n = t.size
-    walk = np.cumsum(rng.normal(0.0, e.gyr_bias_walk_rad_s_sqrt_s * np.sqrt(dt), (n, 3)), axis=0)
-    gyr = read(np.asarray(m.omega_B_rad_s), e.gyr_cross, e.gyr_scale, e.gyr_bias_rad_s + walk,
-               rng.normal(0.0, e.gyr_noise_rad_s_sqrt_hz * np.sqrt(e.rate_hz / 2), (n, 3)),
-               e.gyr_range_rad_s)
-    acc = read(f_B, e.acc_cross, e.acc_scale, e.acc_bias_m_s2,
-               rng.normal(0.0, e.acc_noise_m_s2_sqrt_hz * np.sqrt(e.rate_hz / 2), (n, 3)),
-               e.acc_range_m_s2)
+    # the draws are NumPy's (one generator per recording, in this order); the error model is
+    # the one of sensors.readings
+    walk = readings.random_walk(
+        rng.normal(0.0, e.gyr_bias_walk_rad_s_sqrt_s * np.sqrt(dt), (n, 3)))
+    gyr = readings.axes_reading(
+        np.asarray(m.omega_B_rad_s), e.gyr_cross, e.gyr_scale, e.gyr_bias_rad_s + walk,
+        rng.normal(0.0, readings.white_noise_std(e.gyr_noise_rad_s_sqrt_hz, e.rate_hz), (n, 3)),
+        e.gyr_range_rad_s)
+    acc = readings.axes_reading(
+        f_B, e.acc_cross, e.acc_scale, e.acc_bias_m_s2,
+        rng.normal(0.0, readings.white_noise_std(e.acc_noise_m_s2_sqrt_hz, e.rate_hz), (n, 3)),
+        e.acc_range_m_s2)
     quat = np.asarray(so3.quat_from_matrix(m.R_I_B))
     return Recording(gyr, acc, dt, quat, e, kind)
 
@@ -207,13 +209,6 @@ def inclination_rmse_deg(quat_est_wxyz, rec: Recording) -> float:
     err = inclination_error_deg(quat_est_wxyz, rec.quat_E_S)
     k = int(round(SCORE_FROM_S / rec.dt_s))
     return float(np.sqrt(np.mean(err[k:] ** 2)))
-
-
-def clipped_share(rec: Recording) -> tuple[float, float]:
-    """The shares of gyro and accelerometer samples with a component at the range."""
-    e = rec.errors
-    return (float(np.mean(np.any(np.abs(rec.gyr_rad_s) >= e.gyr_range_rad_s, axis=1))),
-            float(np.mean(np.any(np.abs(rec.acc_m_s2) >= e.acc_range_m_s2, axis=1))))
 
 
 def compare(kinds=MOTIONS, seeds=range(5), filters=("verticality", "vqf"), progress=None):

@@ -24,9 +24,9 @@ from scipy import signal
 
 from verticality.core import so3
 from verticality.io import broad
+from verticality.tilt.evaluation.broad import OFFLINE, OURS
 
-CAUSAL = ("verticality", "vqf")
-OFFLINE = ("verticality-offline", "vqf-offline")
+CAUSAL = (OURS, "vqf")
 FILTERS = CAUSAL + OFFLINE
 BROAD_RATES_HZ = (None, 1000.0, 100.0, 50.0)  # None: the native rate
 SYNTHETIC_RATES_HZ = (50.0, 100.0, 286.0, 1000.0)
