@@ -188,11 +188,6 @@ def run_post_rotatory_tilt(quick: bool = False) -> Result:
 SETTLE_S = 2.0
 
 
-def tilt_error_deg(r: pc.Perception) -> np.ndarray:
-    """Angle (deg) between perceived and true gravity, per row."""
-    return np.degrees(np.arccos(np.clip(np.sum(r.g_H_perceived * r.g_H_true, axis=1), -1.0, 1.0)))
-
-
 @register("perception-stabilized-head",
           "Perception: does a stabilized head perceive the vertical better? (walking)",
           source="F §1.4.3, Fig. 4.13; Merfeld & Zupan 2002; Laurens & Angelaki 2017",
@@ -213,7 +208,7 @@ def run_stabilized_head(quick: bool = False) -> Result:
             row = {}
             for head, motion in heads.items():
                 r = pc.perceive(motion, *v, otolith=otolith)
-                err = tilt_error_deg(r)[r.t_s - r.t_s[0] >= SETTLE_S]
+                err = pc.tilt_error_deg(r)[r.t_s - r.t_s[0] >= SETTLE_S]
                 row[head] = {"max_tilt_error_deg": float(err.max()),
                              "rms_tilt_error_deg": float(np.sqrt(np.mean(err**2)))}
                 if head == "fixed" and otolith == "unity":

@@ -255,7 +255,12 @@ def tilt_deg(g_H) -> np.ndarray:
     """The angle (deg) between gravity ``g_H`` (N, 3) and the head's −z axis."""
     g = np.asarray(g_H, float)
     g = g / np.linalg.norm(g, axis=-1, keepdims=True)
-    return np.degrees(np.arccos(np.clip(-g[..., 2], -1.0, 1.0)))
+    return np.degrees(np.asarray(so3.angle_between_unit_vectors(g, np.array([0.0, 0.0, -1.0]))))
+
+
+def tilt_error_deg(r: Perception) -> np.ndarray:
+    """The angle (deg) between perceived and true gravity, per row."""
+    return np.degrees(np.asarray(so3.angle_between_unit_vectors(r.g_H_perceived, r.g_H_true)))
 
 
 def pitch_up_deg(g_H) -> np.ndarray:
@@ -357,7 +362,7 @@ def perceive_file(motion_path, model: str = "merfeld", preset: str | None = None
         write_columns_csv(out_csv, dict(zip(PERCEPTION_COLUMNS, perception_table(r).T, strict=True)))
     if plot_png is not None:
         plot_series(series({model: r}, "axis"), plot_png, f"{model}: {motion_path}")
-    tilt_err = np.degrees(np.arccos(np.clip(np.sum(r.g_H_perceived * r.g_H_true, axis=1), -1, 1)))
+    tilt_err = tilt_error_deg(r)
     return {
         "model": model, "preset": preset, "otolith": otolith, "canal": canal,
         "rows": int(r.t_s.size), "duration_s": float(r.t_s[-1] - r.t_s[0]),
