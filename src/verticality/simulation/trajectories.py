@@ -34,6 +34,7 @@ from scipy.special import ndtr
 from verticality.core import so3
 from verticality.core.errors import InputError
 from verticality.models.kinematics import RigidMotion
+from verticality.models.lissajous import LISSAJOUS_AMPLITUDE, lissajous_trunk
 from verticality.models.params import G_M_S2
 
 
@@ -165,20 +166,6 @@ def jolt_position(t, t_c, sigma, peak_m_s2):
 # --------------------------------------------------------------------------------------------
 # P11: Lissajous
 # --------------------------------------------------------------------------------------------
-
-
-LISSAJOUS_AMPLITUDE = 0.25  # P11 §VI's A (m; the tilt's amplitude is A·π rad)
-
-
-def lissajous_trunk(t_s, amplitude: float = LISSAJOUS_AMPLITUDE):
-    """P11 §VI / F §4.3.2, the one definition of the Lissajous trunk motion:
-    ``(x, z, Θ)(t) = A·(sin 0.5πt, sin πt, π sin 2πt)``, A = 0.25 — horizontal and vertical
-    position (m) and tilt (rad, about the axis normal to the plane), stacked on a leading axis of
-    3 (``t_s`` any shape). :func:`lissajous` (3-D) and
-    :func:`verticality.models.lissajous_plant.trunk` (planar, with derivatives) are views of it."""
-    A = amplitude
-    return jnp.stack([A * jnp.sin(0.5 * jnp.pi * t_s), A * jnp.sin(jnp.pi * t_s),
-                      A * jnp.pi * jnp.sin(2.0 * jnp.pi * t_s)])
 
 
 def lissajous(amplitude: float = LISSAJOUS_AMPLITUDE, duration_s: float = 10.0) -> Trajectory:
