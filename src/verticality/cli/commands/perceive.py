@@ -2,8 +2,9 @@
 [--otolith unity|pendulum] [--canal high-pass|torsion] [--out OUT.csv] [--plot OUT.png] [--json]``
 
 What a vestibular perception model perceives for a head motion (MOTION.csv as `otolith` reads it,
-or a BROAD-layout recording): :func:`verticality.perception.perceive.perceive_file` (models, presets and
-sensors in docs/perception.md).
+or a BROAD-layout recording): :func:`verticality.perception.perceive.perceive_file` (models, presets
+and sensors in docs/perception.md). The model's name, preset and ``NAME=VALUE`` strings are read
+here into the parameter value the library takes.
 """
 
 from __future__ import annotations
