@@ -72,7 +72,7 @@ def main(argv=None):
           f"{'throughput ratio':>17}")
     for model in ("merfeld", "laurens"):
         params = MERFELD_PRESETS["human"] if model == "merfeld" else LAURENS_PRESETS["default"]
-        alpha = pc.canal_signals(pc.canal_model(model, params), rec.omega_H_rad_s, rec.t_s)
+        alpha = pc.canal_signals(pc.canal_model(params), rec.omega_H_rad_s, rec.t_s)
         ys = jnp.asarray(np.concatenate([alpha, pc.otolith_signals(rec)], axis=1))
         dts = jnp.full(ys.shape[0], 0.01)
         one, many = _estimators(model, args.batch, rng)

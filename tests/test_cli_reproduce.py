@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from verticality import cli, experiments
-from verticality.report.runs import flatten, format_value, to_jsonable
+from verticality.report.entries import to_jsonable
+from verticality.report.runs import flatten, format_value
 
 
 def test_reproduce_json_contract_and_figures(tmp_path, capsys):

@@ -84,33 +84,41 @@ def test_motion_window_of_a_built_in_and_its_refusals(tmp_path, capsys):
 
 
 def test_otolith_presets_and_their_checks():
-    """params.otolith_pendula: the P13 plant, J from the final m and l unless given, the lateral
-    pivots at ±r, and one-line refusals."""
+    """otolith_presets.otolith_pendula: the P13 plant, J from the final m and l unless given, the
+    lateral pivots at ±r, and one-line refusals of the values; the command line's NAME=VALUE
+    strings are read (and refused) in cli.name_values."""
     import pytest
 
+    from verticality.cli.name_values import parse_name_values
     from verticality.core.errors import InputError
-    from verticality.models.params import P13_PENDULUM, otolith_pendula
+    from verticality.models.otolith_presets import OTOLITH_PARAM_NAMES, otolith_pendula
+    from verticality.models.params import P13_PENDULUM
 
     (med,), sfx = otolith_pendula("medial")
     assert sfx == ("",)
     np.testing.assert_allclose(med.params.J_pivot_S, P13_PENDULUM.J_pivot_S, rtol=1e-15)
     np.testing.assert_array_equal(med.params.pivot_H_m, np.zeros(3))
-    (left, right), sfx = otolith_pendula("lateral", ["l=0.05", "r=0.04", "Jzz=1e-5", "beta=0"])
+    values = parse_name_values(["l=0.05", "r=0.04", "Jzz=1e-5", "beta=0"], OTOLITH_PARAM_NAMES)
+    assert values == {"l": 0.05, "r": 0.04, "Jzz": 1e-5, "beta": 0.0}
+    (left, right), sfx = otolith_pendula("lateral", values)
     assert sfx == ("_left", "_right")
     np.testing.assert_allclose(left.params.J_pivot_S, [0.05 * 0.05**2, 0.05 * 0.05**2, 1e-5])
     np.testing.assert_array_equal(left.params.pivot_H_m, [0.0, 0.04, 0.0])
     np.testing.assert_array_equal(right.params.pivot_H_m, [0.0, -0.04, 0.0])
     assert float(right.params.beta_Nms) == 0.0
-    for items, model, message in ((["m"], "medial", "expected NAME=VALUE"),
-                                  (["mass=1"], "medial", "unknown name"),
-                                  (["l=x"], "medial", "not a number"),
-                                  (["l=inf"], "medial", "not finite"),
-                                  (["Jxx=-1"], "medial", "must be positive"),
-                                  (["beta=-1"], "medial", "must not be negative"),
-                                  (["r=0.1"], "medial", "lateral model only"),
-                                  ([], "planar", "model must be one of")):
+    for items, message in ((["m"], "expected NAME=VALUE"), (["mass=1"], "unknown name"),
+                           (["l=x"], "not a number"), (["l=inf"], "not finite"),
+                           (["l=nan"], "NaN is not a value")):
         with pytest.raises(InputError, match=message):
-            otolith_pendula(model, items)
+            parse_name_values(items, OTOLITH_PARAM_NAMES)
+    for values, model, message in (({"Jxx": -1.0}, "medial", "must be positive"),
+                                   ({"beta": -1.0}, "medial", "must not be negative"),
+                                   ({"r": 0.1}, "medial", "lateral model only"),
+                                   ({"mass": 1.0}, "medial", "unknown name"),
+                                   ({"l": float("inf")}, "medial", "not finite"),
+                                   ({}, "planar", "model must be one of")):
+        with pytest.raises(InputError, match=message):
+            otolith_pendula(model, values)
 
 
 def test_stiff_or_absurd_physics_is_integrated_or_refused_never_nan(tmp_path, capsys):

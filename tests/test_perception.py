@@ -30,7 +30,7 @@ def _still(R_I_H, seconds=30.0, dt=0.01):
 
 @pytest.mark.parametrize("model", ["merfeld", "laurens"])
 def test_still_upright_head_perceives_nothing(model):
-    r = pc.perceive(_still(np.eye(3)), model)
+    r = pc.perceive(_still(np.eye(3)), perception_params(model))
     np.testing.assert_allclose(r.g_H_perceived, np.tile([0.0, 0.0, -1.0], (r.t_s.size, 1)),
                                atol=1e-12)
     for a in (r.omega_H_perceived_rad_s, r.a_H_perceived_m_s2, r.v_H_perceived_m_s):
@@ -43,7 +43,7 @@ def test_held_tilt_is_perceived_in_steady_state(model, otolith):
     from verticality.core import so3
 
     R = np.asarray(so3.exp(np.array([0.3, -0.2, 0.5])))  # roll, pitch and yaw together
-    r = pc.perceive(_still(R, 90.0), model, otolith=otolith)
+    r = pc.perceive(_still(R, 90.0), perception_params(model), otolith=otolith)
     g_true = R.T @ np.array([0.0, 0.0, -1.0])
     err_deg = np.degrees(np.arccos(np.clip(r.g_H_perceived[-1] @ g_true, -1, 1)))
     assert err_deg < 0.05
@@ -53,14 +53,14 @@ def test_held_tilt_is_perceived_in_steady_state(model, otolith):
 
 @pytest.mark.parametrize("model", ["merfeld", "laurens"])
 def test_gravity_estimate_stays_unit_length(model):
-    r = pc.perceive(pp.ovar(on_s=20.0), model)
+    r = pc.perceive(pp.ovar(on_s=20.0), perception_params(model))
     np.testing.assert_allclose(np.linalg.norm(r.g_H_perceived, axis=1), 1.0, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("preset", ["human"])
 def test_merfeld_yaw_step_time_constant_and_gain(preset):
     p = MERFELD_PRESETS[preset]
-    r = pc.perceive(pp.yaw_step(60.0, on_s=60.0, after_s=1.0), "merfeld", preset)
+    r = pc.perceive(pp.yaw_step(60.0, on_s=60.0, after_s=1.0), perception_params("merfeld", preset))
     w = np.degrees(r.omega_H_perceived_rad_s[:, 2])
     on = r.t_s >= 1.0
     gain = w[on][0] / 60.0
@@ -70,9 +70,9 @@ def test_merfeld_yaw_step_time_constant_and_gain(preset):
 
 
 def test_merfeld_somatogravic_converges_to_the_gif_direction():
-    r = pc.perceive(pp.somatogravic(0.2, on_s=60.0), "merfeld")
-    assert pc.pitch_up_deg(r.g_H_perceived)[-1] == pytest.approx(math.degrees(math.atan(0.2)),
-                                                                  abs=0.05)
+    r = pc.perceive(pp.somatogravic(0.2, on_s=60.0), perception_params("merfeld"))
+    assert pc.pitch_up_deg(r.g_H_perceived)[-1] == pytest.approx(
+        math.degrees(math.atan(0.2)), abs=0.05)
 
 
 def test_laurens_one_axis_gain_solves_its_own_riccati_equation():
@@ -93,7 +93,7 @@ def test_laurens_one_axis_gain_solves_its_own_riccati_equation():
 
 
 def test_laurens_yaw_emergent_time_constant_and_peak_gain():
-    r = pc.perceive(pp.yaw_step(60.0, on_s=60.0, after_s=40.0), "laurens")
+    r = pc.perceive(pp.yaw_step(60.0, on_s=60.0, after_s=40.0), perception_params("laurens"))
     w = np.degrees(r.omega_H_perceived_rad_s[:, 2])
     assert w.max() / 60.0 == pytest.approx(0.94, abs=0.01)
     m = (r.t_s > 63.0) & (r.t_s < 90.0)
@@ -101,7 +101,7 @@ def test_laurens_yaw_emergent_time_constant_and_peak_gain():
 
 
 def test_laurens_somatogravic_pitch_and_time_constant():
-    r = pc.perceive(pp.somatogravic(0.2, on_s=30.0), "laurens")
+    r = pc.perceive(pp.somatogravic(0.2, on_s=30.0), perception_params("laurens"))
     pitch = pc.pitch_up_deg(r.g_H_perceived)
     assert pitch[-1] == pytest.approx(math.degrees(math.atan(0.2)), abs=0.5)
     t63 = r.t_s[np.argmax(pitch >= (1 - math.exp(-1)) * pitch[-1])] - 1.0
@@ -109,21 +109,30 @@ def test_laurens_somatogravic_pitch_and_time_constant():
 
 
 def test_parameters_and_options_are_checked():
+    from verticality.cli.name_values import parse_name_values
+
+    fields = MERFELD_PRESETS["human"]._fields
     with pytest.raises(InputError):
         perception_params("merfeld", "martian")
+    with pytest.raises(InputError, match="unknown parameter"):
+        perception_params("merfeld", None, {"k_omeg": 1.0})
     with pytest.raises(InputError):
-        perception_params("merfeld", None, ["k_omega"])
-    with pytest.raises(InputError):
-        perception_params("laurens", None, ["tau_c_s=-1"])
+        perception_params("laurens", None, {"tau_c_s": -1.0})
     with pytest.raises(InputError, match="k_a < 1"):
-        perception_params("merfeld", None, ["k_a=1"])
-    assert perception_params("merfeld", "human", ["k_omega=5"]).k_omega == 5.0
-    # the parser shared with `otolith --param`: NaN refused, an infinite time constant allowed
+        perception_params("merfeld", None, {"k_a": 1.0})
+    assert perception_params("merfeld", "human", {"k_omega": 5.0}).k_omega == 5.0
+    with pytest.raises(InputError, match="k_a < 1"):
+        pc.perceive(_still(np.eye(3), 1.0), MERFELD_PRESETS["human"]._replace(k_a=1.0))
+    # the command line's NAME=VALUE strings (shared with `otolith --param`): a bare name and NaN
+    # refused, an infinite time constant allowed
+    with pytest.raises(InputError, match="NAME=VALUE"):
+        parse_name_values(["k_omega"], fields, allow_inf=True)
     with pytest.raises(InputError, match="NaN"):
-        perception_params("merfeld", None, ["k_f=nan"])
-    assert math.isinf(perception_params("merfeld", "human", ["tau_a_s=inf"]).tau_a_s)
+        parse_name_values(["k_f=nan"], fields, allow_inf=True)
+    values = parse_name_values(["tau_a_s=inf"], fields, allow_inf=True)
+    assert math.isinf(perception_params("merfeld", "human", values).tau_a_s)
     with pytest.raises(InputError):
-        pc.perceive(_still(np.eye(3), 1.0), "merfeld", otolith="glass")
+        pc.perceive(_still(np.eye(3), 1.0), MERFELD_PRESETS["human"], otolith="glass")
 
 
 def test_stabilized_head_keeps_heading_and_acceleration_and_is_upright():
@@ -151,13 +160,13 @@ def test_centrifuge_gif_rolls_by_atan_omega2_r_over_g_while_the_head_stays_uprig
                                math.degrees(math.atan2(w * w * 1.5, G_M_S2)), atol=1e-9)
     np.testing.assert_allclose(rec.omega_H_rad_s[end], np.tile([0.0, 0.0, w], (end.sum(), 1)),
                                atol=1e-9)
-    assert np.max(pc.tilt_deg(pc.perceive(rec, "laurens").g_H_true)) < 1e-9
+    assert np.max(pc.tilt_deg(pc.perceive(rec, perception_params("laurens")).g_H_true)) < 1e-9
 
 
 def test_torsion_pendulum_canal_is_the_high_pass_canal_at_low_frequency():
     rec = pp.yaw_step(60.0, on_s=20.0, after_s=1.0)
-    hp = pc.perceive(rec, "merfeld")
-    tp = pc.perceive(rec, "merfeld", canal="torsion")
+    hp = pc.perceive(rec, perception_params("merfeld"))
+    tp = pc.perceive(rec, perception_params("merfeld"), canal="torsion")
     w_hp, w_tp = (np.degrees(r.omega_H_perceived_rad_s[:, 2]) for r in (hp, tp))
     t = rec.t_s  # away from the steps (at 1 s and 21 s), where the 5 ms pole shows
     late = ((t > 2.0) & (t < 20.9)) | (t > 21.5)

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from verticality import cli
-from verticality.cli.commands.reproduce import Tracker
 from verticality.report import costs as experiment_costs
+from verticality.report.progress import Tracker
 from verticality.report.runs import run_experiments
 
 CHEAP = ["tahboub-step", "tahboub-gains", "perception-yaw"]  # deliberately not in registry order

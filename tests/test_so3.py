@@ -81,3 +81,30 @@ def test_roll_pitch_from_up():
     q = so3.quat_from_rpy_radians(0.2, -0.4, 1.3)
     roll, pitch = so3.roll_pitch_from_up(so3.up_in_frame(so3.matrix_from_quat(q)))
     np.testing.assert_allclose([roll, pitch], [0.2, -0.4], atol=1e-12)
+
+
+@given(finite)
+def test_rotations_about_one_axis_are_the_hand_written_matrices_and_exp(angle):
+    c, s = np.cos(angle), np.sin(angle)
+    want = {"x": [[1, 0, 0], [0, c, -s], [0, s, c]], "y": [[c, 0, s], [0, 1, 0], [-s, 0, c]],
+            "z": [[c, -s, 0], [s, c, 0], [0, 0, 1]]}
+    for axis, rot in (("x", so3.rot_x), ("y", so3.rot_y), ("z", so3.rot_z)):
+        assert np.array_equal(np.asarray(rot(angle)), np.array(want[axis], float))
+        e = np.eye(3)["xyz".index(axis)]
+        np.testing.assert_allclose(rot(angle), so3.exp(angle * e), atol=1e-15)
+
+
+def test_rotations_about_one_axis_batch_over_the_angles():
+    angles = np.linspace(-3.0, 3.0, 12).reshape(3, 4)
+    R = np.asarray(so3.rot_y(angles))
+    assert R.shape == (3, 4, 3, 3)
+    np.testing.assert_array_equal(R[2, 1], np.asarray(so3.rot_y(angles[2, 1])))
+
+
+@given(st.floats(-3.0, 3.0), st.floats(-1.5, 1.5), st.floats(-3.0, 3.0))
+def test_matrix_from_rpy_is_the_zyx_product_and_rpy_from_matrix_inverts_it(roll, pitch, yaw):
+    R = so3.matrix_from_rpy(roll, pitch, yaw)
+    np.testing.assert_allclose(R, so3.rot_z(yaw) @ so3.rot_y(pitch) @ so3.rot_x(roll), atol=1e-15)
+    np.testing.assert_allclose(R, so3.matrix_from_quat(so3.quat_from_rpy_radians(roll, pitch, yaw)),
+                               atol=1e-14)
+    np.testing.assert_allclose(so3.rpy_from_matrix(R), [roll, pitch, yaw], atol=1e-8)

@@ -13,7 +13,7 @@ import pytest
 from verticality.core.errors import InputError
 from verticality.experiments import newton as E
 from verticality.models import lissajous_plant as lp
-from verticality.simulation.trajectories import lissajous_trunk
+from verticality.models.lissajous import lissajous_trunk
 from verticality.sweep import kernels as K
 from verticality.sweep import spec as S
 

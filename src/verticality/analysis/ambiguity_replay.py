@@ -26,11 +26,11 @@ from verticality.analysis import ambiguity as am
 from verticality.core import so3
 from verticality.core.errors import InputError
 from verticality.io.motion import MotionRecord
+from verticality.models.otolith_presets import otolith_pendula
 from verticality.models.params import (
     F452_OTOLITH_DAMPING_RATIO,
     F452_OTOLITH_NATURAL_HZ,
     G_M_S2,
-    otolith_pendula,
 )
 
 OTOLITHS = ("f452", "p13")
@@ -47,28 +47,27 @@ class UprightReading(NamedTuple):
     summary: dict
 
 
-def otolith_overrides(otolith: str) -> list[str]:
-    """``NAME=VALUE`` overrides of :func:`verticality.models.params.otolith_pendula` for
-    ``otolith``."""
+def otolith_values(otolith: str) -> dict[str, float]:
+    """The parameter values of :func:`verticality.models.otolith_presets.otolith_pendula` for
+    ``otolith`` (by name; none for P13's own)."""
     if otolith not in OTOLITHS:
         raise InputError(f"otolith must be one of {', '.join(OTOLITHS)}, not {otolith!r}")
     if otolith == "p13":
-        return []
+        return {}
     w_n = 2.0 * math.pi * F452_OTOLITH_NATURAL_HZ
     l_m = G_M_S2 / w_n**2
     J = F452_MASS_KG * l_m**2
     beta = 2.0 * F452_OTOLITH_DAMPING_RATIO * w_n * J
     # isotropic inertia: the turn about the arm does not move the arm, and with P13's J_zz = J/20
     # its damping rate β/J_zz = 40 ω_n would need sub-steps below 40 µs
-    return [f"m={F452_MASS_KG!r}", f"l={l_m!r}", f"beta={beta!r}", f"Jxx={J!r}", f"Jyy={J!r}",
-            f"Jzz={J!r}"]
+    return {"m": F452_MASS_KG, "l": l_m, "beta": beta, "Jxx": J, "Jyy": J, "Jzz": J}
 
 
 def upright_reading(record: MotionRecord, otolith: str = "f452", progress=None) -> UprightReading:
     """The acceleration the otolith indicates under the upright assumption, against the truth."""
     from verticality.simulation import closed_loop as simulation
 
-    pendula, _ = otolith_pendula("medial", otolith_overrides(otolith))
+    pendula, _ = otolith_pendula("medial", otolith_values(otolith))
     max_substep = 1e-4 if otolith == "f452" else 1e-3
     _, phi = simulation.otolith_replay(record.t_s, record.q_I_H_wxyz, record.omega_H_rad_s,
                                        record.a_I_m_s2, pendula, max_substep_s=max_substep,

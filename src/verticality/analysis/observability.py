@@ -59,6 +59,7 @@ import numpy as np
 from jax.experimental.jet import jet
 
 from verticality.analysis.observability_taylor import taylor
+from verticality.core import so3
 from verticality.core.errors import InputError
 
 DEFAULT_RTOL = 1e-8
@@ -464,12 +465,7 @@ def random_rotation(rng: np.random.Generator) -> np.ndarray:
     """A rotation matrix drawn uniformly on SO(3) (normalised Gaussian quaternion), NumPy."""
     w, x, y, z = rng.standard_normal(4)
     n = math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / n, x / n, y / n, z / n
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.asarray(so3.matrix_from_unit_quat(np.array([w, x, y, z]) / n))
 
 
 def default_sample(problem: Problem, rng: np.random.Generator) -> tuple[Any, dict]:

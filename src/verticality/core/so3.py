@@ -183,16 +183,49 @@ def quat_from_matrix(R):
     return jnp.where(q[..., :1] < 0.0, -q, q)
 
 
+def _elementary(angle_rad, rows):
+    """Rotation about one axis, entry by entry: ``rows`` picks each entry from (0, 1, cos, sin,
+    -sin), so the matrix is exact to the rounding of cos and sin at every angle (Rodrigues'
+    form rounds differently); batched over the leading axes of ``angle_rad``."""
+    a = jnp.asarray(angle_rad, dtype=jnp.float64)
+    c, s = jnp.cos(a), jnp.sin(a)
+    entries = {0: jnp.zeros_like(a), 1: jnp.ones_like(a), "c": c, "s": s, "-s": -s}
+    return jnp.stack([jnp.stack([entries[e] for e in row], -1) for row in rows], -2)
+
+
 def rot_x(angle_rad):
-    return exp(jnp.array([1.0, 0.0, 0.0]) * angle_rad)
+    """Rotation by ``angle_rad`` about x, shape ``angle_rad.shape + (3, 3)``."""
+    return _elementary(angle_rad, ((1, 0, 0), (0, "c", "-s"), (0, "s", "c")))
 
 
 def rot_y(angle_rad):
-    return exp(jnp.array([0.0, 1.0, 0.0]) * angle_rad)
+    """Rotation by ``angle_rad`` about y, shape ``angle_rad.shape + (3, 3)``."""
+    return _elementary(angle_rad, (("c", 0, "s"), (0, 1, 0), ("-s", 0, "c")))
 
 
 def rot_z(angle_rad):
-    return exp(jnp.array([0.0, 0.0, 1.0]) * angle_rad)
+    """Rotation by ``angle_rad`` about z, shape ``angle_rad.shape + (3, 3)``."""
+    return _elementary(angle_rad, (("c", "-s", 0), ("s", "c", 0), (0, 0, 1)))
+
+
+def matrix_from_rpy(roll, pitch, yaw):
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` (aerospace ZYX order) for scalar angles (rad), entry by
+    entry: elementwise, so XLA fuses it, and smooth everywhere (trajectories differentiate it)."""
+    cr, sr = jnp.cos(roll), jnp.sin(roll)
+    cp, sp = jnp.cos(pitch), jnp.sin(pitch)
+    cy, sy = jnp.cos(yaw), jnp.sin(yaw)
+    return jnp.stack([
+        jnp.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr]),
+        jnp.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr]),
+        jnp.stack([-sp, cp * sr, cp * cr]),
+    ])
+
+
+def rpy_from_matrix(R):
+    """(roll, pitch, yaw) of ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (one matrix, |pitch| < π/2)."""
+    R = jnp.asarray(R, float)
+    return jnp.stack([jnp.arctan2(R[2, 1], R[2, 2]), -jnp.arcsin(jnp.clip(R[2, 0], -1.0, 1.0)),
+                      jnp.arctan2(R[1, 0], R[0, 0])])
 
 
 def log_principal(R):

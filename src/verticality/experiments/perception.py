@@ -33,9 +33,9 @@ from verticality.core.constants import G_M_S2
 from verticality.experiments import Result, check, register
 from verticality.perception import paradigms as pp
 from verticality.perception import perceive as pc
-from verticality.perception.params import MERFELD_PRESETS
+from verticality.perception.params import LAURENS_PRESETS, MERFELD_PRESETS
 
-MODELS = {"merfeld": ("merfeld", "human"), "laurens": ("laurens", "default")}
+MODELS = {"merfeld": MERFELD_PRESETS["human"], "laurens": LAURENS_PRESETS["default"]}
 OMEGA_DEG_S = 60.0
 SOMATOGRAVIC_G = 0.2
 GIF_PITCH_DEG = math.degrees(math.atan(SOMATOGRAVIC_G))
@@ -56,7 +56,7 @@ def figures(result: Result, out_dir: Path, name: str, title: str) -> list[Path]:
 def run_yaw(quick: bool = False) -> Result:
     on_s, after_s = 60.0, (40.0 if quick else 60.0)
     rec = pp.yaw_step(OMEGA_DEG_S, on_s=on_s, after_s=after_s)
-    runs = {k: pc.perceive(rec, *v) for k, v in MODELS.items()}
+    runs = {k: pc.perceive(rec, v) for k, v in MODELS.items()}
     t = rec.t_s
     start, stop = 1.0, 1.0 + on_s
     per = (t > start + 2.0) & (t < start + 40.0)
@@ -96,7 +96,7 @@ def run_yaw(quick: bool = False) -> Result:
 def run_somatogravic(quick: bool = False) -> Result:
     on_s = 30.0 if quick else 60.0
     rec = pp.somatogravic(SOMATOGRAVIC_G, on_s=on_s)
-    runs = {k: pc.perceive(rec, *v) for k, v in MODELS.items()}
+    runs = {k: pc.perceive(rec, v) for k, v in MODELS.items()}
     metrics = {}
     for k, r in runs.items():
         pitch = pc.pitch_up_deg(r.g_H_perceived)
@@ -128,8 +128,8 @@ def run_somatogravic(quick: bool = False) -> Result:
 def run_ovar(quick: bool = False) -> Result:
     on_s = 60.0 if quick else 120.0
     rec = pp.ovar(20.0, OMEGA_DEG_S, on_s=on_s)
-    models = dict(MODELS, **{"merfeld-observer": ("merfeld", "observer")})
-    runs = {k: pc.perceive(rec, *v) for k, v in models.items()}
+    models = dict(MODELS, **{"merfeld-observer": MERFELD_PRESETS["observer"]})
+    runs = {k: pc.perceive(rec, v) for k, v in models.items()}
     t = rec.t_s
     last = t > t[-1] - 20.0
     metrics = {}
@@ -170,7 +170,7 @@ def run_post_rotatory_tilt(quick: bool = False) -> Result:
     for k, v in MODELS.items():
         taus = {}
         for cond, tilt in (("upright", False), ("tilted", True)):
-            r = pc.perceive(pp.post_rotatory_tilt(tilt, OMEGA_DEG_S, after_s=after_s), *v)
+            r = pc.perceive(pp.post_rotatory_tilt(tilt, OMEGA_DEG_S, after_s=after_s), v)
             taus[cond] = pc.e_fold_time(r.t_s, np.linalg.norm(r.omega_H_perceived_rad_s, axis=1), stop + 2.0)
             if tilt:
                 runs[k] = r
@@ -186,11 +186,6 @@ def run_post_rotatory_tilt(quick: bool = False) -> Result:
 # ------------------------------------------------------------------------- stabilized head
 
 SETTLE_S = 2.0
-
-
-def tilt_error_deg(r: pc.Perception) -> np.ndarray:
-    """Angle (deg) between perceived and true gravity, per row."""
-    return np.degrees(np.arccos(np.clip(np.sum(r.g_H_perceived * r.g_H_true, axis=1), -1.0, 1.0)))
 
 
 @register("perception-stabilized-head",
@@ -212,8 +207,8 @@ def run_stabilized_head(quick: bool = False) -> Result:
         for otolith in ("unity", "pendulum"):
             row = {}
             for head, motion in heads.items():
-                r = pc.perceive(motion, *v, otolith=otolith)
-                err = tilt_error_deg(r)[r.t_s - r.t_s[0] >= SETTLE_S]
+                r = pc.perceive(motion, v, otolith=otolith)
+                err = pc.tilt_error_deg(r)[r.t_s - r.t_s[0] >= SETTLE_S]
                 row[head] = {"max_tilt_error_deg": float(err.max()),
                              "rms_tilt_error_deg": float(np.sqrt(np.mean(err**2)))}
                 if head == "fixed" and otolith == "unity":
@@ -249,7 +244,7 @@ def run_centrifuge(quick: bool = False) -> Result:
     perceived yaw rate."""
     on_s = 40.0 if quick else 90.0
     rec = pp.centrifuge(CENTRIFUGE_RADIUS_M, CENTRIFUGE_DEG_S, CENTRIFUGE_RAMP_S, on_s=on_s)
-    runs = {k: pc.perceive(rec, *v) for k, v in MODELS.items()}
+    runs = {k: pc.perceive(rec, v) for k, v in MODELS.items()}
     w = math.radians(CENTRIFUGE_DEG_S)
     gif_roll = math.degrees(math.atan2(w * w * CENTRIFUGE_RADIUS_M, G_M_S2))
     metrics = {"gif_roll_deg": gif_roll}
@@ -265,7 +260,7 @@ def run_centrifuge(quick: bool = False) -> Result:
 
 # ------------------------------------------------------------------------------ roll swing
 
-SWING_MODELS = {"merfeld": ("merfeld", "observer"), "laurens": ("laurens", "default")}
+SWING_MODELS = {"merfeld": MERFELD_PRESETS["observer"], "laurens": LAURENS_PRESETS["default"]}
 SWING_RADIUS_M, SWING_TILT_DEG, SWING_HZ = 1.22, 10.0, 0.45
 RADER_TABLE4 = {  # Rader et al. 2009, Table 4 (C, YN, ZN, ZD): the Observer model and subjects
     "model_tilt_deg": {"center": 10.5, "y-null": 11.0, "z-null": 12.0, "z-double": 13.0},
@@ -337,7 +332,7 @@ def run_roll_swing(quick: bool = False) -> Result:
         rec = pp.roll_swing(c, SWING_RADIUS_M, SWING_TILT_DEG, SWING_HZ, on_s=on_s)
         last = rec.t_s > rec.t_s[-1] - 2 * period
         actual = swing_forces(rec)
-        runs = {k: pc.perceive(rec, *v) for k, v in SWING_MODELS.items()}
+        runs = {k: pc.perceive(rec, v) for k, v in SWING_MODELS.items()}
         true_roll = roll_deg(next(iter(runs.values())).g_H_true)
         row = {"actual": {"tilt_deg": _amplitude(true_roll[last]),
                           "peak_omega_deg_s": _amplitude(np.degrees(rec.omega_H_rad_s[last, 0])),

@@ -146,7 +146,7 @@ def inclination_error_deg(quat_est_wxyz, quat_ref_wxyz) -> np.ndarray:
     qr = np.asarray(quat_ref_wxyz, dtype=np.float64)
     qe = qe / np.linalg.norm(qe, axis=-1, keepdims=True)
     qr = qr / np.linalg.norm(qr, axis=-1, keepdims=True)
-    qr_inv = qr * np.array([1.0, -1.0, -1.0, -1.0])
+    qr_inv = np.asarray(so3.quat_conjugate(qr))  # the inverse of a unit quaternion
     e = np.stack(so3.quat_multiply_components(tuple(np.moveaxis(qe, -1, 0)),
                                               tuple(np.moveaxis(qr_inv, -1, 0))), axis=-1)
     c = np.sqrt(e[..., 0] ** 2 + e[..., 3] ** 2)

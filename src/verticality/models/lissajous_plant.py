@@ -15,7 +15,7 @@ its own estimate of the head tilt to do it.
   :class:`~verticality.models.ramp_discretized.RampDiscretized` (RK4 sub-steps fed the recorded
   fast-rate inputs as ramps).
 - :func:`trunk` — the trunk's motion for the planar plant, derived (by autodiff) from the one
-  Lissajous definition, :func:`verticality.simulation.trajectories.lissajous_trunk`.
+  Lissajous definition, :func:`verticality.models.lissajous.lissajous_trunk`.
 
 State: :class:`~verticality.models.planar.PlanarState` (θ_S, ω_S, θ_H, ω_H), angles from the
 vertical. Input: :class:`~verticality.models.planar.HeadInput`. Output: the reading θ_S − θ_H.
@@ -28,9 +28,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from verticality.models.lissajous import LISSAJOUS_AMPLITUDE, lissajous_trunk
 from verticality.models.planar import PlanarHead, WithHeadFrameInput
 from verticality.models.ramp_discretized import RampDiscretized
-from verticality.simulation.trajectories import LISSAJOUS_AMPLITUDE, lissajous_trunk
 
 
 def p11_head(scale: float = 1.0) -> PlanarHead:
@@ -67,7 +67,8 @@ class TrunkSample(NamedTuple):
 
 def trunk(t_s, amplitude=LISSAJOUS_AMPLITUDE, frequency_scale=1.0) -> TrunkSample:
     """The trunk's horizontal and vertical acceleration and its tilt Θ with two derivatives at the
-    times ``t_s`` (any shape): the derivatives of :func:`verticality.simulation.trajectories.lissajous_trunk`
+    times ``t_s`` (any shape): the derivatives of
+    :func:`verticality.models.lissajous.lissajous_trunk`
     by forward-mode autodiff.
 
     ``amplitude`` is the motion's A (default P11's 0.25; x, z and Θ all scale with it);

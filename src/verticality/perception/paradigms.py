@@ -49,18 +49,10 @@ def _times(total_s, dt_s):
     return np.arange(int(round(total_s / dt_s)) + 1) * dt_s
 
 
-def _rz(angle):
-    angle = np.asarray(angle, float)
-    c, s = np.cos(angle), np.sin(angle)
-    z, o = np.zeros_like(angle), np.ones_like(angle)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
-def _ry(angle):
-    angle = np.asarray(angle, float)
-    c, s = np.cos(angle), np.sin(angle)
-    z, o = np.zeros_like(angle), np.ones_like(angle)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+def _rot(axis_fn, angle) -> np.ndarray:
+    """``so3``'s rotation about one axis, batched over ``angle``, as NumPy (products of these stay
+    NumPy matrix products)."""
+    return np.asarray(axis_fn(np.asarray(angle, float)))
 
 
 def _yaw_angle(t, start_s, stop_s, omega_rad_s):
@@ -72,7 +64,7 @@ def yaw_step(omega_deg_s: float = 60.0, on_s: float = 60.0, after_s: float = 60.
              still_s: float = 1.0, dt_s: float = DT_S) -> MotionRecord:
     t = _times(still_s + on_s + after_s, dt_s)
     psi = _yaw_angle(t, still_s, still_s + on_s, np.radians(omega_deg_s))
-    return _record(t, _rz(psi), np.zeros((t.size, 3)))
+    return _record(t, _rot(so3.rot_z, psi), np.zeros((t.size, 3)))
 
 
 def somatogravic(accel_g: float = 0.2, on_s: float = 30.0, still_s: float = 1.0,
@@ -89,7 +81,7 @@ def ovar(tilt_deg: float = 20.0, omega_deg_s: float = 60.0, on_s: float = 120.0,
     then spinning about its own z axis."""
     t = _times(still_s + on_s, dt_s)
     psi = _yaw_angle(t, still_s, still_s + on_s, np.radians(omega_deg_s))
-    R = _ry(np.full(t.size, np.radians(tilt_deg))) @ _rz(psi)
+    R = _rot(so3.rot_y, np.full(t.size, np.radians(tilt_deg))) @ _rot(so3.rot_z, psi)
     return _record(t, R, np.zeros((t.size, 3)))
 
 
@@ -102,7 +94,7 @@ def post_rotatory_tilt(tilt: bool = True, omega_deg_s: float = 60.0, on_s: float
     stop = still_s + on_s
     psi = _yaw_angle(t, still_s, stop, np.radians(omega_deg_s))
     theta = np.radians(pitch_deg) * np.clip((t - stop) / pitch_s, 0.0, 1.0) if tilt else 0.0 * t
-    return _record(t, _rz(psi) @ _ry(theta), np.zeros((t.size, 3)))
+    return _record(t, _rot(so3.rot_z, psi) @ _rot(so3.rot_y, theta), np.zeros((t.size, 3)))
 
 
 def centrifuge(radius_m: float = 1.0, omega_deg_s: float = 180.0, ramp_s: float = 10.0,
@@ -121,14 +113,7 @@ def centrifuge(radius_m: float = 1.0, omega_deg_s: float = 180.0, ramp_s: float 
     c, si = np.cos(psi), np.sin(psi)
     a = radius_m * (accel[:, None] * np.stack([-si, c, 0 * c], -1)
                     - (rate**2)[:, None] * np.stack([c, si, 0 * c], -1))
-    return _record(t, _rz(psi + np.pi / 2), a)
-
-
-def _rx(angle):
-    angle = np.asarray(angle, float)
-    c, s = np.cos(angle), np.sin(angle)
-    z, o = np.zeros_like(angle), np.ones_like(angle)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
+    return _record(t, _rot(so3.rot_z, psi + np.pi / 2), a)
 
 
 SWING_CONDITIONS = ("center", "y-null", "z-null", "z-double")
@@ -189,7 +174,7 @@ def roll_swing(condition: str = "y-null", radius_m: float = 1.22, tilt_deg: floa
     r = r0 + amp * (1.0 - np.cos(2 * w * s))
     rd = amp * 2 * w * np.sin(2 * w * s)
     rdd = amp * (2 * w) ** 2 * np.cos(2 * w * s) * (t > still_s)
-    R = _rx(th)
+    R = _rot(so3.rot_x, th)
     y_H, z_H = R[:, :, 1], R[:, :, 2]
     a_I = (2 * rd * thd + r * thdd)[:, None] * y_H + (r * thd**2 - rdd)[:, None] * z_H
     return _record(t, R, a_I)
@@ -201,4 +186,4 @@ def stabilized(record: MotionRecord) -> MotionRecord:
     x axis, and putting its z axis on the vertical)."""
     R = np.asarray(so3.matrix_from_quat(record.q_I_H_wxyz))
     yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
-    return _record(record.t_s, _rz(np.unwrap(yaw)), record.a_I_m_s2)
+    return _record(record.t_s, _rot(so3.rot_z, np.unwrap(yaw)), record.a_I_m_s2)

@@ -34,10 +34,10 @@ Laurens & Angelaki 2017 Kalman model (:mod:`verticality.perception.laurens`)
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import NamedTuple
 
 from verticality.core.errors import InputError
-from verticality.models.params import parse_name_values
 
 
 class MerfeldParams(NamedTuple):
@@ -87,17 +87,20 @@ PARAM_DOMAIN: dict[str, tuple[float, float, bool]] = {
 DEFAULT_PRESET = {"merfeld": "human", "laurens": "default"}
 
 
-def perception_params(model: str, preset: str | None = None, items=()):
-    """The parameters of ``model`` (``merfeld`` or ``laurens``): ``preset`` (its default when None)
-    with ``NAME=VALUE`` overrides (the field names above, SI units, angles in rad)."""
-    if model not in PRESETS:
-        raise InputError(f"unknown perception model {model!r}; known: {', '.join(PRESETS)}")
-    presets = PRESETS[model]
-    name = DEFAULT_PRESET[model] if preset is None else preset
-    if name not in presets:
-        raise InputError(f"unknown preset {name!r} for {model}; known: {', '.join(presets)}")
-    p = presets[name]
-    p = p._replace(**parse_name_values(items, p._fields, allow_inf=True))
+def model_name(params) -> str:
+    """``"merfeld"`` or ``"laurens"``: the model a parameter value belongs to."""
+    if isinstance(params, MerfeldParams):
+        return "merfeld"
+    if isinstance(params, LaurensParams):
+        return "laurens"
+    raise InputError(f"not the parameters of a perception model: {params!r}")
+
+
+def check_params(params) -> None:
+    """Refuse (:class:`InputError`, one line) parameters outside :data:`PARAM_DOMAIN`, or Merfeld–
+    Zupan gains that break the observer's algebraic loops."""
+    model = model_name(params)
+    p = params
     if isinstance(p, MerfeldParams) and not (p.k_omega >= 0.0 and p.k_a < 1.0 and p.k_f >= 0.0
                                              and p.k_f_omega >= 0.0):
         raise InputError(f"merfeld: need k_omega, k_f, k_f_omega >= 0 and k_a < 1 (the observer's "
@@ -108,4 +111,25 @@ def perception_params(model: str, preset: str | None = None, items=()):
         if not (lo <= v <= hi or (inf_ok and v == math.inf)):
             raise InputError(f"{model}: {key} = {v:g} is outside [{lo:g}, {hi:g}]"
                              f"{' (or inf)' if inf_ok else ''}, where the model stays finite")
+
+
+def perception_params(model: str, preset: str | None = None,
+                      values: Mapping[str, float] | None = None):
+    """The parameters of ``model`` (``merfeld`` or ``laurens``): ``preset`` (its default when None)
+    with the ``values`` given by name replacing the preset's (the field names above, SI units,
+    angles in rad), checked (:func:`check_params`)."""
+    if model not in PRESETS:
+        raise InputError(f"unknown perception model {model!r}; known: {', '.join(PRESETS)}")
+    presets = PRESETS[model]
+    name = DEFAULT_PRESET[model] if preset is None else preset
+    if name not in presets:
+        raise InputError(f"unknown preset {name!r} for {model}; known: {', '.join(presets)}")
+    p = presets[name]
+    values = dict(values or {})
+    unknown = sorted(set(values) - set(p._fields))
+    if unknown:
+        raise InputError(f"{model}: unknown parameter {unknown[0]}; choose from "
+                         f"{', '.join(p._fields)}")
+    p = p._replace(**values)
+    check_params(p)
     return p

@@ -36,9 +36,10 @@ from verticality.core.sizing import check_work_size
 from verticality.io.motion import MotionRecord
 from verticality.models import canal as canal_models
 from verticality.models.base import step_rk4
+from verticality.models.otolith_presets import otolith_pendula
 from verticality.perception.laurens import laurens_angelaki
 from verticality.perception.merfeld import MerfeldZupan
-from verticality.perception.params import LaurensParams, MerfeldParams, perception_params
+from verticality.perception.params import LaurensParams, MerfeldParams, check_params, model_name
 
 MODELS = ("merfeld", "laurens")
 OTOLITHS = ("unity", "pendulum")
@@ -56,7 +57,7 @@ class Perception(NamedTuple):
     v_H_perceived_m_s: np.ndarray  # (N, 3)
 
 
-def canal_model(model: str, params, canal: str = "high-pass"):
+def canal_model(params, canal: str = "high-pass"):
     """The sensor canal that goes with the perception model's parameters."""
     if canal not in CANALS:
         raise InputError(f"unknown canal {canal!r}; known: {', '.join(CANALS)}")
@@ -67,12 +68,13 @@ def canal_model(model: str, params, canal: str = "high-pass"):
     return canal_models.high_pass(tau, None if np.isinf(tau_a) else tau_a)
 
 
-def estimator(model: str, params):
+def estimator(params):
+    """The perception model of the parameter value ``params``."""
     if isinstance(params, MerfeldParams):
         return MerfeldZupan(params)
     if isinstance(params, LaurensParams):
         return laurens_angelaki(params)
-    raise InputError(f"unknown perception model {model!r}")
+    raise InputError(f"not the parameters of a perception model: {params!r}")
 
 
 @jax.jit
@@ -126,10 +128,9 @@ def otolith_signals(record: MotionRecord, otolith: str = "unity") -> np.ndarray:
         f_I = (np.asarray(gravity_I()) - record.a_I_m_s2) / G_M_S2
         return np.einsum("nji,nj->ni", R, f_I)
     if otolith == "pendulum":
-        from verticality.models.params import otolith_pendula
         from verticality.simulation import closed_loop as simulation
 
-        pendula, _ = otolith_pendula("medial", ())
+        pendula, _ = otolith_pendula("medial")
         s_H, _ = simulation.otolith_replay(record.t_s, record.q_I_H_wxyz, record.omega_H_rad_s,
                                            record.a_I_m_s2, pendula)
         return np.asarray(s_H)[:, 0, :]
@@ -183,10 +184,13 @@ def _interp(t_new, t, a) -> np.ndarray:
     return np.column_stack([np.interp(t_new, t, col) for col in np.asarray(a, float).T])
 
 
-def perceive(record: MotionRecord, model: str = "merfeld", preset: str | None = None, params=(),
-             otolith: str = "unity", canal: str = "high-pass") -> Perception:
-    """Perceived gravity, rotation, acceleration and velocity for the head motion ``record``
-    (the perception model starts upright and still; ``params``: ``NAME=VALUE`` overrides).
+def perceive(record: MotionRecord, params, otolith: str = "unity",
+             canal: str = "high-pass") -> Perception:
+    """Perceived gravity, rotation, acceleration and velocity for the head motion ``record`` by the
+    perception model of the parameter value ``params`` (:class:`MerfeldParams` or
+    :class:`LaurensParams`, e.g. :func:`verticality.perception.params.perception_params` of a
+    model and preset; checked by :func:`~verticality.perception.params.check_params`). The model
+    starts upright and still.
 
     The Merfeld–Zupan observer runs on the record's rows (any sampling). The Laurens–Angelaki
     filter runs on its own time step δt: for a record sampled otherwise, the sensor signals are
@@ -196,9 +200,10 @@ def perceive(record: MotionRecord, model: str = "merfeld", preset: str | None = 
         raise InputError(f"unknown otolith {otolith!r}; known: {', '.join(OTOLITHS)}")
     if len(record.t_s) < 2:
         raise InputError("perceive: the motion needs at least two rows")
-    p = perception_params(model, preset, params)
-    est = estimator(model, p)
-    alpha = canal_signals(canal_model(model, p, canal), record.omega_H_rad_s, record.t_s)
+    check_params(params)
+    p = params
+    est = estimator(p)
+    alpha = canal_signals(canal_model(p, canal), record.omega_H_rad_s, record.t_s)
     f = otolith_signals(record, otolith)
     t = np.asarray(record.t_s, float)
     ys = np.concatenate([alpha, f], axis=1)
@@ -255,7 +260,12 @@ def tilt_deg(g_H) -> np.ndarray:
     """The angle (deg) between gravity ``g_H`` (N, 3) and the head's −z axis."""
     g = np.asarray(g_H, float)
     g = g / np.linalg.norm(g, axis=-1, keepdims=True)
-    return np.degrees(np.arccos(np.clip(-g[..., 2], -1.0, 1.0)))
+    return np.degrees(np.asarray(so3.angle_between_unit_vectors(g, np.array([0.0, 0.0, -1.0]))))
+
+
+def tilt_error_deg(r: Perception) -> np.ndarray:
+    """The angle (deg) between perceived and true gravity, per row."""
+    return np.degrees(np.asarray(so3.angle_between_unit_vectors(r.g_H_perceived, r.g_H_true)))
 
 
 def pitch_up_deg(g_H) -> np.ndarray:
@@ -343,23 +353,24 @@ def perception_table(r: Perception) -> np.ndarray:
                             r.a_H_perceived_m_s2, r.v_H_perceived_m_s])
 
 
-def perceive_file(motion_path, model: str = "merfeld", preset: str | None = None, params=(),
-                  otolith: str = "unity", canal: str = "high-pass", out_csv=None,
-                  plot_png=None) -> dict:
-    """``verticality perceive``: :func:`perceive` on a MOTION.csv (or a BROAD-layout recording);
-    writes OUT.csv and the figure when asked; returns a summary (JSON-ready). The caller checks the
-    paths first (:func:`verticality.io.paths.check_paths`, as the command does)."""
+def perceive_file(motion_path, params, otolith: str = "unity", canal: str = "high-pass",
+                  out_csv=None, plot_png=None) -> dict:
+    """``verticality perceive``: :func:`perceive` by the model of ``params`` on a MOTION.csv (or a
+    BROAD-layout recording); writes OUT.csv and the figure when asked; returns a summary
+    (JSON-ready). The caller checks the paths first (:func:`verticality.io.paths.check_paths`, as
+    the command does)."""
     from verticality.io.motion import load_motion, write_columns_csv
 
+    model = model_name(params)
     rec = load_motion(motion_path)
-    r = perceive(rec, model, preset, params, otolith, canal)
+    r = perceive(rec, params, otolith, canal)
     if out_csv is not None:
         write_columns_csv(out_csv, dict(zip(PERCEPTION_COLUMNS, perception_table(r).T, strict=True)))
     if plot_png is not None:
         plot_series(series({model: r}, "axis"), plot_png, f"{model}: {motion_path}")
-    tilt_err = np.degrees(np.arccos(np.clip(np.sum(r.g_H_perceived * r.g_H_true, axis=1), -1, 1)))
+    tilt_err = tilt_error_deg(r)
     return {
-        "model": model, "preset": preset, "otolith": otolith, "canal": canal,
+        "model": model, "otolith": otolith, "canal": canal,
         "rows": int(r.t_s.size), "duration_s": float(r.t_s[-1] - r.t_s[0]),
         "final": {"tilt_deg": float(tilt_deg(r.g_H_perceived)[-1]),
                   "tilt_true_deg": float(tilt_deg(r.g_H_true)[-1]),

@@ -14,8 +14,8 @@ import json
 from pathlib import Path
 
 from verticality.core.errors import InputError
+from verticality.report.entries import RESULTS_NAME
 from verticality.report.results_schema import check_results
-from verticality.report.runs import RESULTS_NAME
 
 REPORT_NAME = "report.html"
 

@@ -44,7 +44,7 @@ def previous_runtimes(out_dir: Path | None, quick: bool) -> dict[str, float]:
     ``results.json``); empty when there is none or it cannot be read."""
     if out_dir is None:
         return {}
-    from verticality.report.runs import RESULTS_NAME
+    from verticality.report.entries import RESULTS_NAME
 
     try:
         saved = json.loads((Path(out_dir) / RESULTS_NAME).read_text(encoding="utf-8"))

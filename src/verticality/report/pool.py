@@ -3,7 +3,7 @@
 :func:`run_pool` starts ``jobs`` worker processes (``spawn``: a fresh interpreter each, as JAX
 wants, no forked copy of its threads) that take the experiments from one queue, longest expected
 first (:mod:`verticality.report.costs`), run each with the same function as the in-process path
-(:func:`verticality.report.runs.run_one`, figures included) and send its entry back. The workers load
+(:func:`verticality.report.entries.run_one`, figures included) and send its entry back. The workers load
 and store compiled kernels in this process's JAX persistent compilation cache, so that a function
 one of them compiled is loaded by the others and by the next run. Ctrl-C ends the workers (they
 ignore the interrupt themselves, so that only this process reports it).
@@ -75,7 +75,7 @@ def _worker(inbox, outbox, quick: bool, out_dir: str | None, cache_dir: str | No
     import jax
 
     from verticality import experiments
-    from verticality.report.runs import run_one
+    from verticality.report.entries import run_one
 
     if cache_dir:
         jax.config.update("jax_compilation_cache_dir", cache_dir)

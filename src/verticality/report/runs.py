@@ -1,40 +1,14 @@
-"""Running experiments into the results object of ``verticality reproduce``, and turning values
-into JSON and terminal text."""
+"""Running experiments into the results object of ``verticality reproduce`` (each one's entry:
+:mod:`verticality.report.entries`), and turning values into terminal text."""
 
 from __future__ import annotations
 
 import json
-import math
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-RESULTS_NAME = "results.json"
-
-
-def to_jsonable(value: Any) -> Any:
-    """Plain-JSON copy of ``value``: arrays to lists, NumPy/JAX scalars to Python, NaN/inf to
-    None."""
-    if isinstance(value, dict):
-        return {str(k): to_jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [to_jsonable(v) for v in value]
-    if hasattr(value, "shape") and hasattr(value, "dtype"):
-        arr = np.asarray(value)
-        if arr.ndim == 0:
-            return to_jsonable(arr.item())
-        return [to_jsonable(v) for v in arr.tolist()]
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    if isinstance(value, int | np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        f = float(value)
-        return f if math.isfinite(f) else None
-    return value
+from verticality.report.entries import RESULTS_NAME, run_one
 
 
 def flatten(d: dict, prefix: str = "") -> dict[str, Any]:
@@ -165,29 +139,6 @@ def chosen_names(names: list[str] | None) -> list[str]:
     for name in names or ():
         experiments.get(name)
     return list(names) if names else sorted(experiments.discover())
-
-
-def run_one(exp, *, quick: bool = False, out_dir: Path | None = None,
-            on_stage: Callable[[str, str], None] | None = None) -> dict:
-    """One experiment's entry of the results object (its figures drawn under ``out_dir/NAME/``
-    with ``out_dir``); the same function in this process and in a worker process."""
-    if on_stage is not None:
-        on_stage(exp.name, "running")
-    t0 = time.perf_counter()
-    result = exp.run(quick=quick)
-    wall = time.perf_counter() - t0
-    entry = {
-        "metrics": to_jsonable(result.metrics),
-        "paper": to_jsonable(result.paper),
-        "runtime": {"wall_s": wall, "simulated_s": float(result.simulated_s)},
-    }
-    if out_dir is not None and exp.figures is not None:
-        if on_stage is not None:
-            on_stage(exp.name, "figures")
-        fig_dir = Path(out_dir) / exp.name
-        fig_dir.mkdir(parents=True, exist_ok=True)
-        entry["figures"] = [str(p) for p in exp.figures(result, fig_dir)]
-    return entry
 
 
 def failed_checks(results: dict) -> list[str]:

@@ -31,9 +31,11 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.special import ndtr
 
+from verticality.core import so3
 from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.models.kinematics import RigidMotion
+from verticality.models.lissajous import LISSAJOUS_AMPLITUDE, lissajous_trunk
 
 
 class Trajectory(NamedTuple):
@@ -50,7 +52,7 @@ class Trajectory(NamedTuple):
 
     def orientation_R_I_B(self, t):
         rpy = self.rpy_rad(t)
-        return R_zyx(rpy[0], rpy[1], rpy[2])
+        return so3.matrix_from_rpy(rpy[0], rpy[1], rpy[2])
 
     def motion(self, t) -> RigidMotion:
         return motion_from(self.position_I_m, self.rpy_rad, t)
@@ -91,7 +93,7 @@ def motion_from(position_fn, rpy_fn, t) -> RigidMotion:
         return _d_dt(position_fn, s)[1]
 
     a_I = _d_dt(velocity_I, t)[1]
-    R = R_zyx(rpy[0], rpy[1], rpy[2])
+    R = so3.matrix_from_rpy(rpy[0], rpy[1], rpy[2])
     return RigidMotion(R_I_B=R, omega_B_rad_s=omega, omegadot_B_rad_s2=omegadot, a_I_m_s2=a_I)
 
 
@@ -105,28 +107,9 @@ def positions(traj: Trajectory, t_s):
     return jax.jit(jax.vmap(traj.position_I_m))(jnp.asarray(t_s, dtype=jnp.float64))
 
 
-def R_zyx(roll, pitch, yaw):
-    """Rz(yaw) Ry(pitch) Rx(roll), entry by entry (elementwise, so XLA fuses it; smooth everywhere)."""
-    cr, sr = jnp.cos(roll), jnp.sin(roll)
-    cp, sp = jnp.cos(pitch), jnp.sin(pitch)
-    cy, sy = jnp.cos(yaw), jnp.sin(yaw)
-    return jnp.stack([
-        jnp.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr]),
-        jnp.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr]),
-        jnp.stack([-sp, cp * sr, cp * cr]),
-    ])
-
-
 def from_euler(position_fn, rpy_fn, duration_s: float, name: str = "") -> Trajectory:
     """A trajectory from a position function and a (roll, pitch, yaw) function of t (rad)."""
     return Trajectory(position_fn, rpy_fn, float(duration_s), name)
-
-
-def rpy_from_matrix(R):
-    """(roll, pitch, yaw) of R = Rz(yaw) Ry(pitch) Rx(roll) (|pitch| < π/2)."""
-    R = jnp.asarray(R, float)
-    return jnp.stack([jnp.arctan2(R[2, 1], R[2, 2]), -jnp.arcsin(jnp.clip(R[2, 0], -1.0, 1.0)),
-                      jnp.arctan2(R[1, 0], R[0, 0])])
 
 
 # --------------------------------------------------------------------------------------------
@@ -183,20 +166,6 @@ def jolt_position(t, t_c, sigma, peak_m_s2):
 # --------------------------------------------------------------------------------------------
 # P11: Lissajous
 # --------------------------------------------------------------------------------------------
-
-
-LISSAJOUS_AMPLITUDE = 0.25  # P11 §VI's A (m; the tilt's amplitude is A·π rad)
-
-
-def lissajous_trunk(t_s, amplitude: float = LISSAJOUS_AMPLITUDE):
-    """P11 §VI / F §4.3.2, the one definition of the Lissajous trunk motion:
-    ``(x, z, Θ)(t) = A·(sin 0.5πt, sin πt, π sin 2πt)``, A = 0.25 — horizontal and vertical
-    position (m) and tilt (rad, about the axis normal to the plane), stacked on a leading axis of
-    3 (``t_s`` any shape). :func:`lissajous` (3-D) and
-    :func:`verticality.models.lissajous_plant.trunk` (planar, with derivatives) are views of it."""
-    A = amplitude
-    return jnp.stack([A * jnp.sin(0.5 * jnp.pi * t_s), A * jnp.sin(jnp.pi * t_s),
-                      A * jnp.pi * jnp.sin(2.0 * jnp.pi * t_s)])
 
 
 def lissajous(amplitude: float = LISSAJOUS_AMPLITUDE, duration_s: float = 10.0) -> Trajectory:
@@ -528,7 +497,7 @@ def prts(peak_rad: float = math.radians(5.0), dt_s: float = PRTS_DT_S, cycles: i
 
 def still(duration_s: float = 10.0, R_I_B=None) -> Trajectory:
     """A body at rest (optionally tilted; ``R_I_B`` with |pitch| < π/2)."""
-    rpy0 = jnp.zeros(3) if R_I_B is None else rpy_from_matrix(R_I_B)
+    rpy0 = jnp.zeros(3) if R_I_B is None else so3.rpy_from_matrix(R_I_B)
     return Trajectory(lambda t: jnp.zeros(3) + 0.0 * t, lambda t: rpy0 + 0.0 * t, float(duration_s),
                       "still")
 

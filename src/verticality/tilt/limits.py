@@ -55,6 +55,7 @@ is counted twice.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -84,6 +85,14 @@ class Limits(NamedTuple):
         ``tilt_var``, ``vel_var`` and ``flags``)."""
         return {"tilt_var": self.tilt_var_rad2[rows], "vel_var": self.vel_var_m2_s2[rows],
                 "flags": self.flags[rows]}
+
+
+def datasheet_ranges(gyr_range_deg_s=None, acc_range_g=None) -> dict:
+    """Full-scale ranges as a datasheet gives them, the gyro's in °/s and the accelerometer's in g
+    (``None``: not given, inferred from the recording), as :func:`find_limits`' ranges in SI units
+    (``gyr_range_rad_s``, ``acc_range_m_s2``; the keyword arguments of the tilt filter)."""
+    return {"gyr_range_rad_s": None if gyr_range_deg_s is None else math.radians(gyr_range_deg_s),
+            "acc_range_m_s2": None if acc_range_g is None else acc_range_g * G_M_S2}
 
 
 def held_rows(gyr, acc, prev=None) -> np.ndarray:

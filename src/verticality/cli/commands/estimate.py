@@ -73,22 +73,13 @@ def add_layout_options(p) -> None:
                         "ms, us and ns times are written relative to the first stamp)")
 
 
-def sensor_ranges(gyr_range_deg_s, acc_range_g) -> dict:
-    """``--gyr-range`` (°/s) and ``--acc-range`` (g) as ``tilt.estimate``'s ranges in SI units."""
-    import math
-
-    from verticality.core.constants import G_M_S2
-
-    return {"gyr_range_rad_s": None if gyr_range_deg_s is None else math.radians(gyr_range_deg_s),
-            "acc_range_m_s2": None if acc_range_g is None else acc_range_g * G_M_S2}
-
-
 def run(args) -> int:
     from rich.console import Console
 
     from verticality.io.paths import check_input_file, check_paths, check_written
     from verticality.tilt.files import check_sigma, estimate_file
     from verticality.tilt.folder import is_folder_input
+    from verticality.tilt.limits import datasheet_ranges
 
     if is_folder_input(args.input):
         return run_folder(args)
@@ -105,7 +96,7 @@ def run(args) -> int:
         run = estimate_file(args.input, args.out, args.units, args.columns, args.time_unit,
                             args.filter, sigma=args.sigma, keep=args.plot is not None,
                             offline=args.offline,
-                            ranges=sensor_ranges(args.gyr_range, args.acc_range))
+                            ranges=datasheet_ranges(args.gyr_range, args.acc_range))
     check_written(args.out)
     how = ", offline (smoothed)" if args.offline else ""
     print(f"wrote {args.out} ({run.n} samples, filter {args.filter}{how})")
@@ -126,12 +117,14 @@ def run_folder(args) -> int:
     """``estimate FOLDER --out DIR``: exit status 0 when every recording was estimated, 1 when
     some failed (each a row of the summary with its error, named on stderr)."""
     from verticality.tilt.folder import estimate_folder
+    from verticality.tilt.limits import datasheet_ranges
 
     if args.plot is not None:
         raise InputError("--plot: one recording at a time; a folder's run writes no figures")
     s = estimate_folder(args.input, args.out, units=args.units, columns=args.columns,
                         time_unit=args.time_unit, filter_name=args.filter, sigma=args.sigma,
-                        offline=args.offline, ranges=sensor_ranges(args.gyr_range, args.acc_range),
+                        offline=args.offline,
+                        ranges=datasheet_ranges(args.gyr_range, args.acc_range),
                         scheduler=args.scheduler, workers=args.workers, resume=args.resume)
     failed = [r for r in s.rows if r["status"] != "ok"]
     for r in failed:

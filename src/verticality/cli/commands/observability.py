@@ -41,7 +41,7 @@ def _yn(v) -> str:
 
 def run(args) -> int:
     from verticality.analysis import otolith_observability as oo
-    from verticality.report.runs import to_jsonable
+    from verticality.report.entries import to_jsonable
 
     report = oo.table(model=args.model, motion=args.motion, control=args.control,
                       chart=args.chart, params=args.params, output=args.output,

@@ -3,16 +3,17 @@
 What the otolith pendulum(s) report for a recorded head motion (file formats in
 :mod:`verticality.io.motion` and docs/simulation.md):
 :func:`verticality.simulation.closed_loop.otolith_replay` of the pendula of
-:func:`verticality.models.params.otolith_pendula` (the P13 plant, m = 0.05 kg, l = 0.06 m,
+:func:`verticality.models.otolith_presets.otolith_pendula` (the P13 plant, m = 0.05 kg, l = 0.06 m,
 J_S = m·diag(l², l², l²/20) about the pivot, β = 0.001 N·m·s; the lateral model's pivots at ±r
-along the head's y, r = 0.05 m; NAME=VALUE overrides).
+along the head's y, r = 0.05 m; NAME=VALUE overrides, read into values by
+:func:`verticality.cli.name_values.parse_name_values`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from verticality.models.params import OTOLITH_MODELS, OTOLITH_PARAM_NAMES
+from verticality.models.otolith_presets import OTOLITH_MODELS, OTOLITH_PARAM_NAMES
 
 
 def register(sub):
@@ -36,14 +37,16 @@ def run(args) -> int:
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from verticality.cli.name_values import parse_name_values
     from verticality.io.motion import read_motion_csv, write_otolith_csv
     from verticality.io.paths import check_input_file, check_paths
-    from verticality.models.params import otolith_pendula
+    from verticality.models.otolith_presets import otolith_pendula
     from verticality.simulation import closed_loop as simulation
 
     check_input_file(args.motion)
     check_paths({"--out": args.out}, [args.motion])
-    pendula, suffixes = otolith_pendula(args.model, args.param)
+    pendula, suffixes = otolith_pendula(
+        args.model, parse_name_values(args.param, OTOLITH_PARAM_NAMES))
     rec = read_motion_csv(args.motion)
     err = Console(stderr=True)
     with Progress(TextColumn("otolith"), BarColumn(), TextColumn("{task.completed}/{task.total}"),

@@ -2,8 +2,9 @@
 [--otolith unity|pendulum] [--canal high-pass|torsion] [--out OUT.csv] [--plot OUT.png] [--json]``
 
 What a vestibular perception model perceives for a head motion (MOTION.csv as `otolith` reads it,
-or a BROAD-layout recording): :func:`verticality.perception.perceive.perceive_file` (models, presets and
-sensors in docs/perception.md).
+or a BROAD-layout recording): :func:`verticality.perception.perceive.perceive_file` (models, presets
+and sensors in docs/perception.md). The model's name, preset and ``NAME=VALUE`` strings are read
+here into the parameter value the library takes.
 """
 
 from __future__ import annotations
@@ -39,13 +40,18 @@ def register(sub):
 
 
 def run(args) -> int:
+    from verticality.cli.name_values import parse_name_values
     from verticality.io.paths import check_input_file, check_paths, check_written
+    from verticality.perception.params import PRESETS, perception_params
     from verticality.perception.perceive import perceive_file
 
     check_input_file(args.motion)
     check_paths({"--out": args.out, "--plot": args.plot}, [args.motion], figures=["--plot"])
-    summary = perceive_file(args.motion, args.model, args.preset, args.param, args.otolith,
-                            args.canal, args.out, args.plot)
+    names = next(iter(PRESETS[args.model].values()))._fields
+    params = perception_params(args.model, args.preset,
+                               parse_name_values(args.param, names, allow_inf=True))
+    summary = {"preset": args.preset, **perceive_file(args.motion, params, args.otolith,
+                                                      args.canal, args.out, args.plot)}
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0

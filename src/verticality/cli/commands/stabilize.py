@@ -57,8 +57,8 @@ def run(args) -> int:
 
     from verticality.io.motion import load_motion, write_tilt_comparison_csv
     from verticality.io.paths import check_input_file, check_paths, check_written
-    from verticality.simulation import recorded as rt
     from verticality.simulation import stabilization as st
+    from verticality.simulation import stabilization_notes as notes
 
     check_input_file(args.motion)
     check_paths({"--out": args.out, "--plot": args.plot}, [args.motion], figures=["--plot"])
@@ -71,35 +71,21 @@ def run(args) -> int:
                              noise=args.noise, exact_model=args.exact_model, settle_s=args.settle,
                              progress=lambda text: progress.update(task, description=text))
     report = c.report
-    if c.cut_s > 1e-9:
-        err.print(f"[yellow]note:[/yellow] simulating {report['duration_s']:g} s of the "
-                  f"{c.recorded_s:g} s recorded: the last {1e3 * c.cut_s:.1f} ms do not fill an "
-                  "EKF period")
-    if c.rate_mismatch_warning:
-        err.print(f"[yellow]warning:[/yellow] the file's ω and q disagree: over the "
-                  f"{rt.RATE_MISMATCH_WINDOW_S:g} s from t = {c.rate_mismatch_t_s:g} s, ω integrates "
-                  f"to a rotation {c.rate_mismatch_rad:.3g} rad away from q's; the trunk then follows "
-                  "neither exactly between rows (check ω's frame and units)")
-    if c.max_gap_s > st.EKF_PERIOD_S:
-        err.print(f"[yellow]note:[/yellow] rows up to {c.max_gap_s:g} s apart, longer than the EKF's "
-                  f"{st.EKF_PERIOD_S:g} s period: between rows the trunk's acceleration is "
-                  "interpolated linearly and its rotation by cubic Hermite")
+    say = {"note": "[yellow]note:[/yellow]", "warning": "[yellow]warning:[/yellow]",
+           "error": "[red]error:[/red]"}
+    for note in notes.input_notes(c):
+        err.print(f"{say[note.level]} {note.text}")
     if args.out is not None:
         write_tilt_comparison_csv(args.out, c.t_file_s(), c.series)
         check_written(args.out)
         err.print(f"wrote {args.out}")
-    for cond, (t_bad, what) in c.diverged.items():
-        err.print(f"[red]error:[/red] {cond} head: the simulated {what} became non-finite at "
-                  f"t = {t_bad:g} s (first seed); its metrics are left out. The trunk's motion may "
-                  "be too violent for the simulated plant (2-DOF gimbal, 1 ms RK4 step), or its "
-                  "q and ω may disagree")
+    for note in notes.diverged_notes(c):
+        err.print(f"{say[note.level]} {note.text}")
     if args.plot is not None and not c.diverged:
         st.plot_comparison(c, args.plot)
         err.print(f"wrote {args.plot}")
-    rejected = sum(report["rejected_updates"].values())
-    if rejected:
-        err.print(f"[yellow]warning:[/yellow] the EKF refused {rejected} update(s) that would have "
-                  "made its state non-finite (first seed); the estimates there are predictions")
+    for note in notes.rejected_notes(c):
+        err.print(f"{say[note.level]} {note.text}")
     if args.json:
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")

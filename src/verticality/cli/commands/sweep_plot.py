@@ -33,7 +33,7 @@ def register(sub):
 def run(args) -> int:
     from verticality.core.errors import InputError
     from verticality.io.paths import check_paths
-    from verticality.report.runs import to_jsonable
+    from verticality.report.entries import to_jsonable
     from verticality.sweep import curves, maps
 
     if args.out is not None:  # never over the sweep's own files (the table, the spec, a part)

@@ -108,7 +108,7 @@ def _errors(fault: str, seed: int):
     """Our filter on :func:`fault_recording`: (tilt error rad, σ rad, unflagged) per sample."""
     gyr, acc, dt, up = fault_recording(fault, seed=seed)
     out = tilt.estimate(gyr, acc, period_s=dt)
-    err = np.arccos(np.clip(np.sum(out.up_S * up, axis=1), -1.0, 1.0))
+    err = np.asarray(so3.angle_between_unit_vectors(out.up_S, up))
     return err, out.sigma_rad, out.flags == 0
 
 
