@@ -54,6 +54,7 @@ from verticality.experiments.tahboub import (
     estimate_lean,
 )
 from verticality.models.body import TwoSegmentBody
+from verticality.sensors import readings as sensors
 from verticality.simulation.ground_loop import FS_HZ, linear_body, simulate_truth
 
 SETTLE_S = 1.0
@@ -78,15 +79,15 @@ T_EQ24_GAIN = np.hstack([T_EQ24_PRINTED[:7], T_EQ24_PRINTED[7:]])
 
 
 def add_noise(key, y_true):
-    """Noisy y_e samples (θ2, θ3, θ̇2, θ̇3, ω_g, a_x) and the gyro drift."""
+    """Noisy y_e samples (θ2, θ3, θ̇2, θ̇3, ω_g, a_x) and the gyro drift: white noise on every
+    output (:func:`~verticality.sensors.readings.white`) and the gyro's random-walk drift
+    (:func:`~verticality.sensors.readings.random_walk`) added to ω_g."""
     n = y_true.shape[0]
     k1, k2, k3 = jax.random.split(key, 3)
-    steps = jnp.sqrt(DRIFT_INTENSITY / FS_HZ) * jax.random.normal(k1, (n,))
-    drift = jnp.cumsum(steps.at[0].set(0.0))
+    drift = sensors.random_walk(k1, n, DRIFT_INTENSITY, 1.0 / FS_HZ)
     sig = jnp.array([JOINT_SIGMA_RAD, JOINT_SIGMA_RAD, JOINT_RATE_SIGMA_RAD_S, JOINT_RATE_SIGMA_RAD_S,
                      GYRO_SIGMA_RAD_S, ACC_SIGMA_M_S2])
-    noise = sig * jax.random.normal(k2, (n, 6))
-    y = y_true + noise + jnp.zeros((n, 6)).at[:, 4].set(drift)
+    y = sensors.white(k2, y_true, sig) + jnp.zeros((n, 6)).at[:, 4].set(drift)
     return y, drift
 
 

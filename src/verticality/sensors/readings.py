@@ -135,3 +135,11 @@ def white(key, x, std):
     """``x`` plus white Gaussian noise of standard deviation ``std`` (scalar or per component)."""
     x = jnp.asarray(x, float)
     return x + jnp.asarray(std, float) * jax.random.normal(key, x.shape)
+
+
+def random_walk(key, n: int, intensity, dt_s):
+    """A random walk of ``n`` samples every ``dt_s`` starting at 0 (e.g. a gyro's drift of
+    intensity q, rad²/s³): ``w_0 = 0``, ``w_k = w_{k−1} + √(q·dt) ν_k``, ``ν`` the ``n`` standard
+    normal draws of ``key`` (the first one unused, so a record and its walk share one draw)."""
+    steps = jnp.sqrt(intensity * dt_s) * jax.random.normal(key, (n,))
+    return jnp.cumsum(steps.at[0].set(0.0))
