@@ -27,6 +27,7 @@ from verticality.models.planar import (
     head_frame_to_inertial,
 )
 from verticality.models.platform import f44_platform
+from verticality.simulation import loop
 
 KP, KD = 1.0, 0.1
 THETA0_RAD = 0.4
@@ -76,7 +77,8 @@ class Config(NamedTuple):
 
 
 def simulate(cfg: Config, n_steps: int, truth: WithHeadFrameInput):
-    """One closed-loop run; returns time series (θ_H, θ̂_H of the fed estimator, all estimates, y)."""
+    """One closed-loop run (:func:`verticality.simulation.loop.run`); returns time series (θ_H,
+    θ̂_H of the fed estimator, all estimates, y)."""
     x0 = jnp.array([0.0, 0.0, THETA0_RAD, 0.0])  # (θ_S, ω_S, θ_H, ω_H) stacked (see f_plant)
     l_state = cfg.obs.init(jnp.zeros(4))
     P0 = jnp.diag(jnp.array([0.1, 10.0, 0.5, 10.0])) ** 2
@@ -88,31 +90,47 @@ def simulate(cfg: Config, n_steps: int, truth: WithHeadFrameInput):
         # one compilation to the next, four separate scalars not necessarily
         return jnp.stack(truth.dynamics(PlanarState(*x), w)), None
 
-    def body(carry, k):
-        x, ls, ks, tilt_meas_prev, u_prev = carry
-        t = k * DT_S
-        y = truth.output(PlanarState(*x)) + SIGMA_Y_RAD * noise[k, 0]
-        a_now = head_accel_m_s2(t)
-        ks, kout = cfg.kfilt.step(ks, u_prev, y, DT_S)
-        tilt_meas = -y[0]
+    def read(x, k):
+        # the inclinometer, and the state itself for the "state" feed
+        return truth.output(PlanarState(*x)) + SIGMA_Y_RAD * noise[k, 0], x
+
+    def correct(est, y, k):
+        # the Kalman filter predicts with the previous sample's control
+        ls, ks, tilt_meas_prev, u_prev = est
+        return ls, cfg.kfilt.step(ks, u_prev, y[0], DT_S)[0], tilt_meas_prev, u_prev
+
+    def control(est, y, k):
+        ls, ks, tilt_meas_prev, _ = est
+        (reading, x), a_now = y, head_accel_m_s2(k * DT_S)
+        tilt_meas = -reading[0]
         rate_meas = jnp.where(k > 0, (tilt_meas - tilt_meas_prev) / DT_S, 0.0)
         th = jnp.stack([tilt_meas, x[2], ls.x[2], ks.x[2]])
         om = jnp.stack([rate_meas, x[3], ls.x[3], ks.x[3]])
         tau = KP * (cfg.ref_rad - th[cfg.feed]) - KD * om[cfg.feed]
-        u = jnp.array([tau, a_now])
-        ls_new, _ = cfg.obs.step(ls, u, y, DT_S)
-        tau_true = tau + SIGMA_TAU_NM * noise[k, 1]
+        return jnp.array([tau, a_now]), tilt_meas
+
+    def predict(est, u, y, k):
+        ls, ks, _, _ = est
+        u_known, tilt_meas = u
+        return cfg.obs.step(ls, u_known, y[0], DT_S)[0], ks, tilt_meas, u_known
+
+    def advance(x, u, k):
+        t = k * DT_S
+        tau_true = u[0][0] + SIGMA_TAU_NM * noise[k, 1]
         # the acceleration at the RK4 stages (t, t + h/2, t + h), the torque held
         a_stages = jnp.stack([head_accel_m_s2(t), head_accel_m_s2(t + 0.5 * DT_S),
                               head_accel_m_s2(t + DT_S)])
         stages = HeadInput(jnp.broadcast_to(tau_true, (3,)), a_stages, jnp.zeros(3))
-        x_new = rk4_step_staged(f_plant, stages, x, DT_S)[0]
-        out = (x[2], ls.x[2], ks.x[2], tilt_meas, tau)
-        return (x_new, ls_new, ks, tilt_meas, u), out
+        return rk4_step_staged(f_plant, stages, x, DT_S)[0]
 
-    carry0 = (x0, l_state, k_state, 0.0, jnp.zeros(2))
-    _, outs = jax.lax.scan(body, carry0, jnp.arange(n_steps))
-    return outs
+    def record(x, est, y, u, k):
+        ls, ks, _, _ = est
+        (u_known, tilt_meas) = u
+        return x[2], ls.x[2], ks.x[2], tilt_meas, u_known[0]
+
+    parts = loop.LoopParts(read, correct, control, predict, advance, record)
+    est0 = (l_state, k_state, 0.0, jnp.zeros(2))
+    return loop.run(parts, x0, est0, n_steps)[1]
 
 
 simulate_batch = jax.jit(jax.vmap(simulate, in_axes=(0, None, None)), static_argnums=1)
@@ -134,7 +152,8 @@ def lateral_linear_model() -> LinearModel:
 
 def simulate_lateral(ref_rad, obs: kf.ContinuousObserver, euler, r_m, n_steps: int):
     """The Luenberger-fed PD of :func:`simulate` on the lateral plant with pivots at ±``r_m``
-    (nominal, no noise); returns (θ_H, θ̂_H) every 1 ms."""
+    (nominal, no noise; :func:`verticality.simulation.loop.run`); returns (θ_H, θ̂_H) every
+    1 ms."""
     truth = lateral_plant(euler, r_m)
     x0 = PlanarLateralState(*(jnp.asarray(v) for v in (0.0, 0.0, 0.0, 0.0, THETA0_RAD, 0.0)))
 
@@ -143,19 +162,24 @@ def simulate_lateral(ref_rad, obs: kf.ContinuousObserver, euler, r_m, n_steps: i
         a_h_I, a_z_I = head_frame_to_inertial(a_h_H, 0.0, x.theta_H_rad)
         return truth.dynamics(x, PlanarInput(tau, a_h_I, a_z_I)), None
 
-    def body(carry, k):
-        x, ls = carry
+    def control(ls, y, k):
+        return KP * (ref_rad - ls.x[4]) - KD * ls.x[5]
+
+    def predict(ls, tau, y, k):
+        return obs.step(ls, jnp.array([tau, head_accel_m_s2(k * DT_S)]), y, DT_S)[0]
+
+    def advance(x, tau, k):
         t = k * DT_S
-        y = truth.output(x)
-        tau = KP * (ref_rad - ls.x[4]) - KD * ls.x[5]
-        a_now = head_accel_m_s2(t)
-        ls_new, _ = obs.step(ls, jnp.array([tau, a_now]), y, DT_S)
         a_stages = jnp.stack([head_accel_m_s2(t), head_accel_m_s2(t + 0.5 * DT_S),
                               head_accel_m_s2(t + DT_S)])
-        x_new = rk4_step_staged(f_plant, (jnp.broadcast_to(tau, (3,)), a_stages), x, DT_S)[0]
-        return (x_new, ls_new), (x.theta_H_rad, ls.x[4])
+        return rk4_step_staged(f_plant, (jnp.broadcast_to(tau, (3,)), a_stages), x, DT_S)[0]
 
-    return jax.lax.scan(body, (x0, obs.init(jnp.zeros(6))), jnp.arange(n_steps))[1]
+    def record(x, ls, y, tau, k):
+        return x.theta_H_rad, ls.x[4]
+
+    parts = loop.LoopParts(lambda x, k: truth.output(x), loop.unchanged, control, predict,
+                           advance, record)
+    return loop.run(parts, x0, obs.init(jnp.zeros(6)), n_steps)[1]
 
 
 simulate_lateral_batch = jax.jit(jax.vmap(simulate_lateral, in_axes=(0, None, 0, 0, None)),
