@@ -20,6 +20,7 @@ from verticality.models import platform as pf
 from verticality.models.kinematics import RigidMotion
 from verticality.models.linearize import linearize, select_inputs
 from verticality.sensors import readings as sensors
+from verticality.simulation import loop
 
 LOOP_DT_S = 3e-3
 SUBSTEPS = 3
@@ -81,6 +82,9 @@ def accelerometer_reading(key, theta_rad, omega_rad_s, a_h_I_m_s2):
 
 
 def simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
+    """One run of the axis' loop (:func:`verticality.simulation.loop.run`); per sample the tilt,
+    the reading, the estimate, the base angle, the command, the acceleration and the
+    accelerometer's reading."""
     h = LOOP_DT_S / SUBSTEPS
     noise = jax.random.normal(cfg.key, (n_loops,)) * SIGMA_Y_RAD
     acc_keys = jax.random.split(jax.random.fold_in(cfg.key, 1), n_loops)
@@ -89,18 +93,29 @@ def simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
         omega_base, a = _drive(cfg, t, swing_s)
         return cfg.p.dynamics(x, pf.AxisInput(u, a, omega_base))
 
-    def body(carry, k):
-        x, base, ls, y_prev = carry
-        t = k * LOOP_DT_S
-        y = x.y_rad + noise[k]
-        _, a_now = _drive(cfg, t, swing_s)
-        rate = jnp.where(k > 0, (y - y_prev) / LOOP_DT_S, 0.0)
-        th = jnp.where(cfg.use_observer > 0, ls.x[0], y)
-        om = jnp.where(cfg.use_observer > 0, ls.x[1], rate)
-        u = jnp.clip(-cfg.kp * th - cfg.kd * om, -cfg.u_max, cfg.u_max)
+    def read(plant, k):
+        # the inclinometer and the platform accelerometer (the true acceleration beside it)
+        x, _ = plant
+        _, a_now = _drive(cfg, k * LOOP_DT_S, swing_s)
         a_acc = accelerometer_reading(acc_keys[k], x.theta_rad, x.omega_rad_s, a_now)
+        return x.y_rad + noise[k], a_now, a_acc
+
+    def control(est, y, k):
+        ls, y_prev = est
+        rate = jnp.where(k > 0, (y[0] - y_prev) / LOOP_DT_S, 0.0)
+        th = jnp.where(cfg.use_observer > 0, ls.x[0], y[0])
+        om = jnp.where(cfg.use_observer > 0, ls.x[1], rate)
+        return jnp.clip(-cfg.kp * th - cfg.kd * om, -cfg.u_max, cfg.u_max)
+
+    def predict(est, u, y, k):
+        reading, a_now, a_acc = y
         a_fed = jnp.where(cfg.use_accelerometer > 0, a_acc, a_now)
-        ls_new, _ = cfg.obs.step(ls, jnp.array([u, a_fed]), jnp.atleast_1d(y), LOOP_DT_S)
+        return cfg.obs.step(est[0], jnp.array([u, a_fed]), jnp.atleast_1d(reading),
+                            LOOP_DT_S)[0], reading
+
+    def advance(plant, u, k):
+        # the platform by RK4 sub-steps, the base's angle by the rate at each sub-step's start
+        t = k * LOOP_DT_S
 
         def sub(i, xb):
             xx, bb = xb
@@ -108,14 +123,16 @@ def simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
             om_b, _ = _drive(cfg, ts, swing_s)
             return rk4_step(f_plant, ts, xx, h, u), bb + h * om_b
 
-        x_new, base_new = jax.lax.fori_loop(0, SUBSTEPS, sub, (x, base))
-        out = (x.theta_rad, y, ls.x[0], base, u, a_now, a_acc)
-        return (x_new, base_new, ls_new, y), out
+        return jax.lax.fori_loop(0, SUBSTEPS, sub, plant)
+
+    def record(plant, est, y, u, k):
+        (x, base), (reading, a_now, a_acc) = plant, y
+        return x.theta_rad, reading, est[0].x[0], base, u, a_now, a_acc
 
     z = jnp.asarray(0.0)
-    carry0 = (pf.AxisState(z, z, z, z), 0.0, cfg.obs.init(jnp.zeros(4)), 0.0)
-    _, outs = jax.lax.scan(body, carry0, jnp.arange(n_loops))
-    return outs
+    parts = loop.LoopParts(read, loop.unchanged, control, predict, advance, record)
+    plant0 = (pf.AxisState(z, z, z, z), 0.0)
+    return loop.run(parts, plant0, (cfg.obs.init(jnp.zeros(4)), 0.0), n_loops)[1]
 
 
 simulate_batch = jax.jit(jax.vmap(simulate, in_axes=(0, None, None)), static_argnums=(1, 2))
