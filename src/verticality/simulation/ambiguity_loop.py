@@ -19,7 +19,6 @@ import numpy as np
 
 from verticality.analysis import ambiguity as am
 from verticality.core.errors import InputError
-from verticality.core.integrate import rk4_step_staged
 from verticality.estimators import luenberger as lu
 from verticality.estimators.ekf import ExtendedKalmanFilter
 from verticality.models.base import Discretized
@@ -38,6 +37,7 @@ from verticality.models.planar import (
     WithHeadFrameInput,
 )
 from verticality.models.platform import f44_platform
+from verticality.simulation import loop
 from verticality.simulation import trajectories as tr
 
 DT_S = 1e-4
@@ -127,53 +127,74 @@ class Series(NamedTuple):
 
 def closed_loop(kind: str, theta0_rad, ref_rad, acc, acc_stages, n_steps: int, obs, disc, filt,
                 gains=(KP_NM_RAD, KD_NMS_RAD), noise_rad=None):
-    """One closed-loop run of feed ``kind`` (:data:`KINDS`) with the Luenberger observer ``obs``
-    (``disc`` its discretization at :data:`DT_S`) or the EKF ``filt``, the PD's ``gains``
-    ``(k_p, k_d)``; ``noise_rad`` (n_steps,), if given, is added to the otolith's reading (what the
-    observer, the EKF and the reconstruction see); returns :class:`Series` per sample."""
+    """One closed-loop run (:func:`verticality.simulation.loop.run`) of feed ``kind``
+    (:data:`KINDS`) with the Luenberger observer ``obs`` (``disc`` its discretization at
+    :data:`DT_S`) or the EKF ``filt``, the PD's ``gains`` ``(k_p, k_d)``; ``noise_rad``
+    (n_steps,), if given, is added to the otolith's reading (what the observer, the EKF and the
+    reconstruction see); returns :class:`Series` per sample."""
     truth = plant()
     kp, kd = gains
+    ekf_fed = kind.startswith("ekf")
     a_h, a_z = (jnp.asarray(v) for v in acc)
     a_h_st, a_z_st = (jnp.asarray(v) for v in acc_stages)
     r0 = am.planar_reading(a_h[0], a_z[0], theta0_rad)
-    x0 = PlanarState(theta0_rad + r0, jnp.asarray(0.0), jnp.asarray(theta0_rad, float), jnp.asarray(0.0))
+    x0 = PlanarState(theta0_rad + r0, jnp.asarray(0.0), jnp.asarray(theta0_rad, float),
+                     jnp.asarray(0.0))
     z = jnp.asarray(0.0)
     e0 = filt.init(AccelerationState(PlanarState(z, z, z, z), z),
                    jnp.diag(jnp.asarray(EKF_P0_SIGMAS) ** 2))
     h = DT_S / SUBSTEPS
 
-    def body(carry, k):
-        x, ls, es, u_prev = carry
+    def read(x, k):
         y = truth.output(x)
-        if noise_rad is not None:
-            y = y + noise_rad[k]
-        if kind.startswith("ekf"):
-            es, _ = filt.step(es, u_prev, y, DT_S)
-            th_hat, om_hat, a_hat = es.x.head.theta_H_rad, es.x.head.omega_H_rad_s, es.x.a_h_H_m_s2
-        else:
-            th_hat, om_hat = ls.x[2], ls.x[3]
-            if kind == "known":
-                a_hat = a_h[k]
-            else:
-                a_hat = am.planar_head_acceleration(y[0], a_z[k], th_hat,
-                                                    small_angle=(kind == "luenberger"))
-        tau = kp * (ref_rad - th_hat) - kd * om_hat
-        if not kind.startswith("ekf"):
+        return y if noise_rad is None else y + noise_rad[k]
+
+    def correct(est, y, k):
+        # the EKF predicts with the previous sample's torque and a_z, then updates with y
+        ls, es, u_prev = est
+        return (ls, filt.step(es, u_prev, y, DT_S)[0], u_prev) if ekf_fed else est
+
+    def estimate(est):
+        """The head's tilt and rate the PD is fed, and the EKF's acceleration state."""
+        ls, es, _ = est
+        if ekf_fed:
+            return es.x.head.theta_H_rad, es.x.head.omega_H_rad_s, es.x.a_h_H_m_s2
+        return ls.x[2], ls.x[3], None
+
+    def control(est, y, k):
+        # the torque, and the horizontal acceleration the estimate is based on
+        th_hat, om_hat, a_hat = estimate(est)
+        if kind == "known":
+            a_hat = a_h[k]
+        elif not ekf_fed:
+            a_hat = am.planar_head_acceleration(y[0], a_z[k], th_hat,
+                                                small_angle=(kind == "luenberger"))
+        return kp * (ref_rad - th_hat) - kd * om_hat, a_hat
+
+    def predict(est, u, y, k):
+        ls, es, _ = est
+        tau, a_hat = u
+        if not ekf_fed:
             ls, _ = obs.step_discrete(ls, jnp.stack([tau, a_hat]), y, disc)
+        return ls, es, TorqueAndVertical(tau, a_z[k])
 
-        def f(w, xx):
-            return truth.dynamics(xx, w), None
+    def f(w, xx):
+        return truth.dynamics(xx, w), None
 
-        def sub(xx, i):
-            stages = HeadInput(jnp.broadcast_to(tau, (3,)), a_h_st[k, i], a_z_st[k, i])
-            return rk4_step_staged(f, stages, xx, h)[0], None
+    def advance(x, u, k):
+        tau = u[0]
+        return loop.rk4_staged_substeps(
+            f, lambda i: HeadInput(jnp.broadcast_to(tau, (3,)), a_h_st[k, i], a_z_st[k, i]), x, h,
+            SUBSTEPS)
 
-        x_new = jax.lax.scan(sub, x, jnp.arange(SUBSTEPS))[0]
-        out = Series(x.theta_H_rad, th_hat, x.omega_H_rad_s, om_hat, tau, a_hat, a_h[k], y[0])
-        return (x_new, ls, es, TorqueAndVertical(tau, a_z[k])), out
+    def record(x, est, y, u, k):
+        th_hat, om_hat, _ = estimate(est)
+        tau, a_hat = u
+        return Series(x.theta_H_rad, th_hat, x.omega_H_rad_s, om_hat, tau, a_hat, a_h[k], y[0])
 
-    carry0 = (x0, obs.init(jnp.zeros(4)), e0, TorqueAndVertical(z, a_z[0]))
-    return jax.lax.scan(body, carry0, jnp.arange(n_steps))[1]
+    parts = loop.LoopParts(read, correct, control, predict, advance, record)
+    est0 = (obs.init(jnp.zeros(4)), e0, TorqueAndVertical(z, a_z[0]))
+    return loop.run(parts, x0, est0, n_steps)[1]
 
 
 _closed_loop_batch = jax.jit(
