@@ -11,9 +11,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality.core.integrate import rk4_step_staged
 from verticality.models.body import HUMAN_TWO_SEGMENT, GroundInput, TwoSegmentBody, upright
 from verticality.models.linearize import LinearModel, linearize, select_inputs
+from verticality.simulation import loop
 
 FS_HZ = 100.0
 SUBSTEPS = 10
@@ -55,27 +55,33 @@ def lqr_gain(body: TwoSegmentBody = HUMAN_TWO_SEGMENT) -> np.ndarray:
 
 
 def simulate_truth(n: int, body: TwoSegmentBody = HUMAN_TWO_SEGMENT):
-    """Nonlinear trial: per 100 Hz sample, ``(t, x, u, F_d, y_e)`` (torque held over the sample,
-    the ground motion evaluated at every RK4 stage)."""
+    """Nonlinear trial (:func:`verticality.simulation.loop.run`, the LQR fed the true joint
+    state, no estimator in the loop): per 100 Hz sample, ``(t, x, u, F_d, y_e)`` (torque held
+    over the sample, the ground motion evaluated at every RK4 stage)."""
     K = jnp.asarray(lqr_gain(body))
     h = 1.0 / (FS_HZ * SUBSTEPS)
 
     def f(w, x):
         return body.dynamics(x, w), None
 
-    def sample(x, k):
+    def control(est, x, k):
+        return -K @ (x - joint_reference(k / FS_HZ))
+
+    def advance(x, u, k):
         t = k / FS_HZ
-        u = -K @ (x - joint_reference(t))
-        d = ground_motion(t)
-        y = body.output(x, GroundInput(u, d))
 
-        def sub(x, i):
+        def stages(i):
             ts = t + i * h
-            stages = jnp.stack([ground_motion(ts), ground_motion(ts + 0.5 * h), ground_motion(ts + h)])
-            return rk4_step_staged(f, GroundInput(jnp.broadcast_to(u, (3, 2)), stages), x, h)[0], None
+            return GroundInput(jnp.broadcast_to(u, (3, 2)), jnp.stack(
+                [ground_motion(ts), ground_motion(ts + 0.5 * h), ground_motion(ts + h)]))
 
-        x_next, _ = jax.lax.scan(sub, x, jnp.arange(SUBSTEPS))
-        return x_next, (x, u, d, y)
+        return loop.rk4_staged_substeps(f, stages, x, h, SUBSTEPS)
 
-    _, (xs, us, ds, ys) = jax.jit(lambda: jax.lax.scan(sample, jnp.zeros(4), jnp.arange(n)))()
+    def record(x, est, y, u, k):
+        d = ground_motion(k / FS_HZ)
+        return x, u, d, body.output(x, GroundInput(u, d))
+
+    parts = loop.LoopParts(lambda x, k: x, loop.unchanged, control, loop.unchanged, advance,
+                           record)
+    _, (xs, us, ds, ys) = jax.jit(lambda: loop.run(parts, jnp.zeros(4), (), n))()
     return np.arange(n) / FS_HZ, xs, us, ds, ys
