@@ -257,6 +257,6 @@ def test_experiments_are_leaves():
                 names = {a.name for a in node.names}
             else:
                 continue
-            offenders += [f"{module}: {n}" for n in sorted(names)
-                          if n == "verticality.experiments" or n.startswith("verticality.experiments.")]
+            offenders += [f"{module}: {n}" for n in sorted(names) if n == "verticality.experiments"
+                          or n.startswith("verticality.experiments.")]
     assert sorted({o.split(":")[0] for o in offenders} - _EKF_IMPORTERS) == [], offenders

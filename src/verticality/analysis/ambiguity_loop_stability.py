@@ -42,15 +42,16 @@ _loop_jacobian = jax.jit(jax.jacfwd(_loop_map), static_argnums=(1, 2))
 def loop_eigenvalues(feed: str, pd_loop_rad_s: float, dt_s: float | None = None) -> np.ndarray:
     """Eigenvalues (1/s) of the loop of ``feed`` linearized at upright, head only rotating: the
     continuous-time Jacobian (``dt_s`` None) or the sampled loop of
-    :func:`verticality.simulation.ambiguity_loop.closed_loop` (reading and fed acceleration held over
-    ``dt_s``, observer stepped exactly, plant by RK4), its multipliers μ mapped to ``log μ / dt``;
-    sorted by decreasing real part."""
+    :func:`verticality.simulation.ambiguity_loop.closed_loop` (reading and fed acceleration held
+    over ``dt_s``, observer stepped exactly, plant by RK4), its multipliers μ mapped to
+    ``log μ / dt``; sorted by decreasing real part."""
     obs = lu.design(ambiguity_loop.linear_model(), ambiguity_loop.LUENBERGER_POLES)
     kp, kd = ambiguity_loop.pd_gains(loop_rad_s=pd_loop_rad_s)
     sampled = dt_s is not None
     dt = jnp.asarray(dt_s if sampled else 1.0)
     disc = obs.discretize(dt)
-    J = np.asarray(_loop_jacobian(jnp.zeros(8), feed, sampled, kp, kd, dt, disc, obs, ambiguity_loop.plant()))
+    J = np.asarray(_loop_jacobian(jnp.zeros(8), feed, sampled, kp, kd, dt, disc, obs,
+                                  ambiguity_loop.plant()))
     lam = np.linalg.eigvals(J).astype(complex)
     if sampled:
         lam = np.log(lam) / dt_s

@@ -218,7 +218,8 @@ def _upright(swept: str, quick: bool):
     grid = au.QUICK_GRID if quick else au.GRID
     entry, s = au.sweeps(swept, duration, grid)
     entry["setting"] = {**au.NOMINAL, "duration_s": duration}
-    t = np.arange(s.theta_H.shape[1]) * ambiguity_upright_loop.OUT_EVERY * ambiguity_upright_loop.DT_S
+    t = np.arange(s.theta_H.shape[1]) * (ambiguity_upright_loop.OUT_EVERY
+                                         * ambiguity_upright_loop.DT_S)
     series = {"upright/t": t, **{f"upright/{name}": v for name, v in s._asdict().items()}}
     n_runs = len(entry["per_value"]) * (1 + sum(len(v) for v in grid.values()))
     return entry, series, duration * n_runs

@@ -70,7 +70,8 @@ def internal_model(otolith_frequency_rel_error: float, otolith_damping_rel_error
     natural frequency (rad/s) and head inertia (kg·m²)."""
     omega_n = ambiguity_loop.OMEGA_N_RAD_S * (1.0 + otolith_frequency_rel_error)
     J = F452_HEAD_INERTIA_KG_M2 * (1.0 + head_inertia_rel_error)
-    model = ambiguity_loop.plant(omega_n, F452_OTOLITH_DAMPING_RATIO * (1.0 + otolith_damping_rel_error), J)
+    model = ambiguity_loop.plant(
+        omega_n, F452_OTOLITH_DAMPING_RATIO * (1.0 + otolith_damping_rel_error), J)
     return model, omega_n, J
 
 
@@ -79,9 +80,10 @@ def run_group(key: tuple, initial_tilt_deg, desired_tilt_deg, noise_rad, seeds, 
     """The metrics of the runs of one group ``key`` (:data:`GROUP_KNOBS`' values), one vmap."""
     feed, walking_scale, e_omega, e_zeta, e_J, loop = key
     model, omega_n, J = internal_model(e_omega, e_zeta, e_J)
-    s = ambiguity_loop.sweep(feed, initial_tilt_deg, desired_tilt_deg, duration_s, walking_scale, model=model,
-                gains=ambiguity_loop.pd_gains(J, loop), poles=ambiguity_loop.luenberger_poles(omega_n),
-                noise_rad=noise_rad, seeds=seeds)
+    s = ambiguity_loop.sweep(feed, initial_tilt_deg, desired_tilt_deg, duration_s, walking_scale,
+                             model=model, gains=ambiguity_loop.pd_gains(J, loop),
+                             poles=ambiguity_loop.luenberger_poles(omega_n),
+                             noise_rad=noise_rad, seeds=seeds)
     rows = summarize(s, desired_tilt_deg, known=(feed == "known"))
     out = {m: np.array([np.nan if r[m] is None else r[m] for r in rows], dtype=np.float64)
            for m in METRICS}
@@ -124,7 +126,8 @@ AMBIGUITY_WALKING = Kernel(
     knobs={
         "feed": Knob("luenberger", "the observer's horizontal acceleration: known, reconstructed "
                      "(F 3.17 or exact F 3.16) or an EKF state", choices=ambiguity_loop.KINDS),
-        "initial_tilt_deg": Knob(ambiguity_loop.THETA0_DEG, "the head's initial tilt (deg)", **_TILT),
+        "initial_tilt_deg": Knob(ambiguity_loop.THETA0_DEG, "the head's initial tilt (deg)",
+                                 **_TILT),
         "desired_tilt_deg": Knob(0.0, "the PD's reference tilt (deg)", **_TILT),
         "walking_scale": Knob(1.0, "the walking acceleration × this (0: rotation only)",
                               lo=0.0, hi=3.0),
@@ -134,8 +137,8 @@ AMBIGUITY_WALKING = Kernel(
                                           "otolith's damping ratio (signed)", **_ERROR),
         "head_inertia_rel_error": Knob(0.0, "the internal model's (and the PD design's) relative "
                                        "error of the head's inertia (signed)", **_ERROR),
-        "head_loop_rad_s": Knob(ambiguity_loop.HEAD_LOOP_RAD_S, "the PD's bandwidth: k_p = Ĵω², k_d = 2Ĵω "
-                                "(rad/s)", lo=0.0, lo_open=True, hi=100.0),
+        "head_loop_rad_s": Knob(ambiguity_loop.HEAD_LOOP_RAD_S, "the PD's bandwidth: k_p = Ĵω², "
+                                "k_d = 2Ĵω (rad/s)", lo=0.0, lo_open=True, hi=100.0),
         "noise_rad": Knob(0.0, "σ of the white noise on each 0.1 ms reading (rad)", lo=0.0,
                           hi=0.1),
     },
