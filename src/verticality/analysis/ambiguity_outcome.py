@@ -61,9 +61,9 @@ def smallest_failing(values_deg, rows) -> float | None:
 
 
 def summarize_upright(s: LoopSummary, ref_deg) -> list[dict]:
-    """Per run: converged (:data:`CONVERGED_DEG`, as :func:`summarize`), final tilt and head
-    errors (deg), RMS error of the
-    fed acceleration after the first second."""
+    """Per run of the continuous loop (:class:`LoopSummary`, 100 Hz): converged
+    (:data:`CONVERGED_DEG`, as :func:`summarize`), final tilt and head errors (deg), RMS error of
+    the fed acceleration after the first second."""
     n = s.theta_H.shape[1]
     last1 = np.arange(n) >= n - int(round(1.0 / (OUT_EVERY * UPRIGHT_DT_S)))
     after1 = np.arange(n) >= int(round(1.0 / (OUT_EVERY * UPRIGHT_DT_S)))
