@@ -24,8 +24,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality.experiments import newton as E
 from verticality.models import lissajous_plant as lp
+from verticality.simulation.newton_loop import (
+    CONFIG,
+    DT_S,
+    KD,
+    KP,
+    NOISE_RAD,
+    OBS_SUBSTEPS,
+    SUBSTEPS,
+    simulate,
+)
 
 CASES = [("fixed", "exact"), ("stabilized", "exact"), ("fixed", "perturbed"),
          ("stabilized", "perturbed")]
@@ -48,11 +57,11 @@ def np_rk4(x, u0, uh, u1, p, h):
     return x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
-def np_block(x, ublk, p, sub=E.OBS_SUBSTEPS):
+def np_block(x, ublk, p, sub=OBS_SUBSTEPS):
     """Same sub-stepped model as lissajous_plant.observer_model (mean + first-moment ramp)."""
     k = ublk.shape[0] // sub
     c = (np.arange(k) + 0.5) / k - 0.5
-    h = E.SUBSTEPS * E.DT_S / sub
+    h = SUBSTEPS * DT_S / sub
     for i in range(sub):
         seg = ublk[i * k:(i + 1) * k]  # (k, 3)
         mean = seg.mean(axis=0)
@@ -69,7 +78,7 @@ def np_map(xi, U, p):
     return xs[:, 0] - xs[:, 2], xs
 
 
-def np_solve(xi0, U, Y, p, cfg=E.CONFIG):
+def np_solve(xi0, U, Y, p, cfg=CONFIG):
     def lin(xi):
         Yp, xs = np_map(xi, U, p)
         J = np.zeros((Y.shape[0], 4))
@@ -116,23 +125,23 @@ def np_simulate(fixed, level, noise, n_blocks):
     theta_dot0 = float(lp.trunk(0.0).Theta_dot_rad_s)
     x = np.array([0.0, 0.0, 0.0 if fixed else 0.1, theta_dot0 if fixed else 0.0])
     xh = np.zeros(4)
-    N = E.CONFIG.window
-    Ubuf, Ybuf, Xbuf = np.zeros((N, E.SUBSTEPS, 3)), np.zeros(N), np.tile(xh, (N, 1))
+    N = CONFIG.window
+    Ubuf, Ybuf, Xbuf = np.zeros((N, SUBSTEPS, 3)), np.zeros(N), np.tile(xh, (N, 1))
     est = []
     t_first_solve = None
     for b in range(n_blocks):
         if b + 1 == N:
             t_first_solve = time.perf_counter()
-        ublk = np.zeros((E.SUBSTEPS, 3))
-        for i in range(E.SUBSTEPS):
-            t = (b * E.SUBSTEPS + i) * E.DT_S + 0.5 * E.DT_S
+        ublk = np.zeros((SUBSTEPS, 3))
+        for i in range(SUBSTEPS):
+            t = (b * SUBSTEPS + i) * DT_S + 0.5 * DT_S
             w1, w2, w3 = 0.5 * math.pi, math.pi, 2 * math.pi
             ah_I, az_I = -0.25 * w1**2 * math.sin(w1 * t), -0.25 * w2**2 * math.sin(w2 * t)
             c, s = math.cos(x[2]), math.sin(x[2])
             u = (p_true.K_kg_m2 * -0.25 * math.pi * w3**2 * math.sin(w3 * t) if fixed
-                 else -E.KP * xh[2] - E.KD * xh[3], c * ah_I + s * az_I, -s * ah_I + c * az_I)
-            x = np_rk4(x, u, u, u, p_true, E.DT_S)
-            xh = np_rk4(xh, u, u, u, p_obs, E.DT_S)
+                 else -KP * xh[2] - KD * xh[3], c * ah_I + s * az_I, -s * ah_I + c * az_I)
+            x = np_rk4(x, u, u, u, p_true, DT_S)
+            xh = np_rk4(xh, u, u, u, p_obs, DT_S)
             ublk[i] = u
             est.append(xh[2])
         y = x[0] - x[2] + noise[b]
@@ -151,7 +160,7 @@ def np_simulate(fixed, level, noise, n_blocks):
 def jax_runner(fixed, level, noise, n_blocks):
     p_true, p_obs = lp.p11_head(1.0), lp.p11_head(1.0 + level)
     key = jax.random.PRNGKey(11)
-    return lambda: jax.block_until_ready(E.simulate(
+    return lambda: jax.block_until_ready(simulate(
         p_true, p_obs, jnp.asarray(fixed), jnp.asarray(noise, dtype=float), key, n_blocks))
 
 
@@ -161,16 +170,16 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     duration = 10.0
-    n_blocks = int(round(duration / (E.SUBSTEPS * E.DT_S)))
-    np_blocks = max(E.CONFIG.window + 4, int(round(args.numpy_seconds / (E.SUBSTEPS * E.DT_S))))
+    n_blocks = int(round(duration / (SUBSTEPS * DT_S)))
+    np_blocks = max(CONFIG.window + 4, int(round(args.numpy_seconds / (SUBSTEPS * DT_S))))
     print(f"newton-lissajous, {duration:.0f} s simulated per condition "
-          f"(NumPy peer over {np_blocks * E.SUBSTEPS * E.DT_S:.2f} s)")
+          f"(NumPy peer over {np_blocks * SUBSTEPS * DT_S:.2f} s)")
     print(f"{'condition':24s} {'compile s':>9s} {'jax wall s':>10s} {'x real time':>11s} "
           f"{'numpy s/sim-s':>13s} {'jax/numpy':>9s} {'max |dθ̂| deg':>13s}")
     for cond, model in CASES:
         fixed = cond == "fixed"
         level = 0.1 if model == "perturbed" else 0.0
-        noise_sd = E.NOISE_RAD if model == "perturbed" else 0.0
+        noise_sd = NOISE_RAD if model == "perturbed" else 0.0
         run = jax_runner(fixed, level, noise_sd, n_blocks)
         t0 = time.perf_counter()
         series = run()
@@ -187,8 +196,8 @@ def main():
         t1 = time.perf_counter()
         # extrapolate to the full run: the stretch before the first window as measured, then the
         # measured cost per observer sample once the observer solves at every sample
-        per_block = (t1 - t_fs) / (np_blocks - E.CONFIG.window + 1)
-        np_full = (t_fs - t0) + per_block * (n_blocks - E.CONFIG.window + 1)
+        per_block = (t1 - t_fs) / (np_blocks - CONFIG.window + 1)
+        np_full = (t_fs - t0) + per_block * (n_blocks - CONFIG.window + 1)
         np_per_s = np_full / duration
         jax_per_s = wall / duration
         diff = np.rad2deg(np.max(np.abs(est_np - np.asarray(series.theta_H_hat_rad)[:est_np.size])))

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.analysis import ambiguity as am
+from verticality.analysis import ambiguity_outcome
 from verticality.experiments import ambiguity as ex
 from verticality.models.linearize import linearize
 from verticality.models.params import G_M_S2
@@ -18,6 +19,7 @@ from verticality.models.planar import (
     TorqueAndVertical,
     WithAccelerationState,
 )
+from verticality.simulation import ambiguity_loop
 
 
 def test_known_acceleration_observer_converges_from_every_sweep_value():
@@ -25,24 +27,24 @@ def test_known_acceleration_observer_converges_from_every_sweep_value():
     rows = result.metrics["luenberger"]
     assert len(rows) == len(result.metrics["desired_tilt_deg"]) == 3
     assert all(r["converged"] for r in rows)
-    assert all(r["final_tilt_error_deg"] < ex.CONVERGED_DEG for r in rows)
+    assert all(r["final_tilt_error_deg"] < ambiguity_outcome.CONVERGED_DEG for r in rows)
     assert result.metrics["checks"]["all_converge"]["pass"]
 
 
 def test_the_otolith_and_head_parameters_are_f452s():
-    head = ex.plant().head
+    head = ambiguity_loop.plant().head
     assert head.K_kg_m2 == 0.0174
     w_n = math.sqrt(head.g_m_s2 / head.l_m)
     zeta = head.beta_Nms / head.J_kg_m2 / (2.0 * w_n)
     assert abs(w_n / (2 * math.pi) - 300.0) < 1e-9 and abs(zeta - 1.0) < 1e-12
-    lin = ex.linear_model()
+    lin = ambiguity_loop.linear_model()
     assert np.asarray(lin.B).shape == (4, 2)  # τ and ᴴa_h: ᴴa_z drops out at upright
     poles = np.sort(np.linalg.eigvals(np.asarray(lin.A)).real)
     np.testing.assert_allclose(poles[:2], -w_n, rtol=1e-6)  # the critically damped double pole
 
 
 def test_acceleration_state_model_is_the_plant_with_the_input_moved_into_the_state():
-    plant = ex.plant()
+    plant = ambiguity_loop.plant()
     z = jnp.asarray(0.0)
     lin = linearize(plant, PlanarState(z, z, z, z), HeadInput(z, z, z))
     aug = WithAccelerationState(plant, 5.0)
@@ -71,11 +73,11 @@ def test_the_reconstruction_corrects_the_tilt_only_at_third_order():
 
 
 def test_walking_head_acceleration_is_a_steady_gait():
-    (a_h, a_z), (a_h_st, a_z_st) = ex.walking_head_acceleration(20000)  # 2 s at 10 kHz
-    assert a_h_st.shape == (20000, ex.SUBSTEPS, 3)
+    (a_h, a_z), (a_h_st, a_z_st) = ambiguity_loop.walking_head_acceleration(20000)  # 2 s at 10 kHz
+    assert a_h_st.shape == (20000, ambiguity_loop.SUBSTEPS, 3)
     np.testing.assert_allclose(a_h_st[:, 0, 0], a_h, atol=1e-12)
     # steady gait: periodic at the step frequency (2 Hz), zero-mean, vertical bounce ≈ 0.3 g
-    period = int(round(0.5 / ex.DT_S))
+    period = int(round(0.5 / ambiguity_loop.DT_S))
     np.testing.assert_allclose(a_z[period:], a_z[:-period], atol=1e-9)
     np.testing.assert_allclose(a_h[period:], a_h[:-period], atol=1e-9)
     assert abs(a_h.mean()) < 0.05 and abs(a_z.mean()) < 0.05

@@ -18,7 +18,6 @@ from verticality.estimators.kalman import (
     kalman_filter,
     steady_state_kalman_filter,
 )
-from verticality.experiments.separation import linear_model
 from verticality.models import head
 from verticality.models import lissajous_plant as lp
 from verticality.models.body import HUMAN_TWO_SEGMENT, upright
@@ -30,6 +29,7 @@ from verticality.models.planar import HeadInput, PlanarState
 from verticality.perception.laurens import laurens_angelaki
 from verticality.perception.merfeld import MerfeldZupan
 from verticality.perception.params import LAURENS_PRESETS, MERFELD_PRESETS
+from verticality.simulation.separation_loop import linear_model
 from verticality.tilt import TiltFilter
 
 DT = 0.01

@@ -5,6 +5,7 @@ import numpy as np
 from verticality.estimators.disturbance import extended_system
 from verticality.experiments import ground as G
 from verticality.models.body import TwoSegmentBody
+from verticality.simulation import ground_loop
 
 
 def test_printed_gain_read_as_two_halves_matches_ts_description():
@@ -16,6 +17,6 @@ def test_printed_gain_read_as_two_halves_matches_ts_description():
 
 
 def test_printed_gain_on_our_body_leaves_one_unstable_pole():
-    A, _, C, _ = (np.asarray(m) for m in extended_system(G.linear_body(TwoSegmentBody())))
+    A, _, C, _ = (np.asarray(m) for m in extended_system(ground_loop.linear_body(TwoSegmentBody())))
     poles = np.linalg.eigvals(A - G.T_EQ24_GAIN @ C)
     assert np.sum(np.real(poles) > 0) == 1 and np.sum(np.real(poles) < -5) == 6

@@ -11,7 +11,6 @@ import scipy.signal
 
 from verticality.core import so3
 from verticality.core.errors import InputError
-from verticality.experiments.separation import linear_model, plant
 from verticality.models import planar
 from verticality.models.base import EuclideanState, model_dataclass
 from verticality.models.linearize import (
@@ -22,6 +21,7 @@ from verticality.models.linearize import (
     select_inputs,
     to_statespace,
 )
+from verticality.simulation.separation_loop import linear_model, plant
 
 
 def _fd_jac(fun, z0, eps=1e-6):

@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 
 from verticality.core.errors import InputError
 from verticality.estimators import luenberger as lu
-from verticality.experiments.separation import linear_model
 from verticality.models.linearize import LinearModel, discretize_zoh
+from verticality.simulation.separation_loop import linear_model
 
 POLES = (-100.0, -110.0, -120.0, -130.0)
 DT = 1e-3

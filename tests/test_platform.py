@@ -8,6 +8,7 @@ import pytest
 from verticality.experiments import platform as exp
 from verticality.models import platform as pf
 from verticality.models.params import G_M_S2
+from verticality.simulation import platform_loop
 
 
 def _axis_state(v):
@@ -36,9 +37,10 @@ def test_f44_platform_ratios():
 @pytest.mark.parametrize("axis", ["pitch", "roll"])
 def test_linear_loops(axis):
     p = exp.AXES[axis]
-    obs = exp.observer_for(p)
+    obs = platform_loop.observer_for(p)
     assert obs.B.shape == (4, 2)  # u and a_h: the base rate is unknown to the observer
-    np.testing.assert_allclose(np.sort(obs.poles().real), np.sort(exp.OBSERVER_POLES), rtol=1e-6)
+    np.testing.assert_allclose(np.sort(obs.poles().real), np.sort(platform_loop.OBSERVER_POLES),
+                               rtol=1e-6)
     A, B, C = (np.asarray(v) for v in (obs.A, obs.B[:, :1], obs.C))
     kp, kd = exp.GAINS[axis]
     inc = p.inclinometer
@@ -56,7 +58,7 @@ def test_linear_loops(axis):
 
 def test_roll_sensor_fed_continuous_loop_is_unstable():
     p = exp.AXES["roll"]
-    obs = exp.observer_for(p)
+    obs = platform_loop.observer_for(p)
     A, B = np.asarray(obs.A), np.asarray(obs.B[:, :1])
     kp, kd = exp.GAINS["roll"]
     assert np.linalg.eigvals(A - B @ np.array([[0.0, 0.0, kp, kd]])).real.max() > 0
@@ -73,10 +75,10 @@ def test_the_platform_accelerometer_reads_the_specific_force_along_the_platform(
     the tilt entering with the inclinometer's sign (ψ = θ + atan2(a_h, g))."""
     key = jax.random.PRNGKey(0)
     for theta, a in ((0.0, 2.0), (0.3, 0.0), (-0.2, 1.5)):
-        f = float(exp.accelerometer_reading(key, theta, 0.7, a))
+        f = float(platform_loop.accelerometer_reading(key, theta, 0.7, a))
         expected = a * np.cos(theta) + G_M_S2 * np.sin(theta)
-        assert abs(f - expected) < 5 * exp.SIGMA_ACC_M_S2
+        assert abs(f - expected) < 5 * platform_loop.SIGMA_ACC_M_S2
     # a still platform tilted by θ: the accelerometer's tilt and the inclinometer's agree
-    f0 = np.mean([float(exp.accelerometer_reading(k, 0.2, 0.0, 0.0))
+    f0 = np.mean([float(platform_loop.accelerometer_reading(k, 0.2, 0.0, 0.0))
                   for k in jax.random.split(key, 200)])
     assert abs(np.arcsin(f0 / G_M_S2) - 0.2) < 2e-3

@@ -5,14 +5,15 @@ import numpy as np
 
 from verticality.estimators import luenberger as lu
 from verticality.experiments import separation as sep
+from verticality.simulation.separation_loop import KD, KP, linear_model
 
 
 def _pd_row():
-    return np.array([[0.0, 0.0, sep.KP, sep.KD]])
+    return np.array([[0.0, 0.0, KP, KD]])
 
 
 def test_observer_based_loop_has_controller_and_observer_poles():
-    m = sep.linear_model()
+    m = linear_model()
     A, B, C = (np.asarray(v) for v in (m.A, m.B[:, :1], m.C))
     obs = lu.design(m, sep.LUENBERGER_POLES)
     np.testing.assert_allclose(np.sort(obs.poles().real), np.sort(sep.LUENBERGER_POLES), rtol=1e-6)
@@ -27,15 +28,15 @@ def test_observer_based_loop_has_controller_and_observer_poles():
 
 
 def test_sensor_fed_linear_loop_is_unstable_state_fed_is_not():
-    m = sep.linear_model()
+    m = linear_model()
     A, B = np.asarray(m.A), np.asarray(m.B[:, :1])
-    sensor = np.array([[-sep.KP, -sep.KD, sep.KP, sep.KD]])  # tilt = θ_H − θ_S, rate its derivative
+    sensor = np.array([[-KP, -KD, KP, KD]])  # tilt = θ_H − θ_S, rate its derivative
     assert np.linalg.eigvals(A - B @ sensor).real.max() > 0.1
     assert np.linalg.eigvals(A - B @ _pd_row()).real.max() < 0
 
 
 def test_model_error_is_ten_percent():
-    a, b = sep.linear_model(1.0), sep.linear_model(1.1)
+    a, b = linear_model(1.0), linear_model(1.1)
     assert (abs(float(b.A[1, 0] / a.A[1, 0]) - 1.1) < 1e-12
             and abs(float(b.B[3, 0] / a.B[3, 0]) - 1 / 1.1) < 1e-12)
 

@@ -4,16 +4,18 @@ import numpy as np
 import pytest
 
 from verticality.experiments import separation as S
+from verticality.models.linearize import linearize, select_inputs
+from verticality.simulation import separation_loop
 
 
 def test_linearized_models_cannot_separate_tilt_from_a_steady_acceleration():
-    assert S.unknown_acceleration_rank(S.lateral_linear_model()) == (6, 7)
-    assert S.unknown_acceleration_rank(S.linear_model()) == (4, 5)
+    assert S.unknown_acceleration_rank(separation_loop.lateral_linear_model()) == (6, 7)
+    assert S.unknown_acceleration_rank(separation_loop.linear_model()) == (4, 5)
 
 
 def test_lateral_model_linearization_is_observable_and_pivot_independent():
-    a = S.lateral_linear_model()
-    b = S.select_inputs(S.linearize(S.lateral_plant(0.0, 0.0), *_upright()), [0, 1])
+    a = separation_loop.lateral_linear_model()
+    b = select_inputs(linearize(separation_loop.lateral_plant(0.0, 0.0), *_upright()), [0, 1])
     for m, n in zip(a, b, strict=True):
         np.testing.assert_allclose(np.asarray(m), np.asarray(n), atol=1e-12)
 

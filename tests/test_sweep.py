@@ -10,9 +10,10 @@ import numpy as np
 import pyarrow.parquet as pq  # the extra 'sweep' is part of the test extra: missing, this fails
 import pytest
 
+from verticality.analysis import newton_errors
 from verticality.cli import main
 from verticality.core.errors import InputError
-from verticality.experiments import newton as E
+from verticality.simulation import newton_loop
 from verticality.sweep import distribute, maps
 from verticality.sweep import spec as S
 from verticality.sweep.kernels import NEWTON_LISSAJOUS
@@ -175,8 +176,9 @@ def test_kernel_reproduces_the_experiment_run():
         cols[k] = np.array([0.1])
     got = NEWTON_LISSAJOUS.run_batch({k: np.repeat(v, 2) for k, v in cols.items()},
                                      np.array([11, 11]), duration_s=1.5)  # the tests' batch shape
-    ref = E.max_error_after(E.RunSeries(*(np.asarray(a[0]) for a in E.run_batch(
-        [True], [0.1], [E.NOISE_RAD], seed=11, duration_s=1.5))))
+    ref = newton_errors.max_error_after(newton_loop.RunSeries(*(
+        np.asarray(a[0]) for a in newton_loop.run_batch(
+            [True], [0.1], [newton_loop.NOISE_RAD], seed=11, duration_s=1.5))))
     np.testing.assert_allclose(got["max_error_deg"][0], ref, rtol=1e-12)
 
 
@@ -230,7 +232,7 @@ def test_sweep_plot_writes_the_maps_of_the_table(two_workers, tmp_path, capsys):
     assert list(m.x_values) == [-0.2, 0.3] and m.runs["fixed"].sum() == 4
     _assert_maps_match(m, columns)
     assert np.all(m.ratio > 5.0)  # the stabilized head's error is far below the fixed head's
-    assert m.published == (0.1, E.NOISE_RAD)  # P11's perturbed run, marked
+    assert m.published == (0.1, newton_loop.NOISE_RAD)  # P11's perturbed run, marked
     assert main(["sweep-plot", str(out), "--x", "head"]) == 2
     assert "cannot map over 'head'" in capsys.readouterr().err
 

@@ -6,8 +6,11 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from verticality.analysis import ambiguity_outcome
 from verticality.core.errors import InputError
 from verticality.experiments import ambiguity as E
+from verticality.models.params import F452_HEAD_INERTIA_KG_M2
+from verticality.simulation import ambiguity_loop
 from verticality.sweep import distribute
 from verticality.sweep import spec as S
 from verticality.sweep.ambiguity_kernel import AMBIGUITY_WALKING, METRICS
@@ -45,7 +48,7 @@ def test_a_tiny_sweep_in_process_is_the_experiment(tmp_path):
     spec = S.parse(TINY)
     design = S.design(spec)
     assert KERNELS["ambiguity-walking"] is AMBIGUITY_WALKING
-    assert design.columns["initial_tilt_deg"][0] == E.THETA0_DEG
+    assert design.columns["initial_tilt_deg"][0] == ambiguity_loop.THETA0_DEG
     assert design.columns["noise_rad"][0] == 0.0
     parts = tmp_path / "parts"
     parts.mkdir()
@@ -71,7 +74,8 @@ def test_reconstructed_feeds_are_the_experiments_runs(feed):
         cols = _columns(2, feed=feed, initial_tilt_deg=init, desired_tilt_deg=ref,
                         walking_scale=scale)
         got = AMBIGUITY_WALKING.run_batch(cols, np.array([3, 9]), duration_s=2.0)
-        want = E.summarize(E.sweep(feed, init, ref, 2.0, scale), ref, known=False)
+        want = ambiguity_outcome.summarize(ambiguity_loop.sweep(feed, init, ref, 2.0, scale), ref,
+                                           known=False)
         for i, r in enumerate(want):
             for m in METRICS:
                 assert got[m][i] == r[m] or (r[m] is None and np.isnan(got[m][i]))
@@ -117,7 +121,7 @@ def test_internal_model_errors_reach_the_observer_and_the_pd():
     poles follow the assumed natural frequency, the PD's gains the assumed inertia."""
     from verticality.sweep.ambiguity_kernel import internal_model
 
-    true = E.plant()
+    true = ambiguity_loop.plant()
     model, omega_n, J = internal_model(0.1, -0.2, 0.3)
     np.testing.assert_allclose(model.head.K_kg_m2, 1.3 * true.head.K_kg_m2, rtol=1e-15)
     p, q = model.head, true.head
@@ -125,12 +129,13 @@ def test_internal_model_errors_reach_the_observer_and_the_pd():
                                1.1**2 * q.m_kg * q.g_m_s2 * q.l_m / q.J_kg_m2, rtol=1e-12)
     np.testing.assert_allclose(p.beta_Nms / p.J_kg_m2, 1.1 * 0.8 * q.beta_Nms / q.J_kg_m2,
                                rtol=1e-12)
-    assert omega_n == E.OMEGA_N_RAD_S * 1.1 and J == E.F452_HEAD_INERTIA_KG_M2 * 1.3
+    assert omega_n == ambiguity_loop.OMEGA_N_RAD_S * 1.1 and J == F452_HEAD_INERTIA_KG_M2 * 1.3
     assert internal_model(0.0, 0.0, 0.0)[0] == true
-    assert E.pd_gains() == (E.KP_NM_RAD, E.KD_NMS_RAD)
-    assert E.luenberger_poles(E.OMEGA_N_RAD_S) == E.LUENBERGER_POLES
+    assert ambiguity_loop.pd_gains() == (ambiguity_loop.KP_NM_RAD, ambiguity_loop.KD_NMS_RAD)
+    omega_n = ambiguity_loop.OMEGA_N_RAD_S
+    assert ambiguity_loop.luenberger_poles(omega_n) == ambiguity_loop.LUENBERGER_POLES
     with pytest.raises(InputError, match="both noise_rad and seeds"):
-        E.sweep("known", [5.0], [0.0], 2.0, noise_rad=[1e-4])
+        ambiguity_loop.sweep("known", [5.0], [0.0], 2.0, noise_rad=[1e-4])
 
 
 @pytest.mark.parametrize("change, words", [

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from verticality.core.errors import InputError
-from verticality.experiments import newton as E
 from verticality.models import lissajous_plant as lp
 from verticality.models.lissajous import lissajous_trunk
+from verticality.simulation import newton_loop
 from verticality.sweep import kernels as K
 from verticality.sweep import spec as S
 
@@ -51,10 +51,10 @@ def test_defaults_are_the_published_loop_to_the_bit():
     the bit, a vmap of ``simulate`` called without the four knobs — the kernel as it was before
     them, whose runs equal the experiment's (``test_sweep``'s
     ``test_kernel_reproduces_the_experiment_run``); ``simulate``'s defaults are P11's."""
-    defaults = {"amplitude_scale": 1.0, "frequency_scale": 1.0, "kp_Nm_rad": E.KP,
-                "kd_Nms_rad": E.KD}
+    defaults = {"amplitude_scale": 1.0, "frequency_scale": 1.0, "kp_Nm_rad": newton_loop.KP,
+                "kd_Nms_rad": newton_loop.KD}
     assert {k: KERNEL.knobs[k].default for k in K.MOTION_KNOBS} == defaults
-    assert (E.KP, E.KD) == (230.0, 15.0)  # P11's PD
+    assert (newton_loop.KP, newton_loop.KD) == (230.0, 15.0)  # P11's PD
     columns = _columns([{"head": "fixed"}, {"head": "stabilized"}])
     seeds = np.array([11, 12])
     got = KERNEL.run_batch(columns, seeds, duration_s=DURATION_S)
@@ -74,8 +74,8 @@ def test_amplitude_zero_is_a_trunk_at_rest():
     tr = lp.trunk(t, 0.0, 1.7)
     for a in tr:
         np.testing.assert_array_equal(np.asarray(a), 0.0)
-    s = E.simulate(lp.p11_head(1.0), lp.p11_head(1.1), True, 0.0, jax.random.PRNGKey(0), 40,
-                   amplitude_scale=0.0)
+    s = newton_loop.simulate(lp.p11_head(1.0), lp.p11_head(1.1), True, 0.0, jax.random.PRNGKey(0),
+                             40, amplitude_scale=0.0)
     np.testing.assert_array_equal(s.theta_H_rad, 0.0)
     np.testing.assert_array_equal(s.tau_Nm, 0.0)
     assert np.max(np.abs(np.asarray(s.reading_rad))) == 0.0  # the pendulum hangs still
@@ -96,8 +96,8 @@ def test_frequency_scale_is_the_motion_at_scaled_time():
         np.testing.assert_allclose(a, 4.0 * np.asarray(b), rtol=1e-14, atol=1e-12)
     # independently of the autodiff: x'' of A sin(0.5π·2t) is −A π² sin(πt)
     np.testing.assert_allclose(fast.a_h_I_m_s2, -0.25 * np.pi**2 * np.sin(np.pi * t), atol=1e-12)
-    s = E.simulate(lp.p11_head(1.0), lp.p11_head(1.0), True, 0.0, jax.random.PRNGKey(0), 80,
-                   frequency_scale=2.0)
+    s = newton_loop.simulate(lp.p11_head(1.0), lp.p11_head(1.0), True, 0.0, jax.random.PRNGKey(0),
+                             80, frequency_scale=2.0)
     want = np.asarray(lissajous_trunk(2.0 * s.t_s))[2]
     # 1.3e-4 rad here (1.6e-5 at the published rate: the 1 ms steps hold Θ̈); a head started at
     # the published rate Θ̇(0) = 4.9 rad/s, half the scaled one, would be off by radians

@@ -43,7 +43,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality.core.integrate import rk4_step_staged
 from verticality.estimators.disturbance import extended_disturbance_observer, extended_system
 from verticality.estimators.ground import ground_from_states
 from verticality.estimators.kalman import continuous_observer
@@ -54,19 +53,16 @@ from verticality.experiments.tahboub import (
     GYRO_SIGMA_RAD_S,
     estimate_lean,
 )
-from verticality.models.body import HUMAN_TWO_SEGMENT, GroundInput, TwoSegmentBody, upright
-from verticality.models.linearize import LinearModel, linearize, select_inputs
+from verticality.models.body import TwoSegmentBody
+from verticality.sensors import readings as sensors
+from verticality.simulation.ground_loop import FS_HZ, linear_body, simulate_truth
 
-FS_HZ = 100.0
-SUBSTEPS = 10
 SETTLE_S = 1.0
 JOINT_SIGMA_RAD = 1.7e-4
 JOINT_RATE_SIGMA_RAD_S = 2e-3
 EDO_POLES = (-30.0, -30.5, -31.0, -31.5, -10.0, -15.0, -20.0)
 EDO_OUTPUTS = (0, 1, 2, 3, 4)  # θ2, θ3, θ̇2, θ̇3, ω: the a_x column of L_e is zero (see module doc)
 SOURCE = "T §II, §III.A.2, §III.B, Fig. 9–13"
-
-_DEG = np.pi / 180.0
 
 #: T eq. 24, the extended disturbance observer's printed gain L_e. The text prints 14 rows of 3
 #: numbers and "…"; our reading: the 7×6 gain (states θ2, θ3, θ̇2, θ̇3, θ1, θ̇1, θ̈1; outputs
@@ -82,76 +78,17 @@ T_EQ24_PRINTED = np.array([
 T_EQ24_GAIN = np.hstack([T_EQ24_PRINTED[:7], T_EQ24_PRINTED[7:]])
 
 
-def ground_motion(t):
-    """``F_d = (θ1, θ̇1, θ̈1)`` at time t."""
-    w1, w2 = 2 * np.pi * 0.1, 2 * np.pi * 0.35
-    a1, a2 = 1.8 * _DEG, 1.2 * _DEG
-    return jnp.array([
-        a1 * jnp.sin(w1 * t) + a2 * jnp.sin(w2 * t + 1.0),
-        a1 * w1 * jnp.cos(w1 * t) + a2 * w2 * jnp.cos(w2 * t + 1.0),
-        -a1 * w1**2 * jnp.sin(w1 * t) - a2 * w2**2 * jnp.sin(w2 * t + 1.0),
-    ])
-
-
-def joint_reference(t):
-    """Self-motion ``(θ2, θ3, θ̇2, θ̇3)`` reference."""
-    w2, w3 = 2 * np.pi * 0.2, 2 * np.pi * 0.5
-    a2, a3 = 2.0 * _DEG, 5.0 * _DEG
-    return jnp.array([a2 * jnp.sin(w2 * t), a3 * jnp.sin(w3 * t + 0.5),
-                      a2 * w2 * jnp.cos(w2 * t), a3 * w3 * jnp.cos(w3 * t + 0.5)])
-
-
-def linear_body(body: TwoSegmentBody = HUMAN_TWO_SEGMENT) -> LinearModel:
-    """T eq. 16: the body linearized at upright, inputs ``(τ2, τ3, θ1, θ̇1, θ̈1)``."""
-    return linearize(body, *upright())
-
-
-def lqr_gain(body: TwoSegmentBody = HUMAN_TWO_SEGMENT) -> np.ndarray:
-    import control
-
-    lin = select_inputs(linear_body(body), [0, 1])  # the joint torques
-    K, _, _ = control.lqr(np.asarray(lin.A), np.asarray(lin.B), np.diag([1e4, 1e4, 1e2, 1e2]),
-                          np.eye(2) * 1e-2)
-    return np.asarray(K)
-
-
-def simulate_truth(n: int, body: TwoSegmentBody = HUMAN_TWO_SEGMENT):
-    """Nonlinear trial: per 100 Hz sample, ``(t, x, u, F_d, y_e)`` (torque held over the sample,
-    the ground motion evaluated at every RK4 stage)."""
-    K = jnp.asarray(lqr_gain(body))
-    h = 1.0 / (FS_HZ * SUBSTEPS)
-
-    def f(w, x):
-        return body.dynamics(x, w), None
-
-    def sample(x, k):
-        t = k / FS_HZ
-        u = -K @ (x - joint_reference(t))
-        d = ground_motion(t)
-        y = body.output(x, GroundInput(u, d))
-
-        def sub(x, i):
-            ts = t + i * h
-            stages = jnp.stack([ground_motion(ts), ground_motion(ts + 0.5 * h), ground_motion(ts + h)])
-            return rk4_step_staged(f, GroundInput(jnp.broadcast_to(u, (3, 2)), stages), x, h)[0], None
-
-        x_next, _ = jax.lax.scan(sub, x, jnp.arange(SUBSTEPS))
-        return x_next, (x, u, d, y)
-
-    _, (xs, us, ds, ys) = jax.jit(lambda: jax.lax.scan(sample, jnp.zeros(4), jnp.arange(n)))()
-    return np.arange(n) / FS_HZ, xs, us, ds, ys
-
-
 def add_noise(key, y_true):
-    """Noisy y_e samples (θ2, θ3, θ̇2, θ̇3, ω_g, a_x) and the gyro drift."""
+    """Noisy y_e samples (θ2, θ3, θ̇2, θ̇3, ω_g, a_x) and the gyro drift: white noise on every
+    output (:func:`~verticality.sensors.readings.white`) and the gyro's random-walk drift
+    (:func:`~verticality.sensors.readings.random_walk`) added to ω_g."""
     n = y_true.shape[0]
     k1, k2, k3 = jax.random.split(key, 3)
-    steps = jnp.sqrt(DRIFT_INTENSITY / FS_HZ) * jax.random.normal(k1, (n,))
-    drift = jnp.cumsum(steps.at[0].set(0.0))
+    steps = sensors.random_walk_increments(k1, (n,), DRIFT_INTENSITY, 1.0 / FS_HZ)
+    drift = sensors.random_walk(steps.at[0].set(0.0))  # the drift starts at 0 at the first sample
     sig = jnp.array([JOINT_SIGMA_RAD, JOINT_SIGMA_RAD, JOINT_RATE_SIGMA_RAD_S, JOINT_RATE_SIGMA_RAD_S,
                      GYRO_SIGMA_RAD_S, ACC_SIGMA_M_S2])
-    noise = sig * jax.random.normal(k2, (n, 6))
-    y = y_true + noise + jnp.zeros((n, 6)).at[:, 4].set(drift)
+    y = sensors.white(k2, y_true, sig) + jnp.zeros((n, 6)).at[:, 4].set(drift)
     return y, drift
 
 

@@ -85,175 +85,36 @@ P11 reports both at 20 % (fails/diverges "beyond 15 %").
 
 from __future__ import annotations
 
-from functools import partial
 from pathlib import Path
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality.estimators import newton
+from verticality.analysis.newton_errors import (
+    DIVERGED_DEG,
+    PAPER_LISSAJOUS,
+    SETTLE_S,
+    inclinometer_swing_deg,
+    max_error_after,
+    tilt_error_deg,
+)
 from verticality.experiments import Result, check, register
 from verticality.models import lissajous_plant as lp
-from verticality.models.base import Discretized, step_euler, step_rk4
-from verticality.models.planar import (
-    HeadInput,
-    PlanarHead,
-    PlanarState,
-    head_frame_to_inertial,
-    inclinometer_reading,
+from verticality.models.planar import HeadInput, PlanarState, head_frame_to_inertial
+from verticality.simulation.newton_loop import (
+    CONFIG,
+    DT_S,
+    NOISE_RAD,
+    SUBSTEPS,
+    RunSeries,
+    make_observer,
+    run_batch,
 )
-from verticality.sensors import readings as sensors
-from verticality.simulation.trajectories import LISSAJOUS_AMPLITUDE
 
-DT_S = 1e-3
-SUBSTEPS = 25  # 1 ms plant steps per observer sample (25 ms spacing)
-OBS_SUBSTEPS = 5  # RK4 sub-steps of the observer's model per 25 ms interval (5 ms each)
-KP, KD = 230.0, 15.0
-NOISE_RAD = 1e-4
-SETTLE_S = 1.0
-DIVERGED_DEG = 30.0
 FAIL_DEG = 3.0  # P11 §VII's success criterion in the uncertainty study ("error smaller than 3°")
 LEVELS = (0.0, 0.05, 0.10, 0.15, 0.20, 0.30, 0.40, 0.50)
-CONFIG = newton.NewtonConfig(window=24, iterations=5, every=1, step_tol=1e-8)
-#: the observer's discretization: "rk4-ramp" (ours, near the plant's exact discretization) or
-#: "euler" (P11 §V.C: x_{k+1} = x_k + T·F(x_k, u_k) at the 1 ms sampling period)
-SCHEMES = ("rk4-ramp", "euler")
-ADC_BITS = 16  # P11 §VI: the reading's noise "corresponded to quantization error of a 16-bit ADC"
-ADC_FULL_SCALE_RAD = float(np.pi)  # our reading: the ADC spans the inclinometer's ±180°
 TRANSIENT_S = 2.0  # the stabilized head's start-up transient (0.1 rad initial tilt) is over
-
-PAPER_LISSAJOUS = {"max_tilt_error_deg": {"fixed": {"exact": 3.0, "perturbed": 6.0},
-                                          "stabilized": {"exact": 0.1, "perturbed": 0.5}},
-                   "ratio_fixed_over_stabilized": {"perturbed": 12.0}}
-
-
-class RunSeries(NamedTuple):
-    t_s: jnp.ndarray  # (T,) at 1 ms
-    theta_H_rad: jnp.ndarray
-    theta_H_hat_rad: jnp.ndarray
-    reading_rad: jnp.ndarray
-    tau_Nm: jnp.ndarray
-    converged: jnp.ndarray  # (B,) per observer sample
-    rank_deficient: jnp.ndarray
-    residual_rms_rad: jnp.ndarray
-    iterations: jnp.ndarray
-
-
-def make_observer(p_obs: PlanarHead, config: newton.NewtonConfig = CONFIG,
-                  substeps: int = OBS_SUBSTEPS, scheme: str = "rk4-ramp") -> newton.NewtonObserver:
-    """The Newton observer on the P11 plant; state (θ_S, ω_S, θ_H, ω_H); y = θ_S − θ_H.
-
-    ``scheme="rk4-ramp"``: F_T = ``substeps`` RK4 steps over 25 ms fed the 1 ms inputs as ramps
-    (:func:`lissajous_plant.observer_model`). ``scheme="euler"``: F_T = 25 forward-Euler steps of
-    1 ms, each with its 1 ms input held (P11 §V.C; ``substeps`` unused)."""
-    z = jnp.zeros(SUBSTEPS)
-    if scheme == "euler":
-        model = Discretized(lp.plant(p_obs), substeps=SUBSTEPS, scheme="euler")
-    else:
-        model = lp.observer_model(p_obs, substeps)
-    return newton.NewtonObserver(model, HeadInput(z, z, z), config)
-
-
-@partial(jax.jit, static_argnames=("n_blocks", "config", "scheme"))
-def simulate(p_true: PlanarHead, p_obs: PlanarHead, fixed, noise_rad, key, n_blocks: int,
-             config: newton.NewtonConfig = CONFIG, *, amplitude_scale=1.0, frequency_scale=1.0,
-             kp_Nm_rad=KP, kd_Nms_rad=KD, scheme: str = "rk4-ramp",
-             quantized=False) -> RunSeries:
-    """Closed loop of plant, 1 ms estimate propagation, PD (stabilized) and the Newton observer.
-
-    The trunk moves through :func:`lissajous_plant.trunk` with amplitude ``amplitude_scale`` × P11's
-    A and time scale ``frequency_scale`` (the motion at t is the published one at
-    ``frequency_scale · t``); the fixed head starts with the rate of that motion, ω_H(0) = Θ̇(0).
-    ``kp_Nm_rad``, ``kd_Nms_rad``: the stabilized head's PD gains (the fixed head has no
-    controller). All four may be traced (vmapped over); at their defaults the run is P11's.
-    ``scheme`` (static): the observer's discretization (:data:`SCHEMES`), used both for F_T and
-    for the 1 ms propagation of the estimate between solves. ``quantized`` (traced): the reading
-    is the true one rounded by a :data:`ADC_BITS`-bit ADC over ±:data:`ADC_FULL_SCALE_RAD`
-    instead of the true one plus Gaussian noise of σ ``noise_rad``."""
-    obs = make_observer(p_obs, config, scheme=scheme)
-    step_obs = step_euler if scheme == "euler" else step_rk4
-    plant, model = lp.plant(p_true), lp.plant(p_obs)
-    amplitude = LISSAJOUS_AMPLITUDE * amplitude_scale
-
-    def trunk_at(t):
-        return lp.trunk(t, amplitude, frequency_scale)
-
-    theta_dot0 = trunk_at(0.0).Theta_dot_rad_s
-    x0 = PlanarState(jnp.asarray(0.0), jnp.asarray(0.0), jnp.where(fixed, 0.0, 0.1),
-                     jnp.where(fixed, theta_dot0, 0.0))
-    xh0 = PlanarState(*(jnp.zeros(()) for _ in range(4)))
-    noise = noise_rad * jax.random.normal(key, (n_blocks,))
-    # the trunk's motion at the middle of every 1 ms step, for the whole run at once (vectorized)
-    t_mid = jnp.arange(n_blocks * SUBSTEPS) * DT_S + 0.5 * DT_S
-    trunk = jax.tree_util.tree_map(lambda a: a.reshape(n_blocks, SUBSTEPS), trunk_at(t_mid))
-
-    def fast(carry, tr):
-        x, xh = carry
-        # the trunk's acceleration in head-frame components (what the head's IMU reads)
-        a_h_H, a_z_H = head_frame_to_inertial(tr.a_h_I_m_s2, tr.a_z_I_m_s2, -x.theta_H_rad)
-        tau = jnp.where(fixed, p_true.K_kg_m2 * tr.Theta_ddot_rad_s2,
-                        -kp_Nm_rad * xh.theta_H_rad - kd_Nms_rad * xh.omega_H_rad_s)
-        u = HeadInput(tau, a_h_H, a_z_H)
-        x1 = step_rk4(plant, x, u, DT_S)
-        xh1 = step_obs(model, xh, u, DT_S)
-        return (x1, xh1), (u, x1.theta_H_rad, xh1.theta_H_rad, inclinometer_reading(x1))
-
-    def block(carry, b_trunk):
-        b, trunk_blk = b_trunk
-        x, ost = carry
-        xh = ost.x_hat
-        (x, _), (u_blk, th, thh, rd) = jax.lax.scan(fast, (x, xh), trunk_blk)
-        y = jnp.where(quantized,
-                      sensors.quantize(inclinometer_reading(x), ADC_BITS, ADC_FULL_SCALE_RAD),
-                      inclinometer_reading(x) + noise[b])
-        ost, out = obs.step(ost, u_blk, y, SUBSTEPS * DT_S)
-        # the last fast sample's estimate is the observer's (solved) estimate at this sample
-        thh = thh.at[-1].set(out.x_hat.theta_H_rad)
-        return (x, ost), (th, thh, rd, u_blk.tau_Nm, out.converged & out.solved,
-                          out.rank_deficient & out.solved, out.residual_rms,
-                          jnp.where(out.solved, out.iterations, 0))
-
-    _, (th, thh, rd, tau, conv, rdef, res, its) = jax.lax.scan(
-        block, (x0, obs.init(xh0)), (jnp.arange(n_blocks), trunk))
-    t = (jnp.arange(n_blocks * SUBSTEPS) + 1) * DT_S
-    return RunSeries(t, th.reshape(-1), thh.reshape(-1), rd.reshape(-1), tau.reshape(-1),
-                     conv, rdef, res, its)
-
-
-def tilt_error_deg(s: RunSeries):
-    e = jnp.angle(jnp.exp(1j * (s.theta_H_hat_rad - s.theta_H_rad)))
-    return jnp.rad2deg(jnp.abs(e))
-
-
-def max_error_after(s: RunSeries, t0: float = SETTLE_S) -> float:
-    err = np.asarray(tilt_error_deg(s))
-    t = np.asarray(s.t_s)
-    sel = err[t >= t0 - 1e-9]
-    if not np.all(np.isfinite(sel)) or not np.all(np.isfinite(np.asarray(s.theta_H_hat_rad))):
-        return float("nan")
-    return float(np.max(sel))
-
-
-def run_batch(fixed, level, noise_rad, seed: int, duration_s: float,
-              config: newton.NewtonConfig = CONFIG, scheme: str = "rk4-ramp",
-              quantized=None) -> RunSeries:
-    """vmap of :func:`simulate` over conditions (fixed flags, levels, noise σ, quantized flags),
-    one compile per ``scheme``."""
-    fixed = jnp.asarray(fixed, dtype=bool)
-    level = jnp.asarray(level, dtype=float)
-    noise = jnp.asarray(noise_rad, dtype=float)
-    quant = jnp.zeros_like(fixed) if quantized is None else jnp.asarray(quantized, dtype=bool)
-    n_blocks = int(round(duration_s / (SUBSTEPS * DT_S)))
-    key = jax.random.PRNGKey(seed)
-    p_true = lp.p11_head(1.0)
-
-    def one(f, lv, sg, q):
-        return simulate(p_true, lp.p11_head(1.0 + lv), f, sg, key, n_blocks, config,
-                        scheme=scheme, quantized=q)
-
-    return jax.vmap(one)(fixed, level, noise, quant)
 
 
 def _pick(batch: RunSeries, i: int) -> RunSeries:
@@ -268,12 +129,6 @@ def _lanes(cases):
     """run_batch's per-lane arguments for (condition, model) cases."""
     return ([c == "fixed" for c, _ in cases], [0.1 if m == "perturbed" else 0.0 for _, m in cases],
             [NOISE_RAD if m == "perturbed" else 0.0 for _, m in cases])
-
-
-def inclinometer_swing_deg(s: RunSeries, t0: float = SETTLE_S) -> float:
-    """Largest |inclinometer reading| after ``t0`` (P11 §VI: the stabilized head's inclinometer
-    "oscillated with a magnitude of about 4°")."""
-    return float(np.max(np.abs(np.rad2deg(np.asarray(s.reading_rad)[np.asarray(s.t_s) >= t0]))))
 
 
 def jacobian_agreement(scheme: str = "euler", t0_s: float = 2.0) -> float:

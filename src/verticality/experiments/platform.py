@@ -43,127 +43,28 @@ Readings the thesis leaves open, fixed here:
 from __future__ import annotations
 
 from pathlib import Path
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality.core.integrate import rk4_step
-from verticality.estimators import luenberger as lu
-from verticality.estimators.kalman import ContinuousObserver
 from verticality.experiments import Result, check, register
 from verticality.models import platform as pf
-from verticality.models.kinematics import RigidMotion
-from verticality.models.linearize import linearize, select_inputs
-from verticality.sensors import readings as sensors
+from verticality.simulation.platform_loop import (
+    LOOP_DT_S,
+    AxisCfg,
+    observer_for,
+    simulate_batch,
+)
 
-LOOP_DT_S = 3e-3
-SUBSTEPS = 3
 AXES = {"pitch": pf.PITCH, "roll": pf.ROLL}
 GAINS = {"pitch": (300.0, 1.0), "roll": (40.0, 0.05)}
 U_MAX = {"pitch": 50.0, "roll": 5.0}
 BASE_AMP_RAD = {"pitch": np.deg2rad(45.0), "roll": np.deg2rad(40.0)}
 BASE_FREQ_HZ = {"pitch": 0.4, "roll": 0.5}
-ACC_AMP_M_S2 = 2.0
 ACC_FREQ_HZ = {"pitch": 0.8, "roll": 1.1}
 ACC_PHASE = {"pitch": 0.0, "roll": np.pi / 2}
-OBSERVER_POLES = (-150.0, -170.0, -190.0, -210.0)
-SIGMA_Y_RAD = 1e-3
-SIGMA_ACC_M_S2 = 0.02
 SETTLE_S = 1.0
-
-
-def observer_for(axis: pf.PlatformAxis) -> ContinuousObserver:
-    """Luenberger observer on the axis model linearized at upright (F 4.10), with the inputs it
-    knows: the command u and the acceleration a_h (not the base's rate)."""
-    z = jnp.asarray(0.0)
-    lin = linearize(axis, pf.AxisState(z, z, z, z), pf.AxisInput(z, z, z))
-    return lu.design(select_inputs(lin, [0, 1]), OBSERVER_POLES)
-
-
-class AxisCfg(NamedTuple):
-    p: pf.PlatformAxis
-    kp: jnp.ndarray
-    kd: jnp.ndarray
-    u_max: jnp.ndarray
-    base_amp: jnp.ndarray
-    base_w: jnp.ndarray
-    acc_w: jnp.ndarray
-    acc_phase: jnp.ndarray
-    obs: ContinuousObserver
-    use_observer: jnp.ndarray  # 0.0 sensor, 1.0 observer
-    key: jnp.ndarray
-    use_accelerometer: jnp.ndarray = 0.0  # the observer's a_h: 0.0 the true one, 1.0 the accelerometer's
-
-
-def _ramp(t, t0):
-    return jnp.clip(t - t0, 0.0, 1.0)
-
-
-def _drive(cfg: AxisCfg, t, swing_s):
-    """Base angular velocity and platform linear acceleration at time t (the two phases)."""
-    in_swing = t < swing_s
-    r = _ramp(t, 0.0)
-    omega_base = jnp.where(in_swing, r * cfg.base_amp * cfg.base_w * jnp.cos(cfg.base_w * t)
-                           + (t < 1.0) * cfg.base_amp * jnp.sin(cfg.base_w * t), 0.0)
-    a = jnp.where(in_swing, 0.0,
-                  _ramp(t, swing_s) * ACC_AMP_M_S2 * jnp.sin(cfg.acc_w * (t - swing_s) + cfg.acc_phase))
-    return omega_base, a
-
-
-def accelerometer_reading(key, theta_rad, omega_rad_s, a_h_I_m_s2):
-    """The platform accelerometer's reading along the axis' horizontal (F §5.1.1: tri-axial, at the
-    platform's centre, axes aligned with the platform's): :func:`verticality.sensors.readings.accelerometer`
-    for the platform tilted by θ about its axis and accelerated by ``a_h`` — the specific force
-    ``a_h cos θ + g sin θ`` plus white noise of σ :data:`SIGMA_ACC_M_S2` (signs of the
-    inclinometer's apparent tilt ``θ + atan2(a_h, g)``: the tilt about y is ``−θ``)."""
-    c, s_ = jnp.cos(theta_rad), jnp.sin(theta_rad)
-    R_I_B = jnp.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # R_y(−θ)
-    w = jnp.stack([0.0 * omega_rad_s, -omega_rad_s, 0.0 * omega_rad_s])
-    motion = RigidMotion(R_I_B, w, jnp.zeros(3), jnp.stack([a_h_I_m_s2, 0.0, 0.0]))
-    return sensors.accelerometer(key, motion, sensors.AccelParams(SIGMA_ACC_M_S2))[0]
-
-
-def _simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
-    h = LOOP_DT_S / SUBSTEPS
-    noise = jax.random.normal(cfg.key, (n_loops,)) * SIGMA_Y_RAD
-    acc_keys = jax.random.split(jax.random.fold_in(cfg.key, 1), n_loops)
-
-    def f_plant(t, x, u):
-        omega_base, a = _drive(cfg, t, swing_s)
-        return cfg.p.dynamics(x, pf.AxisInput(u, a, omega_base))
-
-    def body(carry, k):
-        x, base, ls, y_prev = carry
-        t = k * LOOP_DT_S
-        y = x.y_rad + noise[k]
-        _, a_now = _drive(cfg, t, swing_s)
-        rate = jnp.where(k > 0, (y - y_prev) / LOOP_DT_S, 0.0)
-        th = jnp.where(cfg.use_observer > 0, ls.x[0], y)
-        om = jnp.where(cfg.use_observer > 0, ls.x[1], rate)
-        u = jnp.clip(-cfg.kp * th - cfg.kd * om, -cfg.u_max, cfg.u_max)
-        a_acc = accelerometer_reading(acc_keys[k], x.theta_rad, x.omega_rad_s, a_now)
-        a_fed = jnp.where(cfg.use_accelerometer > 0, a_acc, a_now)
-        ls_new, _ = cfg.obs.step(ls, jnp.array([u, a_fed]), jnp.atleast_1d(y), LOOP_DT_S)
-
-        def sub(i, xb):
-            xx, bb = xb
-            ts = t + i * h
-            om_b, _ = _drive(cfg, ts, swing_s)
-            return rk4_step(f_plant, ts, xx, h, u), bb + h * om_b
-
-        x_new, base_new = jax.lax.fori_loop(0, SUBSTEPS, sub, (x, base))
-        out = (x.theta_rad, y, ls.x[0], base, u, a_now, a_acc)
-        return (x_new, base_new, ls_new, y), out
-
-    z = jnp.asarray(0.0)
-    carry0 = (pf.AxisState(z, z, z, z), 0.0, cfg.obs.init(jnp.zeros(4)), 0.0)
-    _, outs = jax.lax.scan(body, carry0, jnp.arange(n_loops))
-    return outs
-
-
-_simulate_batch = jax.jit(jax.vmap(_simulate, in_axes=(0, None, None)), static_argnums=(1, 2))
 
 
 FEEDS = ("sensor_feedback", "observer_feedback", "accelerometer_fed")
@@ -214,7 +115,7 @@ def run(quick: bool = False) -> Result:
     duration = swing_s + accel_s
     n = int(round(duration / LOOP_DT_S))
     rows, cfg = _configs()
-    th, y, th_hat, base, u, a, a_acc = (np.asarray(v) for v in _simulate_batch(cfg, n, swing_s))
+    th, y, th_hat, base, u, a, a_acc = (np.asarray(v) for v in simulate_batch(cfg, n, swing_s))
     t = np.arange(n) * LOOP_DT_S
     unstable: dict = dict.fromkeys(FEEDS, False)
     by_axis: dict = {}
@@ -247,7 +148,7 @@ def run(quick: bool = False) -> Result:
     # F Fig. 5.9 is its own test (the platform translated, the base still): the same loops from
     # rest under the translation alone
     n_t = int(round(accel_s / LOOP_DT_S))
-    th_t = np.asarray(_simulate_batch(cfg, n_t, 0.0)[0])
+    th_t = np.asarray(simulate_batch(cfg, n_t, 0.0)[0])
     t_t = np.arange(n_t) * LOOP_DT_S
     transl_only: dict = {}
     for i, (feed, axis) in enumerate(rows):

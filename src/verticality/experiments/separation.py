@@ -35,136 +35,32 @@ Readings the thesis leaves open, fixed here:
 from __future__ import annotations
 
 from pathlib import Path
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality.core.integrate import rk4_step_staged
-from verticality.estimators import kalman as kf
 from verticality.estimators import luenberger as lu
 from verticality.experiments import Result, check, register
-from verticality.models.inclinometer import F44_BETA_OVER_ML2_S, F44_G_OVER_L_S2
-from verticality.models.linearize import LinearModel, linearize, select_inputs
-from verticality.models.otolith_head import PlanarLateral, PlanarLateralState
+from verticality.models.linearize import LinearModel
 from verticality.models.params import LATERAL_R_M
-from verticality.models.planar import (
-    HeadInput,
-    PlanarInput,
-    PlanarState,
-    WithHeadFrameInput,
-    head_frame_to_inertial,
+from verticality.simulation.separation_loop import (
+    DT_S,
+    FEEDS,
+    Config,
+    kalman_design,
+    lateral_linear_model,
+    linear_model,
+    plant,
+    simulate_batch,
+    simulate_lateral_batch,
 )
-from verticality.models.platform import f44_platform
 
-KP, KD = 1.0, 0.1
-THETA0_RAD = 0.4
-A_AMP_M_S2, A_FREQ_RAD_S = 3.0, 10.0
-DT_S = 1e-3
 SETTLE_S = 1.0
 LUENBERGER_POLES = (-100.0, -110.0, -120.0, -130.0)
 LATERAL_POLES = LUENBERGER_POLES + (-140.0, -150.0)  # the same pattern for the six states
 LATERAL_R_SWEEP_M = (0.0, 0.001, 0.002, 0.005, 0.01, LATERAL_R_M)
-SIGMA_Y_RAD = 5e-3
-SIGMA_TAU_NM = 2e-3
-FEEDS = ("sensor", "state", "luenberger", "kalman")
 REFS = {"ref1": 1.0, "ref0": 0.0}
-
-
-def head_accel_m_s2(t):
-    """ᴴa: pivot acceleration along the platform's forward axis (F §4.4.3)."""
-    return A_AMP_M_S2 * jnp.sin(A_FREQ_RAD_S * t)
-
-
-def plant(scale: float = 1.0) -> WithHeadFrameInput:
-    """The platform driven by torque and head-frame acceleration, for a model whose g/l, β/(ml²)
-    and J_h are multiplied by ``scale`` (1: the truth)."""
-    return WithHeadFrameInput(f44_platform(g_over_l_s2=F44_G_OVER_L_S2 * scale,
-                                           beta_over_ml2_s=F44_BETA_OVER_ML2_S * scale,
-                                           J_h_kg_m2=1e-4 * scale))
-
-
-def linear_model(scale: float = 1.0) -> LinearModel:
-    """F 4.10: :func:`plant` linearized at upright; inputs (τ, ᴴa_h) (ᴴa_z is zero here),
-    output the reading."""
-    z = jnp.asarray(0.0)
-    lin = linearize(plant(scale), PlanarState(z, z, z, z), HeadInput(z, z, z))
-    return select_inputs(lin, [0, 1])
-
-
-def kalman_design(model: LinearModel) -> kf.KalmanFilter:
-    Bt = model.B[:, :1]
-    Q = Bt @ Bt.T * SIGMA_TAU_NM**2 * DT_S + 1e-2 * jnp.eye(4)
-    R = jnp.array([[SIGMA_Y_RAD**2 * DT_S]])
-    return kf.kalman_filter(model.A, model.B, model.C, model.D, Q, R)
-
-
-class Config(NamedTuple):
-    ref_rad: jnp.ndarray
-    feed: jnp.ndarray  # index into FEEDS
-    noise: jnp.ndarray  # 0 or 1
-    obs: kf.ContinuousObserver
-    kfilt: kf.KalmanFilter
-    key: jnp.ndarray
-
-
-def _simulate(cfg: Config, n_steps: int, truth: WithHeadFrameInput):
-    """One closed-loop run; returns time series (θ_H, θ̂_H of the fed estimator, all estimates, y)."""
-    x0 = jnp.array([0.0, 0.0, THETA0_RAD, 0.0])  # (θ_S, ω_S, θ_H, ω_H) stacked (see f_plant)
-    l_state = cfg.obs.init(jnp.zeros(4))
-    P0 = jnp.diag(jnp.array([0.1, 10.0, 0.5, 10.0])) ** 2
-    k_state = cfg.kfilt.init(jnp.zeros(4), P0)
-    noise = jax.random.normal(cfg.key, (n_steps, 2)) * cfg.noise
-
-    def f_plant(w, x):
-        # the model on the stacked state vector: XLA rounds a 4-vector's RK4 the same way from
-        # one compilation to the next, four separate scalars not necessarily
-        return jnp.stack(truth.dynamics(PlanarState(*x), w)), None
-
-    def body(carry, k):
-        x, ls, ks, tilt_meas_prev, u_prev = carry
-        t = k * DT_S
-        y = truth.output(PlanarState(*x)) + SIGMA_Y_RAD * noise[k, 0]
-        a_now = head_accel_m_s2(t)
-        ks, kout = cfg.kfilt.step(ks, u_prev, y, DT_S)
-        tilt_meas = -y[0]
-        rate_meas = jnp.where(k > 0, (tilt_meas - tilt_meas_prev) / DT_S, 0.0)
-        th = jnp.stack([tilt_meas, x[2], ls.x[2], ks.x[2]])
-        om = jnp.stack([rate_meas, x[3], ls.x[3], ks.x[3]])
-        tau = KP * (cfg.ref_rad - th[cfg.feed]) - KD * om[cfg.feed]
-        u = jnp.array([tau, a_now])
-        ls_new, _ = cfg.obs.step(ls, u, y, DT_S)
-        tau_true = tau + SIGMA_TAU_NM * noise[k, 1]
-        # the acceleration at the RK4 stages (t, t + h/2, t + h), the torque held
-        a_stages = jnp.stack([head_accel_m_s2(t), head_accel_m_s2(t + 0.5 * DT_S),
-                              head_accel_m_s2(t + DT_S)])
-        stages = HeadInput(jnp.broadcast_to(tau_true, (3,)), a_stages, jnp.zeros(3))
-        x_new = rk4_step_staged(f_plant, stages, x, DT_S)[0]
-        out = (x[2], ls.x[2], ks.x[2], tilt_meas, tau)
-        return (x_new, ls_new, ks, tilt_meas, u), out
-
-    carry0 = (x0, l_state, k_state, 0.0, jnp.zeros(2))
-    _, outs = jax.lax.scan(body, carry0, jnp.arange(n_steps))
-    return outs
-
-
-_simulate_batch = jax.jit(jax.vmap(_simulate, in_axes=(0, None, None)), static_argnums=1)
-
-
-def lateral_plant(euler: float = 0.0, r_m: float = LATERAL_R_M) -> PlanarLateral:
-    """F 2.18–2.19 in the plane: the platform of :func:`plant` carrying two inclinometers at
-    ±5 cm on its horizontal axis (the lateral model); tilting about the axis normal to the line
-    through both pivots, so their transport accelerations are opposite. ``euler = 0``: F 2.19 as
-    printed (centripetal term only, F 2.12 neglects the Euler term); 1: the full model."""
-    return PlanarLateral(params=f44_platform(), r_m=r_m, euler=euler)
-
-
-def lateral_linear_model() -> LinearModel:
-    """F 4.10 for the lateral model: linearized at upright; inputs (τ, a_h); outputs both readings."""
-    z = jnp.asarray(0.0)
-    lin = linearize(lateral_plant(), PlanarLateralState(*([z] * 6)), PlanarInput(z, z, z))
-    return select_inputs(lin, [0, 1])
 
 
 def unknown_acceleration_rank(model: LinearModel) -> tuple[int, int]:
@@ -178,37 +74,6 @@ def unknown_acceleration_rank(model: LinearModel) -> tuple[int, int]:
     C = np.hstack([np.asarray(model.C), np.asarray(model.D)[:, 1:2]])
     return int(np.linalg.matrix_rank(control.obsv(A, C))), n + 1
 
-
-def _simulate_lateral(ref_rad, obs: kf.ContinuousObserver, euler, r_m, n_steps: int):
-    """The Luenberger-fed PD of ``_simulate`` on the lateral plant with pivots at ±``r_m``
-    (nominal, no noise); returns (θ_H, θ̂_H) every 1 ms."""
-    truth = lateral_plant(euler, r_m)
-    x0 = PlanarLateralState(*(jnp.asarray(v) for v in (0.0, 0.0, 0.0, 0.0, THETA0_RAD, 0.0)))
-
-    def f_plant(w, x):
-        tau, a_h_H = w
-        a_h_I, a_z_I = head_frame_to_inertial(a_h_H, 0.0, x.theta_H_rad)
-        return truth.dynamics(x, PlanarInput(tau, a_h_I, a_z_I)), None
-
-    def body(carry, k):
-        x, ls = carry
-        t = k * DT_S
-        y = truth.output(x)
-        tau = KP * (ref_rad - ls.x[4]) - KD * ls.x[5]
-        a_now = head_accel_m_s2(t)
-        ls_new, _ = obs.step(ls, jnp.array([tau, a_now]), y, DT_S)
-        a_stages = jnp.stack([head_accel_m_s2(t), head_accel_m_s2(t + 0.5 * DT_S),
-                              head_accel_m_s2(t + DT_S)])
-        x_new = rk4_step_staged(f_plant, (jnp.broadcast_to(tau, (3,)), a_stages), x, DT_S)[0]
-        return (x_new, ls_new), (x.theta_H_rad, ls.x[4])
-
-    return jax.lax.scan(body, (x0, obs.init(jnp.zeros(6))), jnp.arange(n_steps))[1]
-
-
-_simulate_lateral_batch = jax.jit(jax.vmap(_simulate_lateral, in_axes=(0, None, 0, 0, None)),
-                                  static_argnums=4)
-
-
 def lateral_metrics(quick: bool = False) -> tuple[dict, dict]:
     """F §4.4.2's Luenberger observer applied to the lateral model (F 2.18) in F §4.4.3's
     scenario, beside the medial one; and whether either linear model separates tilt from a steady
@@ -218,7 +83,7 @@ def lateral_metrics(quick: bool = False) -> tuple[dict, dict]:
     n = int(round((4.0 if quick else 10.0) / DT_S))
     lanes = [(p, e, r, name, ref) for p, e in (("f219", 0.0), ("with_euler_term", 1.0))
              for r in LATERAL_R_SWEEP_M for name, ref in REFS.items()]
-    th, est = (np.asarray(a) for a in _simulate_lateral_batch(
+    th, est = (np.asarray(a) for a in simulate_lateral_batch(
         jnp.array([ln[4] for ln in lanes]), obs, jnp.array([ln[1] for ln in lanes]),
         jnp.array([ln[2] for ln in lanes]), n))
     settle = np.arange(n) * DT_S >= SETTLE_S
@@ -287,7 +152,7 @@ def simulate_all(quick: bool = False):
     duration = 4.0 if quick else 10.0
     n = int(round(duration / DT_S))
     rows, cfg = _configs(quick)
-    th, th_l, th_k, meas, tau = (np.asarray(a) for a in _simulate_batch(cfg, n, plant()))
+    th, th_l, th_k, meas, tau = (np.asarray(a) for a in simulate_batch(cfg, n, plant()))
     t = np.arange(n) * DT_S
     return rows, t, th, th_l, th_k, meas, tau, duration
 

@@ -6,7 +6,7 @@ once with ``jax.vmap`` inside one compiled function. Every run carries its own s
 registered by name in :data:`verticality.sweep.registry.KERNELS`.
 
 ``newton-lissajous`` — the closed loop of the `newton-lissajous` experiment
-(:func:`verticality.experiments.newton.simulate`: P11's plant, PD and Newton observer, Lissajous
+(:func:`verticality.simulation.newton_loop.simulate`: P11's plant, PD and Newton observer, Lissajous
 trunk motion). The plant is :func:`verticality.models.lissajous_plant.p11_head`; the observer's
 model is the same :class:`~verticality.models.planar.PlanarHead` value with every parameter
 scaled by ``1 + <name>_rel_error`` (the parameters are the value's leaves, so an error with sign
@@ -25,7 +25,7 @@ the observer's error of ``m`` is ``m_rel_error + m_drawn_error``); at level 0 th
 every run gives the numbers it gave before the knob existed (to the bit).
 
 The knobs of the trunk motion and of the controller, all traced (per run, inside one compiled
-batch), are keywords of :func:`~verticality.experiments.newton.simulate`:
+batch), are keywords of :func:`~verticality.simulation.newton_loop.simulate`:
 
 - ``amplitude_scale`` (≥ 0, default 1): the Lissajous amplitude A = 0.25 times this (x, z and Θ
   all scale with A; 0 is a trunk at rest);
@@ -55,9 +55,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from verticality.experiments import newton as E
+from verticality.analysis import newton_errors
 from verticality.models import lissajous_plant as lp
 from verticality.models.planar import PlanarHead
+from verticality.simulation import newton_loop
 
 
 @dataclass(frozen=True)
@@ -162,28 +163,28 @@ def newton_lissajous_batch(rel_errors, fixed, noise_rad, seeds, motion=None, *, 
     """vmap over runs of the `newton-lissajous` closed loop; ``rel_errors`` is a
     :class:`~verticality.models.planar.PlanarHead` of (B,) relative errors (the observer's value is
     the plant's, leaf by leaf, times ``1 + error``); ``motion`` maps each of :data:`MOTION_KNOBS`
-    to its (B,) values (keywords of :func:`~verticality.experiments.newton.simulate`, traced;
+    to its (B,) values (keywords of :func:`~verticality.simulation.newton_loop.simulate`, traced;
     None or a knob left out: simulate's default); returns the per-run metrics."""
     p_true = lp.p11_head(1.0)
     motion = {} if motion is None else motion
 
     def one(rel, f, sigma, seed, mo):
         p_obs = jax.tree_util.tree_map(lambda v, e: v * (1.0 + e), p_true, rel)
-        s = E.simulate(p_true, p_obs, f, sigma, jax.random.PRNGKey(seed), n_blocks, **mo)
-        err = E.tilt_error_deg(s)
-        scored = s.t_s >= E.SETTLE_S - 1e-9
+        s = newton_loop.simulate(p_true, p_obs, f, sigma, jax.random.PRNGKey(seed), n_blocks, **mo)
+        err = newton_errors.tilt_error_deg(s)
+        scored = s.t_s >= newton_errors.SETTLE_S - 1e-9
         finite = jnp.all(jnp.isfinite(jnp.where(scored, err, 0.0))) & jnp.all(
             jnp.isfinite(s.theta_H_hat_rad))
         max_err = jnp.max(jnp.where(scored, err, -jnp.inf))
         rms = jnp.sqrt(jnp.sum(jnp.where(scored, err**2, 0.0)) / jnp.sum(scored))
-        t_obs = s.t_s[E.SUBSTEPS - 1::E.SUBSTEPS]
-        obs_scored = t_obs >= E.SETTLE_S
+        t_obs = s.t_s[newton_loop.SUBSTEPS - 1::newton_loop.SUBSTEPS]
+        obs_scored = t_obs >= newton_errors.SETTLE_S
         conv = jnp.sum(s.converged & obs_scored) / jnp.sum(obs_scored)
         nan = jnp.nan
         return {"max_error_deg": jnp.where(finite, max_err, nan),
                 "rms_error_deg": jnp.where(finite, rms, nan),
                 "converged_fraction": conv,
-                "diverged": ~finite | (max_err > E.DIVERGED_DEG)}
+                "diverged": ~finite | (max_err > newton_errors.DIVERGED_DEG)}
 
     return jax.vmap(one)(rel_errors, fixed, noise_rad, seeds, motion)
 
@@ -196,7 +197,7 @@ def newton_lissajous_args(columns: dict[str, np.ndarray], seeds: np.ndarray, dur
     # at level 0 the drawn part is ±0 and the sum is the knob's value exactly
     rel = PlanarHead(**{leaf: jnp.asarray(columns[_rel_name(leaf)], dtype=jnp.float64) + drawn[:, i]
                         for i, leaf in enumerate(PARAMETERS)}, g_m_s2=jnp.zeros(n))
-    n_blocks = int(round(duration_s / (E.SUBSTEPS * E.DT_S)))
+    n_blocks = int(round(duration_s / (newton_loop.SUBSTEPS * newton_loop.DT_S)))
     # a batch of the published motion leaves the scales out (simulate's constants 1): the motion's
     # samples are then known when compiling and XLA folds them, as it did before the scales were
     # knobs (traced scales of 1 give the same runs within ~2e-15 relative, not to the bit)
@@ -275,6 +276,8 @@ def _check_newton_options(o: dict[str, Any]) -> str | None:
     return None
 
 
+_PUBLISHED_MAX_DEG = newton_errors.PAPER_LISSAJOUS["max_tilt_error_deg"]
+
 NEWTON_LISSAJOUS = Kernel(
     name="newton-lissajous",
     doc="P11's Newton observer, fixed or stabilized head, Lissajous trunk motion",
@@ -289,10 +292,10 @@ NEWTON_LISSAJOUS = Kernel(
                                lo=0.0, hi=SCALE_HI),
        "frequency_scale": Knob(1.0, "the motion's time scale, t → this × t (frequencies × this)",
                                lo=0.0, lo_open=True, hi=SCALE_HI),
-       "kp_Nm_rad": Knob(E.KP, "the stabilized head's PD gain on θ̂_H (N·m/rad; not the fixed "
-                               "head's)", lo=0.0, lo_open=True, hi=KP_HI),
-       "kd_Nms_rad": Knob(E.KD, "the stabilized head's PD gain on ω̂_H (N·m·s/rad; not the fixed "
-                                "head's)", lo=0.0, lo_open=True, hi=KD_HI)},
+       "kp_Nm_rad": Knob(newton_loop.KP, "the stabilized head's PD gain on θ̂_H (N·m/rad; not "
+                                         "the fixed head's)", lo=0.0, lo_open=True, hi=KP_HI),
+       "kd_Nms_rad": Knob(newton_loop.KD, "the stabilized head's PD gain on ω̂_H (N·m·s/rad; not "
+                                          "the fixed head's)", lo=0.0, lo_open=True, hi=KD_HI)},
     options={"duration_s": 10.0},
     metrics=("max_error_deg", "rms_error_deg", "converged_fraction"),
     drawn=tuple(_drawn_name(leaf) for leaf in PARAMETERS),
@@ -302,9 +305,9 @@ NEWTON_LISSAJOUS = Kernel(
     compile_batch=_compile_newton_lissajous,
     # P11's perturbed Lissajous run: m, b, J, K 10 % high (l exact), σ = 1e-4 rad
     published={_rel_name(leaf): (0.0 if leaf == "l_m" else 0.1) for leaf in PARAMETERS}
-    | {"noise_rad": E.NOISE_RAD},
+    | {"noise_rad": newton_loop.NOISE_RAD},
     published_label=("P11 (+10 %): max error fixed "
-                     f"{E.PAPER_LISSAJOUS['max_tilt_error_deg']['fixed']['perturbed']:g}°, "
+                     f"{_PUBLISHED_MAX_DEG['fixed']['perturbed']:g}°, "
                      "stabilized "
-                     f"{E.PAPER_LISSAJOUS['max_tilt_error_deg']['stabilized']['perturbed']:g}°"),
+                     f"{_PUBLISHED_MAX_DEG['stabilized']['perturbed']:g}°"),
 )
