@@ -76,6 +76,9 @@ def test_the_upright_reading_recovers_from_a_small_tilt_and_not_from_a_large_one
                           3.0)
     end = np.degrees(np.abs(s.theta_H[:, -1]))
     assert end[0] < 8.0  # brought towards upright
-    assert not np.isfinite(end[1]) or end[1] > 25.0  # driven away
+    # driven away: the head tumbles, so where it happens to be at the end depends on rounding;
+    # that it leaves its starting tilt does not
+    large = np.degrees(np.abs(s.theta_H[1]))
+    assert not np.all(np.isfinite(large)) or np.max(large) > 25.0
     rows = ambiguity_outcome.summarize_upright(s, [0.0, 0.0])
     assert not rows[1]["converged"]
