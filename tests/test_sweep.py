@@ -14,7 +14,7 @@ from verticality.analysis import newton_errors
 from verticality.cli import main
 from verticality.core.errors import InputError
 from verticality.simulation import newton_loop
-from verticality.sweep import distribute, maps
+from verticality.sweep import distribute, grid, maps
 from verticality.sweep import spec as S
 from verticality.sweep.kernels import NEWTON_LISSAJOUS
 
@@ -256,6 +256,6 @@ def test_maps_of_diverged_runs_and_binned_knobs():
     assert m.published == (0.1, 0.1)
     cols["J_rel_error"] = rng.uniform(-0.5, 0.5, n)
     b = maps.compute(NEWTON_LISSAJOUS, cols, "J_rel_error", "K_rel_error")
-    assert b.binned == (True, False) and b.x_values.size == maps.BINS
-    counts, _ = np.histogram(cols["J_rel_error"], bins=maps.BINS)
+    assert b.binned == (True, False) and b.x_values.size == grid.BINS
+    counts, _ = np.histogram(cols["J_rel_error"], bins=grid.BINS)
     np.testing.assert_array_equal((b.runs["fixed"] + b.runs["stabilized"]).sum(axis=0), counts)

@@ -3,8 +3,8 @@
 For a kernel without a ``head`` knob (whose maps :mod:`verticality.sweep.maps` draws), e.g.
 ``ambiguity-walking`` and its ``feed``: the kernel's first categorical knob (the *category*)
 splits the runs, and for each of its values and each cell of two numeric knobs (``x``, ``y``,
-chosen as :func:`verticality.sweep.maps.choose_knobs` does, cut into cells as
-:func:`verticality.sweep.maps.cells` does) the maps give the **probability of divergence** (share
+chosen as :func:`verticality.sweep.grid.choose_knobs` does, cut into cells as
+:func:`verticality.sweep.grid.cells` does) the maps give the **probability of divergence** (share
 of the cell's runs flagged ``diverged``) and the **median** of the kernel's first metric over the
 cell's runs that did not diverge (NaN when all did or none ran).
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from verticality.core.errors import InputError
-from verticality.sweep import maps as head_maps
+from verticality.sweep import grid
 from verticality.sweep.kernels import Kernel
 
 
@@ -61,10 +61,10 @@ def compute(kernel: Kernel, columns: dict[str, np.ndarray], x: str | None = None
             y: str | None = None) -> CategoryMaps:
     """The maps of the table ``columns`` (name → array) of a sweep of ``kernel``."""
     category, present, metric = split(kernel, columns)
-    x, y = head_maps.choose_knobs(kernel, columns, x, y)
-    xv, xi, xb = head_maps.cells(columns[x])
-    yv, yi, yb = head_maps.cells(columns[y])
-    runs, p_div, med = head_maps.grid_cells(columns[category], present, xi, yi, xv.size,
+    x, y = grid.choose_knobs(kernel, columns, x, y)
+    xv, xi, xb = grid.cells(columns[x])
+    yv, yi, yb = grid.cells(columns[y])
+    runs, p_div, med = grid.grid_cells(columns[category], present, xi, yi, xv.size,
                                             yv.size, columns["diverged"], columns[metric])
     return CategoryMaps(x, y, category, metric, xv, yv, (xb, yb), runs, p_div, med)
 
