@@ -1,0 +1,5 @@
+import sys
+
+from verticality.cli import main
+
+sys.exit(main())
