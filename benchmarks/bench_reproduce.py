@@ -41,7 +41,7 @@ def run_once(names: list[str], quick: bool, jobs: int) -> tuple[float, float, di
                    PYTHONPATH=os.pathsep.join(filter(None, [str(SRC),
                                                             os.environ.get("PYTHONPATH")])))
         env.pop("JAX_COMPILATION_CACHE_DIR", None)
-        cmd = [sys.executable, "-m", "verticality.cli", "reproduce", *names, "--json",
+        cmd = [sys.executable, "-m", "verticality", "reproduce", *names, "--json",
                "--no-report", "--jobs", str(jobs), *(["--quick"] if quick else [])]
         cpu0, t0 = _children_cpu_s(), time.perf_counter()
         done = subprocess.run(cmd, env=env, capture_output=True, text=True)

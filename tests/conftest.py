@@ -31,7 +31,7 @@ def pytest_unconfigure(config):
 def quick_sweeps():
     """`ekf-sensitivity --quick` (the quick ekf-jump, seed 0, two fixed-head σ_ωH): shared by its
     tests and by `stabilize`'s, which replays the same jump from a recorded MOTION.csv."""
-    from verticality.experiments import ekf_sensitivity as sens
+    from verticality.simulation import ekf_ratio_sweeps as sens
 
     labels = []
     out, simulated_s = sens.run_sweeps(quick=True, progress=labels.append)

@@ -257,11 +257,6 @@ def test_gravity_is_written_once():
     assert hits == ["core/constants.py"]
 
 
-# modules whose library parts still live in experiments/ekf.py: they import it until those parts
-# have a home in simulation/ (the set shrinks to empty; nothing may be added to it)
-_EKF_IMPORTERS = {"verticality.simulation.stabilization", "verticality.sweep.ekf_kernels"}
-
-
 def test_experiments_are_leaves():
     """Experiments only run and draw (docs/architecture.md): no module but the CLI, the report and
     the experiments themselves imports ``verticality.experiments``, at module or function level,
@@ -281,4 +276,4 @@ def test_experiments_are_leaves():
                 continue
             offenders += [f"{module}: {n}" for n in sorted(names) if n == "verticality.experiments"
                           or n.startswith("verticality.experiments.")]
-    assert sorted({o.split(":")[0] for o in offenders} - _EKF_IMPORTERS) == [], offenders
+    assert offenders == []

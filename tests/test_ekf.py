@@ -230,11 +230,11 @@ def test_stacked_model_is_the_same_model(medial):
 # ------------------------------------------------------------------ experiment readings (ekf-*)
 def test_head_frame_acceleration_input_is_the_same_model(medial):
     """F §4.2.1's u = (ᴴa, ᴴτ): the model rotating ᴴa with its own R̂_IH equals the ᴵa model."""
-    from verticality.experiments import ekf as exp
     from verticality.models.head import FreeHead
     from verticality.models.kinematics import RigidMotion
     from verticality.models.otolith_head import HeadFrameAcceleration, HeadFrameInput
     from verticality.simulation import closed_loop as sim
+    from verticality.simulation import ekf_runs
 
     filt, x = medial
     x = x._replace(head=x.head._replace(omega_H_rad_s=jnp.zeros(3)))  # a head at rest: R_IH
@@ -243,10 +243,11 @@ def test_head_frame_acceleration_input_is_the_same_model(medial):
     R = x.head.R_I_H
     u_I = _u_blocks(2, a_I=a_I, tau=tau)
     u_H = HeadFrameInput(u_I.tau_H_Nm, jnp.tile(R.T @ a_I, (2, 1)))
-    f_H = exp.multiplicative_filter(exp.SIGMA_PROCESS, "head")
+    f_H = ekf_runs.multiplicative_filter(ekf_runs.SIGMA_PROCESS, "head")
     assert isinstance(f_H.model.model, HeadFrameAcceleration)
     assert same_value(f_H.model.model.model,
-                      exp.multiplicative_filter(exp.SIGMA_PROCESS, "inertial").model.model)
+                      ekf_runs.multiplicative_filter(ekf_runs.SIGMA_PROCESS,
+                                                     "inertial").model.model)
     for la, lb in zip(jax.tree_util.tree_leaves(f_H.model.transition(x, u_H, 0.02)),
                       jax.tree_util.tree_leaves(filt.model.transition(x, u_I, 0.02)), strict=True):
         np.testing.assert_allclose(la, lb, atol=1e-12)
@@ -263,7 +264,7 @@ def test_head_frame_acceleration_input_is_the_same_model(medial):
     # the parameter noise's blocks in frame I are the adapter's inertial input of each block
     blocks = HeadFrameInput(jnp.asarray(np.random.default_rng(2).normal(size=(4, 3))),
                             jnp.asarray(np.random.default_rng(3).normal(size=(4, 3))))
-    got = exp.inertial_blocks(x, blocks)
+    got = ekf_runs.inertial_blocks(x, blocks)
     ref = jax.vmap(lambda b: f_H.model.model.inertial_input(x, b))(blocks)
     np.testing.assert_allclose(got.a_I_m_s2, ref.a_I_m_s2, rtol=1e-14, atol=1e-15)
     np.testing.assert_array_equal(got.tau_H_Nm, blocks.tau_H_Nm)
@@ -271,20 +272,21 @@ def test_head_frame_acceleration_input_is_the_same_model(medial):
 
 def test_common_initial_covariance_is_one_rotation_of_both(medial):
     """P0 "common": δθ_S = R_SH δθ_H up to the small relative term; symmetric, PSD."""
-    from verticality.experiments import ekf as exp
+    from verticality.simulation import ekf_runs
 
     _, x = medial
-    P = np.asarray(exp.initial_covariance(x, "common"))
+    P = np.asarray(ekf_runs.initial_covariance(x, "common"))
     np.testing.assert_allclose(P, P.T, atol=1e-15)
     assert np.linalg.eigvalsh(P).min() > -1e-14
     R_SH = np.asarray(x.pendula[0].R_I_S.T @ x.head.R_I_H)
     # the conditional covariance of δθ_S given δθ_H is the relative term only
     Pss, Psh, Phh = P[0:3, 0:3], P[0:3, 6:9], P[6:9, 6:9]
-    np.testing.assert_allclose(Psh, exp.INITIAL_ERROR_RAD**2 * R_SH, atol=1e-15)
+    np.testing.assert_allclose(Psh, ekf_runs.INITIAL_ERROR_RAD**2 * R_SH, atol=1e-15)
     cond = Pss - Psh @ np.linalg.solve(Phh, Psh.T)
-    np.testing.assert_allclose(cond, exp.SIGMA_RELATIVE_PENDULUM_RAD**2 * np.eye(3), atol=1e-12)
-    np.testing.assert_allclose(np.asarray(exp.initial_covariance(x, "diagonal")),
-                               exp.INITIAL_ERROR_RAD**2 * np.eye(12), atol=0.0)
+    np.testing.assert_allclose(cond, ekf_runs.SIGMA_RELATIVE_PENDULUM_RAD**2 * np.eye(3),
+                               atol=1e-12)
+    np.testing.assert_allclose(np.asarray(ekf_runs.initial_covariance(x, "diagonal")),
+                               ekf_runs.INITIAL_ERROR_RAD**2 * np.eye(12), atol=0.0)
 
 
 def test_run_equals_repeated_step(medial):

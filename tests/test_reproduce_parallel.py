@@ -147,7 +147,7 @@ def _start_parallel_run(tmp_path) -> subprocess.Popen:
     two workers exist."""
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).parents[1] / "src"))
     proc = subprocess.Popen(
-        [sys.executable, "-m", "verticality.cli", "reproduce", "ekf-impact", "ekf-jump",
+        [sys.executable, "-m", "verticality", "reproduce", "ekf-impact", "ekf-jump",
          "--jobs", "2", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env=env, cwd=tmp_path, start_new_session=True)
     deadline = time.monotonic() + 120

@@ -8,9 +8,8 @@ import pytest
 
 from verticality import cli
 from verticality.core.errors import InputError
-from verticality.experiments import ekf as ekf_exp
 from verticality.io import motion as io
-from verticality.simulation import trajectories
+from verticality.simulation import ekf_runs, trajectories
 from verticality.simulation.recorded import from_record, rate_mismatch, record_of, rpy_rates
 
 
@@ -30,7 +29,7 @@ def test_rpy_rates_invert_the_body_rate_map():
 def test_recorded_jump_matches_the_analytic_one(rate_hz, tol_a, tol_wdot):
     """Between samples the interpolant stays close to the motion it was sampled from, and at the
     samples it is the file's (R, ω, a) exactly."""
-    traj = ekf_exp.scenario_trajectory("jump", quick=True)
+    traj = ekf_runs.scenario_trajectory("jump", quick=True)
     rec = _record(traj, rate_hz)
     rt = from_record(*rec)
     t = np.linspace(0.0, traj.duration_s, 4001)[1:-1] + 1e-4  # between the samples
@@ -65,7 +64,7 @@ def test_recorded_motion_wraps_yaw_and_refuses_what_it_cannot_interpolate():
 def test_stabilize_on_a_recorded_jump_reproduces_ekf_jump(quick_sweeps, tmp_path, capsys):
     """The quick ekf-jump trunk, written to MOTION.csv at 1 kHz and replayed by the command, gives
     the experiment's errors (same plant, filter and seed; only the trunk is interpolated)."""
-    traj = ekf_exp.scenario_trajectory("jump", quick=True)
+    traj = ekf_runs.scenario_trajectory("jump", quick=True)
     motion = io.write_motion_csv(tmp_path / "jump.csv", _record(traj, 1000.0))
     out, png = tmp_path / "tilt.csv", tmp_path / "tilt.png"
     capsys.readouterr()
@@ -102,7 +101,7 @@ def test_stabilize_refuses_bad_options_in_one_line(tmp_path, capsys, extra, mess
 
 
 def test_rate_mismatch_is_zero_for_a_consistent_file_and_large_for_a_wrong_omega():
-    rec = _record(ekf_exp.scenario_trajectory("jump", quick=True), 200.0)
+    rec = _record(ekf_runs.scenario_trajectory("jump", quick=True), 200.0)
     assert rate_mismatch(*rec[:3])[0] < 1e-3
     wrong = rec.omega_H_rad_s.copy()
     wrong[:, [0, 1]] = wrong[:, [1, 0]]  # x and y swapped: another frame's ω

@@ -11,8 +11,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from verticality.core.errors import InputError
-from verticality.experiments import ekf as E
-from verticality.simulation import trajectories
+from verticality.experiments import ekf as ekf_experiment
+from verticality.simulation import ekf_runs, trajectories
 from verticality.sweep import distribute
 from verticality.sweep import spec as S
 from verticality.sweep.ekf_kernels import EKF_IMPACT, EKF_JUMP
@@ -38,13 +38,13 @@ def test_a_tiny_sweep_in_process_is_the_experiment(tmp_path):
     spec = S.parse(TINY)
     design = S.design(spec)
     assert design.n_runs == 2 and list(design.columns["head"]) == ["fixed", "stabilized"]
-    assert design.columns["head_rate_sigma"][0] == E.SIGMA_PROCESS[3]
-    assert design.columns["noise_std"][0] == E.SIGMA_MEASUREMENT
+    assert design.columns["head_rate_sigma"][0] == ekf_runs.SIGMA_PROCESS[3]
+    assert design.columns["noise_std"][0] == ekf_runs.SIGMA_MEASUREMENT
     parts = tmp_path / "parts"
     parts.mkdir()
     distribute.run_task(spec.kernel, spec.options, design, 0, 0, spec.batch, str(parts))
     table = pq.read_table(distribute.part_path(parts, 0)).to_pydict()
-    result = E.run_impact(quick=True).metrics
+    result = ekf_experiment.run_impact(quick=True).metrics
     assert table["seed"] == [0, 0] and table["diverged"] == [False, False]
     for i, head in enumerate(("fixed", "stabilized")):
         assert table["head"][i] == head
@@ -62,20 +62,20 @@ def test_scaled_trajectories_go_through_the_trajectory_parameters():
     a, f = 2.0, 0.5
     for scenario, fn in (("impact", trajectories.impact), ("jump", trajectories.jump)):
         d = {k: v.default for k, v in inspect.signature(fn).parameters.items()}
-        base = E.scenario_trajectory(scenario)
+        base = ekf_runs.scenario_trajectory(scenario)
         if scenario == "impact":
-            ref = fn(ramp_in_s=E.IMPACT_RAMP_IN_S,
+            ref = fn(ramp_in_s=ekf_runs.IMPACT_RAMP_IN_S,
                      translation_amplitude_m=tuple(a * x for x in d["translation_amplitude_m"]),
                      rotation_amplitude_rad=tuple(a * x for x in d["rotation_amplitude_rad"]),
                      translation_frequency_hz=tuple(f * x for x in d["translation_frequency_hz"]),
                      rotation_frequency_hz=tuple(f * x for x in d["rotation_frequency_hz"]))
         else:
-            ref = fn(duration_s=E.JUMP_DURATION_S, t_push_s=E.JUMP_T_PUSH_S,
+            ref = fn(duration_s=ekf_runs.JUMP_DURATION_S, t_push_s=ekf_runs.JUMP_T_PUSH_S,
                      jump_length_m=a * d["jump_length_m"], pitch_rad=a * d["pitch_rad"],
                      roll_rad=a * d["roll_rad"], push_sigma_s=d["push_sigma_s"] / f,
                      flight_s=d["flight_s"] / f, edge_sigma_s=d["edge_sigma_s"] / f)
-        got = E.scenario_trajectory(scenario, amplitude_scale=a, frequency_scale=f)
-        one = E.scenario_trajectory(scenario, amplitude_scale=1.0, frequency_scale=1.0)
+        got = ekf_runs.scenario_trajectory(scenario, amplitude_scale=a, frequency_scale=f)
+        one = ekf_runs.scenario_trajectory(scenario, amplitude_scale=1.0, frequency_scale=1.0)
         assert got.duration_s == base.duration_s == ref.duration_s
         for fn_name in ("position_I_m", "rpy_rad"):  # the functions the motion is derived from
             x, y, z, w = (np.asarray(jax.vmap(getattr(tr, fn_name))(jnp.asarray(t)))

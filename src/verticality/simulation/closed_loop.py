@@ -7,9 +7,13 @@ Three clocks, each an integer multiple of the one below::
     control     every dt_control_s (1 ms)                  m = controller(R̂_IH, ω_gyro, θ, θ̇), ZOH
     estimator   every dt_estimator_s (20 ms)               y measured, estimator.step(u, y, dt)
 
-One run is one jitted ``lax.scan`` over estimator ticks, with a scan over control ticks inside and a
-scan over plant steps inside that. Batches of runs are ``jax.vmap`` of the same function over keys,
-plant parameters and initial estimator states (:func:`simulate_batch`).
+One run (:func:`run_loop`) is one ``lax.scan`` over estimator ticks (:func:`estimator_tick`), with a
+scan over control ticks inside (:func:`control_tick`) and the plant's RK4 steps inside that
+(:func:`plant_step`). The static part of a loop is a :class:`Loop` (settings, plug-ins, clock
+ratios); the trunk's motion is sampled once (:func:`trunk_stages`) and handed to the compiled loop
+as data, so one compilation serves every trajectory of the same duration. Batches of runs are
+``jax.vmap`` of the same function over keys, plant parameters, noise and initial estimator states
+(:func:`simulate_batch`).
 
 The plant is a model value, :class:`verticality.models.gimbal_plant.GimbalPlant` (the head on its
 gimbal over the trunk, carrying its otolith pendula; :data:`DEFAULT_PLANT` is P13's medial plant),
@@ -73,6 +77,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from functools import cache, partial
 from typing import Any, NamedTuple
 
 import jax
@@ -177,6 +182,7 @@ class SimResult(NamedTuple):
 # ----------------------------------------------------------------------------------------------
 
 
+@cache
 def p13_controller(kp: float = P13_KP_NM_RAD, kd: float = P13_KD_NMS_RAD,
                    tracking: bool = True) -> Callable:
     """P13 §3 joint-space PD (via :mod:`verticality.simulation.control`), θ_d = Λ⁻¹ of the upright head for the
@@ -185,6 +191,7 @@ def p13_controller(kp: float = P13_KP_NM_RAD, kd: float = P13_KD_NMS_RAD,
     ``tracking=True`` (default): m = k_p (θ_d − θ) + k_d (θ̇_d − θ̇), P13's ``PD(θ_d − θ)`` with θ̇_d
     from the head's gyro and the encoders (:func:`control.joint_space_pd_tracking`).
     ``tracking=False``: m = k_p (θ_d − θ) − k_d θ̇, which lags a turning trunk (kept for comparison).
+    One controller per gains, so that the compiled closed loops keyed on it are shared.
     """
     from verticality.simulation import control
 
@@ -250,7 +257,8 @@ def with_condition(plant: GimbalPlant, condition: str) -> GimbalPlant:
 
 
 # ----------------------------------------------------------------------------------------------
-# The simulator
+# The simulator: one scan over estimator ticks (:func:`estimator_tick`), a scan over control ticks
+# inside (:func:`control_tick`), the plant's RK4 steps inside that (:func:`plant_step`)
 # ----------------------------------------------------------------------------------------------
 
 
@@ -261,18 +269,31 @@ def _ratio(a: float, b: float, what: str) -> int:
     return n
 
 
-def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
-                   controller: Callable | None = None, theta0_rad=None) -> Callable:
-    """Build ``run(key, plant, noise, estimator_state0) -> SimResult`` (jitted).
+class Loop(NamedTuple):
+    """The static part of a closed loop: its settings, its plug-ins and its clocks' ratios.
 
-    ``traj`` is a :class:`verticality.simulation.trajectories.Trajectory` of the trunk (closed over, static).
-    ``plant`` is a :class:`GimbalPlant` value (default :data:`DEFAULT_PLANT`); ``config.condition``
-    sets its ``fixed`` switch. Use ``jax.vmap(run)`` (or :func:`simulate_batch`) for batches.
-    """
+    Hashable (the plug-ins by identity): the compiled loop is keyed on it, so every trunk motion,
+    plant, noise and estimator state of the same shapes reuses one compilation. The trunk's motion
+    is an argument of the compiled loop, not a constant of it (:func:`trunk_stages`)."""
+
+    config: SimConfig
+    estimator: Estimator | None
+    controller: Callable | None
+    steps_per_control: int  # plant steps per control tick
+    controls_per_estimate: int  # control ticks per estimator tick
+    estimates: int  # estimator ticks in the run
+
+    @property
+    def stabilized(self) -> bool:
+        return self.config.condition == "stabilized"
+
+
+def make_loop(config: SimConfig, estimator: Estimator | None = None,
+              controller: Callable | None = None) -> Loop:
+    """The :class:`Loop` of ``config`` with its plug-ins, its settings checked."""
     if config.condition not in CONDITIONS:
         raise ValueError(f"condition must be one of {CONDITIONS}, not {config.condition!r}")
-    stabilized = config.condition == "stabilized"
-    if stabilized and controller is None:
+    if config.condition == "stabilized" and controller is None:
         raise ValueError("the stabilized condition needs a controller (e.g. p13_controller())")
     n_c = _ratio(config.dt_control_s, config.dt_plant_s, "dt_control_s")
     n_e = _ratio(config.dt_estimator_s, config.dt_control_s, "dt_estimator_s")
@@ -280,133 +301,249 @@ def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
     nb = int(config.u_blocks)
     if n_e % nb:
         raise ValueError(f"u_blocks={nb} must divide the {n_e} control ticks of an estimator tick")
-    h = config.dt_plant_s
     if config.accel_frame not in ACCEL_FRAMES:
         raise ValueError(f"accel_frame must be one of {ACCEL_FRAMES}, not {config.accel_frame!r}")
+    return Loop(config, estimator, controller, n_c, n_e, n_k)
 
-    def f(trunk, x: GimbalPlantState, m, plant: GimbalPlant):
-        """(ẋ, the estimator's input) for the staged RK4; the input is computed outside the loop
-        when the plant is fixed (it is open-loop)."""
-        rate, head = plant.rate_and_motion(x, GimbalInput(m, trunk))
-        if plant.fixed:
-            return rate, jnp.zeros(0)
-        return rate, input_rows(head, plant.head, config.accel_frame)
 
-    def plant_step(plant, inputs3, x, m):
-        return rk4_step_staged(f, inputs3, x, h, m, plant, project=plant.project)
-
-    def control_tick(carry, trunk_steps, plant, t0, gyro_noise, bias):
-        # trunk_steps: the trunk's motion at (start, middle, end) of each of the n_c plant steps
-        x, R_hat = carry
-        trunk0 = jax.tree_util.tree_map(lambda a: a[0, 0], trunk_steps)
-        R_I_H = plant.head_orientation(x, trunk0)
-        omega_true = plant.head_angular_velocity(x, trunk0)
-        if estimator is None:  # the controller sees the truth
-            R_hat, omega_meas = R_I_H, omega_true
-        else:  # the head's gyro at the control rate
-            omega_meas = sensors.gyro_reading(omega_true, bias, gyro_noise)
-        m = controller(R_hat, omega_meas, x.gimbal.theta_rad, x.gimbal.thetadot_rad_s) \
-            if stabilized else jnp.zeros(2)
-        locked = x.gimbal
-        if not stabilized:  # the locked gimbal stays out of the integration
-            x = x._replace(gimbal=None)
-        if n_c == 1:  # one plant step per control tick: no inner loop (its overhead is per step)
-            x_new, u_step = plant_step(plant, jax.tree_util.tree_map(lambda a: a[0], trunk_steps),
-                                       x, m)
-            u_steps = u_step[None]
-        else:
-            x_new, u_steps = jax.lax.scan(lambda c, w3: plant_step(plant, w3, c, m), x, trunk_steps)
-        if not stabilized:
-            x, x_new = x._replace(gimbal=locked), x_new._replace(gimbal=locked)
-        rec = None
-        if config.record_control:
-            rec = ControlRecord(t0, R_I_H, R_hat, so3.tilt_error_deg(R_I_H, R_hat),
-                                x.gimbal.theta_rad, plant.otoliths.angles(x.pendula, R_I_H), m)
-        # between estimator ticks the controller's estimate is propagated with the gyro
-        R_next = so3.orthonormalize(R_hat @ so3.exp(omega_meas * (n_c * h)))
-        return (x_new, R_next), (jnp.mean(u_steps, 0), m, rec)
-
-    def open_loop_input(plant, trunk_ticks):
-        """Simpson (= RK4) mean over each plant step of the fixed head's (the trunk's) input."""
-        u_stage = jax.vmap(jax.vmap(jax.vmap(
-            lambda w: input_rows(w, plant.head, config.accel_frame))))(trunk_ticks)  # (n_e, n_c, 3, 6)
-        return jnp.mean((u_stage[:, :, 0] + 4.0 * u_stage[:, :, 1] + u_stage[:, :, 2]) / 6.0, axis=1)
-
-    def estimator_tick(carry, inp, plant, noise, key):
-        x, est_state, bias, R_hat = carry
-        k, trunk_ticks = inp  # trunk_ticks: (n_e, n_c, 3, ...) stage motions of this interval
-        t_ctrl = (k * n_e + jnp.arange(n_e)) * (n_c * h)
-        k_ctrl, key_k = jax.random.split(jax.random.fold_in(key, k))
-        gyro_noise = sensors.gyro_white_noise(k_ctrl, (n_e, 3), noise.gyro)
-        (x, _), (u_ticks, m_ticks, crec) = jax.lax.scan(
-            lambda c, a: control_tick(c, a[0], plant, a[1], a[2], bias), (x, R_hat),
-            (trunk_ticks, t_ctrl, gyro_noise))
-        if not stabilized:
-            u_ticks = open_loop_input(plant, trunk_ticks)
-        u = input_value(jnp.mean(u_ticks.reshape(nb, n_e // nb, 6), axis=1), config.accel_frame)
-        t = (k + 1) * n_e * n_c * h
-        trunk = jax.tree_util.tree_map(lambda a: a[-1, -1, 2], trunk_ticks)  # at t_{k+1}
-        R_I_H = plant.head_orientation(x, trunk)
-        omega_H = plant.head_angular_velocity(x, trunk)
-        phi = plant.otoliths.angles(x.pendula, R_I_H)
-        k_phi, k_gyro, k_bias = jax.random.split(key_k, 3)
-        y_phi = sensors.inclinometer(k_phi, phi, noise.otolith_std_rad)
-        y_gyro = sensors.gyro_reading(omega_H, bias,
-                                      sensors.gyro_white_noise(k_gyro, (3,), noise.gyro))
-        bias = sensors.gyro_bias_step(k_bias, bias, config.dt_estimator_s, noise.gyro)
-        y = jnp.concatenate([y_phi.reshape(-1), y_gyro])
-        if estimator is None:
-            out = None
-            R_est = R_I_H
-        else:
-            est_state, out = estimator.step(est_state, u, y, config.dt_estimator_s)
-            R_est = estimator.R_I_H(est_state)
-        rec = Record(
-            t_s=t, R_I_H=R_I_H, R_I_T=trunk.R_I_B, R_I_H_est=R_est,
-            tilt_error_deg=so3.tilt_error_deg(R_I_H, R_est), theta_rad=x.gimbal.theta_rad,
-            thetadot_rad_s=x.gimbal.thetadot_rad_s, otolith_rad=phi, y=y, u=u,
-            motor_torque_Nm=m_ticks[-1], estimator_out=out)
-        return (x, est_state, bias, R_est), (rec, crec)
-
+def trunk_stages(traj, loop: Loop):
+    """The trunk's motion at the start, middle and end of every plant step (the stages of the
+    plant's RK4), evaluated in one vectorised pass (the trajectory is open-loop), shaped
+    ``(estimates, controls_per_estimate, steps_per_control, 3, ...)``."""
+    n_k, n_e, n_c = loop.estimates, loop.controls_per_estimate, loop.steps_per_control
+    h = loop.config.dt_plant_s
     n_steps = n_k * n_e * n_c
+    motion = jax.vmap(traj.motion)(jnp.arange(2 * n_steps + 1) * (0.5 * h))
+    stages = jax.tree_util.tree_map(
+        lambda a: jnp.stack([a[0:-1:2], a[1::2], a[2::2]], axis=1), motion)
+    return jax.tree_util.tree_map(lambda a: a.reshape((n_k, n_e, n_c) + a.shape[1:]), stages)
 
-    def trunk_stages():
-        """The trunk's motion at the start, middle and end of every plant step, evaluated in one
-        vectorised pass (the trajectory is open-loop), shaped (n_k, n_e, n_c, 3, ...)."""
-        M = jax.vmap(traj.motion)(jnp.arange(2 * n_steps + 1) * (0.5 * h))
-        stages = jax.tree_util.tree_map(
-            lambda a: jnp.stack([a[0:-1:2], a[1::2], a[2::2]], axis=1), M)
-        return jax.tree_util.tree_map(lambda a: a.reshape((n_k, n_e, n_c) + a.shape[1:]), stages)
 
-    def run(key, plant: GimbalPlant = DEFAULT_PLANT, noise: NoiseParams = DEFAULT_NOISE,
-            estimator_state0=None, gyro_bias0_rad_s=None):
-        plant = with_condition(plant, config.condition)
-        trunk0 = traj.motion(0.0)
-        x0 = initial_state(plant, trunk0, theta0_rad)
-        bias0 = jnp.zeros(3) if gyro_bias0_rad_s is None else jnp.asarray(gyro_bias0_rad_s, float)
-        R_hat0 = plant.head_orientation(x0, trunk0)
-        if estimator is not None:
-            R_hat0 = estimator.R_I_H(estimator_state0)
-        (x, est, _, _), (rec, crec) = jax.lax.scan(
-            lambda c, inp: estimator_tick(c, inp, plant, noise, key),
-            (x0, estimator_state0, bias0, R_hat0), (jnp.arange(n_k), trunk_stages()))
-        if crec is not None:
-            crec = jax.tree_util.tree_map(lambda a: a.reshape((-1,) + a.shape[2:]), crec)
-        return SimResult(rec, crec, x, est)
+def plant_rate(trunk: RigidMotion, x: GimbalPlantState, m, plant: GimbalPlant,
+               accel_frame: str):
+    """(ẋ, the estimator's input rows) of the plant under motor torques ``m`` with the trunk
+    moving as ``trunk``, for the staged RK4; the input is computed outside the loop when the
+    plant is fixed (it is open-loop: :func:`open_loop_input`)."""
+    rate, head = plant.rate_and_motion(x, GimbalInput(m, trunk))
+    if plant.fixed:
+        return rate, jnp.zeros(0)
+    return rate, input_rows(head, plant.head, accel_frame)
 
-    return jax.jit(run)
+
+def plant_step(plant: GimbalPlant, trunk3: RigidMotion, x: GimbalPlantState, m, h: float,
+               accel_frame: str):
+    """One RK4 step of ``h`` seconds of the plant (motor torques ``m`` held, the trunk's motion
+    ``trunk3`` at the step's start, middle and end): the next state and the RK4 mean of the
+    estimator's input rows over the step."""
+    return rk4_step_staged(plant_rate, trunk3, x, h, m, plant, accel_frame,
+                           project=plant.project)
+
+
+def motor_torque(loop: Loop, R_I_H_est, omega_H_rad_s, gimbal_state):
+    """The controller's motor torques (2,) (zero when the gimbal is locked)."""
+    if not loop.stabilized:
+        return jnp.zeros(2)
+    return loop.controller(R_I_H_est, omega_H_rad_s, gimbal_state.theta_rad,
+                           gimbal_state.thetadot_rad_s)
+
+
+def control_tick(loop: Loop, plant: GimbalPlant, bias, carry, trunk_steps, t0_s, gyro_noise):
+    """One control tick: the gyro read, the controller, then the plant's steps over the tick
+    with the torque held. ``carry`` is (plant state, the controller's held estimate R̂_IH);
+    ``trunk_steps`` the trunk's motion at (start, middle, end) of each of the tick's plant steps.
+    Returns the carry at the tick's end and (the mean input rows, m, the tick's record)."""
+    n_c, h = loop.steps_per_control, loop.config.dt_plant_s
+    accel_frame = loop.config.accel_frame
+    x, R_hat = carry
+    trunk0 = jax.tree_util.tree_map(lambda a: a[0, 0], trunk_steps)
+    R_I_H = plant.head_orientation(x, trunk0)
+    omega_true = plant.head_angular_velocity(x, trunk0)
+    if loop.estimator is None:  # the controller sees the truth
+        R_hat, omega_meas = R_I_H, omega_true
+    else:  # the head's gyro at the control rate
+        omega_meas = sensors.gyro_reading(omega_true, bias, gyro_noise)
+    m = motor_torque(loop, R_hat, omega_meas, x.gimbal)
+    locked = x.gimbal
+    if not loop.stabilized:  # the locked gimbal stays out of the integration
+        x = x._replace(gimbal=None)
+    if n_c == 1:  # one plant step per control tick: no inner loop (its overhead is per step)
+        x_new, u_step = plant_step(plant, jax.tree_util.tree_map(lambda a: a[0], trunk_steps),
+                                   x, m, h, accel_frame)
+        u_steps = u_step[None]
+    else:
+        x_new, u_steps = jax.lax.scan(lambda c, w3: plant_step(plant, w3, c, m, h, accel_frame),
+                                      x, trunk_steps)
+    if not loop.stabilized:
+        x, x_new = x._replace(gimbal=locked), x_new._replace(gimbal=locked)
+    rec = None
+    if loop.config.record_control:
+        rec = ControlRecord(t0_s, R_I_H, R_hat, so3.tilt_error_deg(R_I_H, R_hat),
+                            x.gimbal.theta_rad, plant.otoliths.angles(x.pendula, R_I_H), m)
+    # between estimator ticks the controller's estimate is propagated with the gyro
+    R_next = so3.orthonormalize(R_hat @ so3.exp(omega_meas * (n_c * h)))
+    return (x_new, R_next), (jnp.mean(u_steps, 0), m, rec)
+
+
+def open_loop_input(plant: GimbalPlant, trunk_ticks, accel_frame: str):
+    """Simpson (= RK4) mean over each plant step of the fixed head's (the trunk's) input rows,
+    averaged over each control tick: (controls_per_estimate, 6)."""
+    u_stage = jax.vmap(jax.vmap(jax.vmap(
+        lambda w: input_rows(w, plant.head, accel_frame))))(trunk_ticks)  # (n_e, n_c, 3, 6)
+    return jnp.mean((u_stage[:, :, 0] + 4.0 * u_stage[:, :, 1] + u_stage[:, :, 2]) / 6.0, axis=1)
+
+
+def sense(plant: GimbalPlant, x: GimbalPlantState, trunk: RigidMotion, bias, key_k,
+          noise: NoiseParams, dt_s: float):
+    """The sensors at an estimator tick: ``(y, φ, R_IH, the gyro bias after the tick)``; y is the
+    otolith angles φ with white noise, then the gyro (ω_H + bias + noise)."""
+    R_I_H = plant.head_orientation(x, trunk)
+    omega_H = plant.head_angular_velocity(x, trunk)
+    phi = plant.otoliths.angles(x.pendula, R_I_H)
+    k_phi, k_gyro, k_bias = jax.random.split(key_k, 3)
+    y_phi = sensors.inclinometer(k_phi, phi, noise.otolith_std_rad)
+    y_gyro = sensors.gyro_reading(omega_H, bias,
+                                  sensors.gyro_white_noise(k_gyro, (3,), noise.gyro))
+    bias = sensors.gyro_bias_step(k_bias, bias, dt_s, noise.gyro)
+    return jnp.concatenate([y_phi.reshape(-1), y_gyro]), phi, R_I_H, bias
+
+
+def estimator_update(loop: Loop, est_state, u, y, R_I_H):
+    """The estimator's step on (u, y): ``(its state, its out, the estimate R̂_IH)``; without an
+    estimator the estimate is the truth ``R_I_H``."""
+    if loop.estimator is None:
+        return est_state, None, R_I_H
+    est_state, out = loop.estimator.step(est_state, u, y, loop.config.dt_estimator_s)
+    return est_state, out, loop.estimator.R_I_H(est_state)
+
+
+def estimator_tick(loop: Loop, plant: GimbalPlant, noise: NoiseParams, key, carry, inp):
+    """The scan body over estimator ticks: the control ticks of the interval (t_k, t_k+1], the
+    estimator's input (``u_blocks`` block means), the sensors at t_k+1 and the estimator's step.
+    ``carry`` is (plant state, estimator state, gyro bias, the controller's held estimate);
+    ``inp`` is (k, the trunk's stage motions of the interval, (n_e, n_c, 3, ...))."""
+    cfg = loop.config
+    n_e, n_c, h = loop.controls_per_estimate, loop.steps_per_control, cfg.dt_plant_s
+    x, est_state, bias, R_hat = carry
+    k, trunk_ticks = inp
+    t_ctrl = (k * n_e + jnp.arange(n_e)) * (n_c * h)
+    k_ctrl, key_k = jax.random.split(jax.random.fold_in(key, k))
+    gyro_noise = sensors.gyro_white_noise(k_ctrl, (n_e, 3), noise.gyro)
+    (x, _), (u_ticks, m_ticks, crec) = jax.lax.scan(
+        lambda c, a: control_tick(loop, plant, bias, c, a[0], a[1], a[2]), (x, R_hat),
+        (trunk_ticks, t_ctrl, gyro_noise))
+    if not loop.stabilized:
+        u_ticks = open_loop_input(plant, trunk_ticks, cfg.accel_frame)
+    nb = int(cfg.u_blocks)
+    u = input_value(jnp.mean(u_ticks.reshape(nb, n_e // nb, 6), axis=1), cfg.accel_frame)
+    t = (k + 1) * n_e * n_c * h
+    trunk = jax.tree_util.tree_map(lambda a: a[-1, -1, 2], trunk_ticks)  # at t_{k+1}
+    y, phi, R_I_H, bias = sense(plant, x, trunk, bias, key_k, noise, cfg.dt_estimator_s)
+    est_state, out, R_est = estimator_update(loop, est_state, u, y, R_I_H)
+    rec = Record(
+        t_s=t, R_I_H=R_I_H, R_I_T=trunk.R_I_B, R_I_H_est=R_est,
+        tilt_error_deg=so3.tilt_error_deg(R_I_H, R_est), theta_rad=x.gimbal.theta_rad,
+        thetadot_rad_s=x.gimbal.thetadot_rad_s, otolith_rad=phi, y=y, u=u,
+        motor_torque_Nm=m_ticks[-1], estimator_out=out)
+    return (x, est_state, bias, R_est), (rec, crec)
+
+
+def run_loop(loop: Loop, trunk0: RigidMotion, stages, key, plant: GimbalPlant = DEFAULT_PLANT,
+             noise: NoiseParams = DEFAULT_NOISE, estimator_state0=None, gyro_bias0_rad_s=None,
+             theta0_rad=None) -> SimResult:
+    """One run of the closed loop ``loop`` (traceable; :data:`run_compiled` is it compiled):
+    the trunk at rest-relative start ``trunk0`` (its motion at t = 0) and moving through
+    ``stages`` (:func:`trunk_stages`), the plant from :func:`initial_state` (``theta0_rad``)."""
+    plant = with_condition(plant, loop.config.condition)
+    x0 = initial_state(plant, trunk0, theta0_rad)
+    bias0 = jnp.zeros(3) if gyro_bias0_rad_s is None else jnp.asarray(gyro_bias0_rad_s, float)
+    R_hat0 = plant.head_orientation(x0, trunk0)
+    if loop.estimator is not None:
+        R_hat0 = loop.estimator.R_I_H(estimator_state0)
+    (x, est, _, _), (rec, crec) = jax.lax.scan(
+        lambda c, inp: estimator_tick(loop, plant, noise, key, c, inp),
+        (x0, estimator_state0, bias0, R_hat0), (jnp.arange(loop.estimates), stages))
+    if crec is not None:
+        crec = jax.tree_util.tree_map(lambda a: a.reshape((-1,) + a.shape[2:]), crec)
+    return SimResult(rec, crec, x, est)
+
+
+run_compiled = jax.jit(run_loop, static_argnums=0)
+""":func:`run_loop` compiled, once per :class:`Loop` and argument shapes."""
+
+
+@partial(jax.jit, static_argnums=(0, 1))
+def run_batch_compiled(loop: Loop, in_axes: tuple, trunk0, stages, theta0_rad, keys, plant,
+                       noise, estimator_states0):
+    """``jax.vmap`` of :func:`run_loop` over ``keys`` and the arguments ``in_axes`` marks (the
+    trunk's motion is shared), compiled once per :class:`Loop`, axes and shapes."""
+
+    def one(key, plant_i, noise_i, state0):
+        return run_loop(loop, trunk0, stages, key, plant_i, noise_i, state0, None, theta0_rad)
+
+    return jax.vmap(one, in_axes=in_axes)(keys, plant, noise, estimator_states0)
+
+
+_SAMPLED_TRUNKS: list = []  # (trajectory, clocks, its samples): the last few sampled
+_SAMPLED_TRUNKS_KEPT = 4
+
+
+def sample_trunk(traj, loop: Loop):
+    """``(the trunk's motion at t = 0, its :func:`trunk_stages`)``, compiled for this trajectory
+    (its functions close over its parameters); the last few trajectories' samples are kept, so
+    that the runs of one trajectory sample it once."""
+    clocks = (loop.config.dt_plant_s, loop.steps_per_control, loop.controls_per_estimate,
+              loop.estimates)
+    for kept, kept_clocks, samples in _SAMPLED_TRUNKS:
+        if kept is traj and kept_clocks == clocks:
+            return samples
+    samples = jax.jit(lambda: (traj.motion(0.0), trunk_stages(traj, loop)))()
+    _SAMPLED_TRUNKS.insert(0, (traj, clocks, samples))
+    del _SAMPLED_TRUNKS[_SAMPLED_TRUNKS_KEPT:]
+    return samples
+
+
+class Simulator(NamedTuple):
+    """A closed loop on one trunk motion (:func:`make_simulator`): call it as
+    ``run(key, plant, noise, estimator_state0, gyro_bias0_rad_s) -> SimResult``."""
+
+    loop: Loop
+    trunk0: RigidMotion  # the trunk's motion at t = 0
+    stages: RigidMotion  # :func:`trunk_stages`
+    theta0_rad: Any  # None: the upright head for the trunk at rest
+
+    def __call__(self, key, plant: GimbalPlant = DEFAULT_PLANT,
+                 noise: NoiseParams = DEFAULT_NOISE, estimator_state0=None,
+                 gyro_bias0_rad_s=None) -> SimResult:
+        return run_compiled(self.loop, self.trunk0, self.stages, key, plant, noise,
+                            estimator_state0, gyro_bias0_rad_s, self.theta0_rad)
+
+
+def make_simulator(traj, config: SimConfig, estimator: Estimator | None = None,
+                   controller: Callable | None = None, theta0_rad=None) -> Simulator:
+    """The closed loop of ``config`` with its plug-ins on the trunk trajectory ``traj`` (a
+    :class:`verticality.simulation.trajectories.Trajectory`): a :class:`Simulator`,
+    ``run(key, plant, noise, estimator_state0) -> SimResult``.
+
+    The trunk's motion is sampled once here (:func:`trunk_stages`) and handed to the compiled
+    loop as data, so that runs on other trajectories of the same duration share its compilation.
+    ``plant`` is a :class:`GimbalPlant` value (default :data:`DEFAULT_PLANT`); ``config.condition``
+    sets its ``fixed`` switch. Use :func:`simulate_batch` for batches.
+    """
+    loop = make_loop(config, estimator, controller)
+    theta0 = None if theta0_rad is None else jnp.asarray(theta0_rad, float)
+    return Simulator(loop, *sample_trunk(traj, loop), theta0)
 
 
 def simulate(traj, config: SimConfig, key=None, plant: GimbalPlant = DEFAULT_PLANT,
              noise: NoiseParams = DEFAULT_NOISE, estimator: Estimator | None = None,
              estimator_state0=None, controller: Callable | None = None) -> SimResult:
-    """One run (builds, compiles and runs; keep :func:`make_simulator`'s ``run`` to reuse it)."""
+    """One run (keep :func:`make_simulator`'s ``run`` to run the same trunk motion again)."""
     key = jax.random.PRNGKey(0) if key is None else key
     run = make_simulator(traj, config, estimator, controller)
     return run(key, plant, noise, estimator_state0)
 
 
-def simulate_batch(run: Callable, keys, plant: GimbalPlant = DEFAULT_PLANT,
+def simulate_batch(run: Simulator, keys, plant: GimbalPlant = DEFAULT_PLANT,
                    noise: NoiseParams = DEFAULT_NOISE, estimator_states0=None,
                    batched_plant: bool = False, batched_estimator: bool = False,
                    batched_noise: bool = False) -> SimResult:
@@ -415,7 +552,8 @@ def simulate_batch(run: Callable, keys, plant: GimbalPlant = DEFAULT_PLANT,
     states."""
     in_axes = (0, 0 if batched_plant else None, 0 if batched_noise else None,
                0 if batched_estimator else None)
-    return jax.jit(jax.vmap(run, in_axes=in_axes))(keys, plant, noise, estimator_states0)
+    return run_batch_compiled(run.loop, in_axes, run.trunk0, run.stages, run.theta0_rad, keys,
+                              plant, noise, estimator_states0)
 
 
 def tilt_metrics(record: Record, t_min_s: float = 2.0) -> dict:

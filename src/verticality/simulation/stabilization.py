@@ -4,8 +4,8 @@ The trunk of a :class:`~verticality.io.motion.MotionRecord` carries P13's gimbal
 otolith pendulum and gyros; the EKF on SO(3) of ``ekf-impact``/``ekf-jump`` estimates the head's
 tilt, once with the head rigid on the trunk (``fixed``) and once servoed upright by P13's PD fed by
 the estimate (``stabilized``). Everything but the trunk motion is the ekf-* setting
-(:mod:`verticality.experiments.ekf`): P13's plant, sensor noise σ = 0.02, EKF every 20 ms started
-0.1 rad off, its model given P13's wrong parameters unless ``exact_model``.
+(:mod:`verticality.simulation.ekf_runs`): P13's plant, sensor noise σ = 0.02, EKF every 20 ms
+started 0.1 rad off, its model given P13's wrong parameters unless ``exact_model``.
 
 :func:`compare_heads` runs both and returns a :class:`Comparison`: the metrics (max and RMS tilt
 error after the settling time, their ratio), the tilt series, what the run had to adapt (the
@@ -22,11 +22,12 @@ from typing import NamedTuple
 import numpy as np
 
 from verticality.core.errors import InputError
-from verticality.experiments import ekf as ekf_exp
 from verticality.io.motion import MotionRecord
 from verticality.models.params import P13_HEAD, P13_PENDULUM
 from verticality.simulation import closed_loop as sim
+from verticality.simulation import ekf_runs
 from verticality.simulation import recorded as rt
+from verticality.simulation.ekf_figures import plot_fixed_vs_stabilized
 
 EKF_PERIOD_S = sim.DEFAULT_CONFIG.dt_estimator_s
 PLANT_STEP_S = sim.DEFAULT_CONFIG.dt_plant_s
@@ -35,7 +36,7 @@ PLANT_STEP_S = sim.DEFAULT_CONFIG.dt_plant_s
 
 class Comparison(NamedTuple):
     report: dict  # the metrics and settings (JSON-ready: None where a head diverged)
-    series: dict  # {condition: the tilt series of the first seed} (experiments.ekf.run_condition)
+    series: dict  # {condition: the tilt series of the first seed} (ekf_runs.run_condition)
     name: str  # the recording's name
     t0_s: float  # the recording's first time: series times + t0_s are on the file's clock
     recorded_s: float  # the recording's duration; report["duration_s"] is what was simulated
@@ -112,12 +113,12 @@ def compare_heads(record: MotionRecord, name: str = "recorded", *, source: str |
                           name=name)
     recorded_s = traj.duration_s
     traj = traj._replace(duration_s=whole_periods(recorded_s))
-    noise = ekf_exp.SIGMA_MEASUREMENT if noise is None else noise
-    settle_s = ekf_exp.T_SETTLE_S if settle_s is None else settle_s
+    noise = ekf_runs.SIGMA_MEASUREMENT if noise is None else noise
+    settle_s = ekf_runs.T_SETTLE_S if settle_s is None else settle_s
     check_options(traj.duration_s, seeds, noise, settle_s)
     mismatch, t_mismatch = rt.rate_mismatch(record.t_s, record.q_I_H_wxyz, record.omega_H_rad_s)
     t0 = traj.events["t0_s"]
-    model = (P13_PENDULUM, P13_HEAD) if exact_model else ekf_exp.EKF_MODEL
+    model = (P13_PENDULUM, P13_HEAD) if exact_model else ekf_runs.EKF_MODEL
     seed_list = tuple(range(seeds))
     metrics: dict = {"max_tilt_error_deg": {}, "rms_tilt_error_deg": {}, "rejected_updates": {}}
     series: dict = {}
@@ -125,7 +126,7 @@ def compare_heads(record: MotionRecord, name: str = "recorded", *, source: str |
     for cond in sim.CONDITIONS:
         if progress is not None:
             progress(f"{cond} head: compiling and simulating {traj.duration_s:g} s × {seeds} seed(s)")
-        m, s = ekf_exp.run_condition(traj, cond, seeds=seed_list, sensor_noise_std=noise,
+        m, s = ekf_runs.run_condition(traj, cond, seeds=seed_list, sensor_noise_std=noise,
                                      model_params=model, t_settle_s=settle_s)
         where = first_non_finite(s, t0)
         if where is not None:
@@ -147,7 +148,7 @@ def compare_heads(record: MotionRecord, name: str = "recorded", *, source: str |
 
 
 def plot_comparison(c: Comparison, path) -> Path:
-    """P13 Fig. 2's layout for the comparison (:func:`verticality.experiments.ekf.
+    """P13 Fig. 2's layout for the comparison (:func:`verticality.simulation.ekf_figures.
     plot_fixed_vs_stabilized`), on the file's clock; not for a run in which a head diverged."""
     if c.diverged:
         raise InputError("a head diverged: there is no comparison to plot")
@@ -156,5 +157,5 @@ def plot_comparison(c: Comparison, path) -> Path:
     title = (f"{c.name}: tilt error after its first {r['settle_s']:g} s (max / RMS) — fixed "
              f"{mx['fixed']:.2f} / {rms['fixed']:.2f}°, stabilized {mx['stabilized']:.2f} / "
              f"{rms['stabilized']:.2f}°")
-    return ekf_exp.plot_fixed_vs_stabilized(c.series, title, path, t_settle_s=r["settle_s"],
+    return plot_fixed_vs_stabilized(c.series, title, path, t_settle_s=r["settle_s"],
                                             required_max_deg=None, t0_s=c.t0_s)

@@ -1,11 +1,11 @@
 """Sweep kernels ``ekf-impact`` and ``ekf-jump``: the closed loop of the ekf-* experiments.
 
-The runs are those of :mod:`verticality.experiments.ekf` (P13's gimbal plant ``PLANT``, the PD of
-P13 §3 on the estimate when stabilized, the multiplicative EKF with P13's wrong model
+The runs are those of :mod:`verticality.simulation.ekf_runs` (P13's gimbal plant ``PLANT``, the
+PD of P13 §3 on the estimate when stabilized, the multiplicative EKF with P13's wrong model
 ``EKF_MODEL``, its process noise ``SIGMA_PROCESS`` and parameter noise, the common initial
 covariance, the 0.1 rad initial error), computed by the experiment's own
-:func:`~verticality.experiments.ekf.simulate_runs`; the trunk's trajectory is the experiment's
-:func:`~verticality.experiments.ekf.scenario_trajectory`. Knobs:
+:func:`~verticality.simulation.ekf_runs.simulate_runs`; the trunk's trajectory is the experiment's
+:func:`~verticality.simulation.ekf_runs.scenario_trajectory`. Knobs:
 
 - ``amplitude_scale``, ``frequency_scale``: the trunk motion's amplitudes and frequencies (time
   scale), through the trajectory's parameters (``scenario_trajectory`` says which);
@@ -24,13 +24,13 @@ exceeds :data:`DIVERGED_DEG` = 30° (the `newton-lissajous` rule: five times the
 and six times the worst fixed-head max of the ekf-* runs, so an estimate that far off has lost the
 head); the errors of a non-finite run are NaN.
 
-Batching: the trajectory is closed over by the compiled simulator
-(:func:`verticality.simulation.closed_loop.make_simulator`: its duration and its functions are static), and so
-is the head's condition, so the runs of one batch are grouped by (``head``, ``amplitude_scale``,
-``frequency_scale``) and each group is one compiled ``vmap`` batch over its seeds,
-``head_rate_sigma`` and ``noise_std`` (the filter's Q and R and the noise levels are traced). A spec
-whose batch holds one group (the grid's knob order puts those three outermost: ``batch`` = the
-number of ``head_rate_sigma`` × ``noise_std`` values × seeds) compiles once per batch.
+Batching: a batch's runs share one trunk trajectory
+(:func:`verticality.simulation.ekf_runs.simulate_runs`), so the runs of one batch are grouped by
+(``head``, ``amplitude_scale``, ``frequency_scale``) and each group is one ``vmap`` batch over its
+seeds, ``head_rate_sigma`` and ``noise_std`` (the filter's Q and R and the noise levels are traced).
+The trunk's motion is data of the compiled closed loop
+(:func:`verticality.simulation.closed_loop.make_simulator`), so groups of one head and one batch
+size share one compilation.
 """
 
 from __future__ import annotations
@@ -39,19 +39,19 @@ from typing import Any
 
 import numpy as np
 
-from verticality.experiments import ekf as E
-from verticality.experiments.newton import DIVERGED_DEG as NEWTON_DIVERGED_DEG
+from verticality.analysis.newton_errors import DIVERGED_DEG as NEWTON_DIVERGED_DEG
+from verticality.simulation import ekf_runs
 from verticality.sweep.kernels import Kernel, Knob, grouped_rows
 
 DIVERGED_DEG = NEWTON_DIVERGED_DEG  # one rule for every kernel: newton-lissajous's
 SCALE_LO, SCALE_HI = 0.25, 3.0  # the trunk-motion scales allowed (a jump 4× faster: 4 ms edges)
-HEAD_RATE_SIGMA = E.SIGMA_PROCESS[3]  # P13 §5's σ_w
+HEAD_RATE_SIGMA = ekf_runs.SIGMA_PROCESS[3]  # P13 §5's σ_w
 
 
-def settings(head_rate_sigma, noise_std) -> list[E.Setting]:
-    """The experiment's :class:`~verticality.experiments.ekf.Setting` of each run: its process
+def settings(head_rate_sigma, noise_std) -> list[ekf_runs.Setting]:
+    """The experiment's :class:`~verticality.simulation.ekf_runs.Setting` of each run: its process
     noise with the head's rate σ replaced, and its sensor noise."""
-    return [E.Setting(E.SIGMA_PROCESS[:3] + (float(s),), float(n))
+    return [ekf_runs.Setting(ekf_runs.SIGMA_PROCESS[:3] + (float(s),), float(n))
             for s, n in zip(head_rate_sigma, noise_std, strict=True)]
 
 
@@ -66,9 +66,9 @@ def run_scenario(scenario: str, columns: dict[str, np.ndarray], seeds: np.ndarra
                     columns["frequency_scale"].astype(float), strict=True))
     for key, rows in grouped_rows(keys):
         head, amplitude, frequency = key
-        traj = E.scenario_trajectory(scenario, quick, amplitude_scale=amplitude,
+        traj = ekf_runs.scenario_trajectory(scenario, quick, amplitude_scale=amplitude,
                                      frequency_scale=frequency)
-        _, per = E.simulate_runs(traj, head, settings(columns["head_rate_sigma"][rows],
+        _, per = ekf_runs.simulate_runs(traj, head, settings(columns["head_rate_sigma"][rows],
                                                       columns["noise_std"][rows]),
                                  [int(s) for s in seeds[rows]])
         mx = np.asarray(per["max_tilt_error_deg"], dtype=np.float64)
@@ -99,7 +99,8 @@ def _kernel(scenario: str, figure: str) -> Kernel:
                          choices=("fixed", "stabilized")),
             "head_rate_sigma": Knob(HEAD_RATE_SIGMA, "the filter's head-rate process σ per 20 ms "
                                     "step (rad/s)", lo=0.0, lo_open=True, hi=1.0),
-            "noise_std": Knob(E.SIGMA_MEASUREMENT, "sensor noise σ (rad, rad/s), simulation and R",
+            "noise_std": Knob(ekf_runs.SIGMA_MEASUREMENT,
+                              "sensor noise σ (rad, rad/s), simulation and R",
                               lo=0.0, lo_open=True, hi=1.0),
         },
         options={"quick": False},
