@@ -1,16 +1,18 @@
 """`ambiguity-*` — F §4.5.2: observer-based head stabilization when the head's acceleration is
 known (Fig. 4.11, 4.14) or reconstructed from the otolith (Fig. 4.12, 4.15, 4.16).
 
-Plant (truth): the planar head carrying the medial otolith, :class:`~verticality.models.planar.PlanarHead`
-driven through :class:`~verticality.models.planar.WithHeadFrameInput` (torque and head-frame
-acceleration), nonlinear, RK4 with 4 sub-steps per 1 ms sample. Parameters (F §4.5.2,
+Plant (truth): the planar head carrying the medial otolith,
+:class:`~verticality.models.planar.PlanarHead` driven through
+:class:`~verticality.models.planar.WithHeadFrameInput` (torque and head-frame acceleration),
+nonlinear, RK4 with 4 sub-steps per 1 ms sample. Parameters (F §4.5.2,
 :mod:`verticality.models.params`): otolith critically damped at 300 Hz (``g/l = (2π·300)²``,
 ``β/(m l²) = 2·2π·300``; only the ratios matter), head inertia 0.0174 kg·m². Sagittal plane: the
-planar model's rotation is about the head's y axis with ``h = −x`` (:mod:`verticality.models.planar`),
-so a forward head acceleration is ``a_h = −a_x``. Walking: the built-in
-:func:`verticality.simulation.trajectories.walking` (F Fig. 4.13, after Menz, Lord & Fitzpatrick 2003); its
-forward and vertical accelerations drive the head as head-frame components ``ᴴa`` (F's input;
-head-mounted accelerometers measure in the head frame), sampled at every RK4 stage time.
+planar model's rotation is about the head's y axis with ``h = −x``
+(:mod:`verticality.models.planar`), so a forward head acceleration is ``a_h = −a_x``. Walking: the
+built-in :func:`verticality.simulation.trajectories.walking` (F Fig. 4.13, after Menz, Lord &
+Fitzpatrick 2003); its forward and vertical accelerations drive the head as head-frame components
+``ᴴa`` (F's input; head-mounted accelerometers measure in the head frame), sampled at every RK4
+stage time.
 
 Internal model (F 4.10): the same model value linearized at upright
 (:func:`verticality.models.linearize.linearize`), inputs the torque and ``ᴴa_h`` (F: "the only
@@ -38,8 +40,8 @@ Readings the thesis leaves open, fixed here:
   The *known*-acceleration observer itself keeps a walking-driven error on the linear internal
   model (it neglects ``ᴴa_z`` and the products of acceleration and angle: 1.9° at upright, up to
   5° at ±20°); the Luenberger loops that drift or diverge end beyond 25°. 10° sits in that gap:
-  any bound from 5° to 25° gives the Luenberger feeds the same regions. ``rms_acc_error_m_s2``: RMS of
-  ``â_h − a_h`` after the first second. Non-finite values are reported as null.
+  any bound from 5° to 25° gives the Luenberger feeds the same regions. ``rms_acc_error_m_s2``: RMS
+  of ``â_h − a_h`` after the first second. Non-finite values are reported as null.
 - ``rotation_only``: the same sweeps with the walking acceleration switched off (the head only
   rotates): where the reconstruction works when nothing but tilt moves the otolith.
 
@@ -49,9 +51,9 @@ model value with the horizontal acceleration as a random-walk state
 (:class:`~verticality.models.planar.WithAccelerationState`, discretized with 4 RK4 sub-steps), fed
 the same reading, torque and saccule ``a_z`` (the ``ekf`` feed), and with the acceleration a
 first-order Gauss–Markov process of time constant 0.2 s instead (``ekf_gauss_markov``: zero on
-average, as for a head that walks on). Q per 0.1 ms step: σ = 1e-6 rad and 1e-3 rad/s on the otolith,
-1e-6 rad and 1e-3 rad/s on the head, 0.05 m/s² on ``a_h``; R = (1e-3 rad)²; P0 = diag(0.1 rad,
-1 rad/s, 0.5 rad, 1 rad/s, 3 m/s²)², started at zero like the observer.
+average, as for a head that walks on). Q per 0.1 ms step: σ = 1e-6 rad and 1e-3 rad/s on the
+otolith, 1e-6 rad and 1e-3 rad/s on the head, 0.05 m/s² on ``a_h``; R = (1e-3 rad)²; P0 = diag(0.1
+rad, 1 rad/s, 0.5 rad, 1 rad/s, 3 m/s²)², started at zero like the observer.
 
 Sampling: the otolith's 300 Hz (1885 rad/s) and observer poles near 4000 rad/s need the
 measurement far faster than 1 kHz (held over 1 ms the reading lags the observer by half a sample,

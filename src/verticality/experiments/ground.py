@@ -24,12 +24,12 @@ superimposed. Readings and choices (the paper leaves them open):
   −30…−31.5 s⁻¹, disturbance poles at −10, −15, −20 s⁻¹ (chosen by a small grid search of body
   poles 6–40 s⁻¹ and disturbance poles 1–12 s⁻¹ on the quick 20 s trial of this seed, so the
   full 60 s run is partly out of sample: slower disturbance poles make θ̈1 lag the sinusoidal
-  ground — Friedland's model holds θ̈1 piecewise constant — faster ones amplify noise into it). The observer takes all of
-  y_e (T eq. 23) and includes the torque feed-through ``D u`` of the accelerometer, but the gain is
-  placed with the five kinematic outputs (a_x column of L_e zero): pole placement ignores noise,
-  and with a_x in the placement its noise drives the θ1 error from ≈ 0.2° to ≈ 1–2° because
-  a_x's sensitivity to θ1 is only ≈ 0.51 m/s²/rad given the motor command. The metric
-  ``rms_error_deg_all_outputs`` reports the all-outputs design on the same trial.
+  ground — Friedland's model holds θ̈1 piecewise constant — faster ones amplify noise into it). The
+  observer takes all of y_e (T eq. 23) and includes the torque feed-through ``D u`` of the
+  accelerometer, but the gain is placed with the five kinematic outputs (a_x column of L_e zero):
+  pole placement ignores noise, and with a_x in the placement its noise drives the θ1 error from
+  ≈ 0.2° to ≈ 1–2° because a_x's sensitivity to θ1 is only ≈ 0.51 m/s²/rad given the motor command.
+  The metric ``rms_error_deg_all_outputs`` reports the all-outputs design on the same trial.
 * Both estimators start at the true initial state (the trial starts with θ1(0) ≈ 1°, θ3(0) = 0
   but a hip reference of 2.4°); errors after t ≥ 1 s. Run 60 s (quick 20 s); one fixed seed.
 """

@@ -1,4 +1,5 @@
-"""`separation` — F §4.4: linear observer + linear PD on the nonlinear platform (separation principle).
+"""`separation` — F §4.4: linear observer + linear PD on the nonlinear platform (separation
+principle).
 
 Plant (truth): the planar sagittal platform with the 10 Hz critically damped liquid inclinometer,
 :func:`verticality.models.platform.f44_platform` driven through the head-frame input adapter of
@@ -29,7 +30,8 @@ Readings the thesis leaves open, fixed here:
   ever non-finite or exceeds 1 rad in magnitude after t ≥ 1 s, or if its envelope grows (max |error|
   over the last quarter of the run > 2 × that over the second quarter, and > 0.05 rad).
   The loop is called unstable when it is unstable at both references (F: "not stable both for ...").
-- Errors (``max_error_rad``) are max |θ̂_H − θ_H| for t ≥ 1 s (docs/reproduction.md's settling default).
+- Errors (``max_error_rad``) are max |θ̂_H − θ_H| for t ≥ 1 s (docs/reproduction.md's settling
+  default).
 """
 
 from __future__ import annotations

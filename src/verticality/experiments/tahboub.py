@@ -95,7 +95,8 @@ def estimate_lean(ys, fs_hz: float = FS_HZ, form: str = "steady", phi0_rad: floa
     """Run the otolith–canal filter on samples ``ys`` (n, 2); estimate aligned with the samples.
 
     The steady-state form holds sample k over [t_k, t_k+1) and returns x̂(t_k+1); the estimate at
-    t_0 is the initial state ``(phi0_rad, omega0_rad_s, 0)``. The time-varying form updates with sample k at t_k.
+    t_0 is the initial state ``(phi0_rad, omega0_rad_s, 0)``. The time-varying form updates with
+    sample k at t_k.
     """
     dt = 1.0 / fs_hz
     x0 = jnp.array([phi0_rad, omega0_rad_s, 0.0])

@@ -70,10 +70,11 @@ def _drive(cfg: AxisCfg, t, swing_s):
 
 def accelerometer_reading(key, theta_rad, omega_rad_s, a_h_I_m_s2):
     """The platform accelerometer's reading along the axis' horizontal (F §5.1.1: tri-axial, at the
-    platform's centre, axes aligned with the platform's): :func:`verticality.sensors.readings.accelerometer`
-    for the platform tilted by θ about its axis and accelerated by ``a_h`` — the specific force
-    ``a_h cos θ + g sin θ`` plus white noise of σ :data:`SIGMA_ACC_M_S2` (signs of the
-    inclinometer's apparent tilt ``θ + atan2(a_h, g)``: the tilt about y is ``−θ``)."""
+    platform's centre, axes aligned with the platform's):
+    :func:`verticality.sensors.readings.accelerometer` for the platform tilted by θ about its axis
+    and accelerated by ``a_h`` — the specific force ``a_h cos θ + g sin θ`` plus white noise of σ
+    :data:`SIGMA_ACC_M_S2` (signs of the inclinometer's apparent tilt ``θ + atan2(a_h, g)``: the
+    tilt about y is ``−θ``)."""
     c, s_ = jnp.cos(theta_rad), jnp.sin(theta_rad)
     R_I_B = jnp.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # R_y(−θ)
     w = jnp.stack([0.0 * omega_rad_s, -omega_rad_s, 0.0 * omega_rad_s])

@@ -1,4 +1,5 @@
-"""Sweep kernels: an experiment's closed loop as a batch function ``(knob columns, seeds) -> metrics``.
+"""Sweep kernels: an experiment's closed loop as a batch function
+``(knob columns, seeds) -> metrics``.
 
 A :class:`Kernel` declares its knobs (:class:`Knob`: default, allowed values), its options (fixed
 settings of a sweep, e.g. the simulated duration) and its metrics, and runs a batch of runs at

@@ -3,10 +3,10 @@
 
 Would servoing the head upright help on *this* trunk motion? The trunk of MOTION.csv (t, q_I_T,
 ω_T, a_I; :mod:`verticality.io.motion`), or of a BROAD-layout recording converted as
-``verticality motion`` does, over an optional window: :func:`verticality.simulation.stabilization.compare_heads`
-(the ekf-* setting with a fixed and a stabilized head). Prints max and RMS tilt error after the
-settling time for both heads and their RMS ratio; writes the tilt series and P13 Fig. 2's figure on
-request.
+``verticality motion`` does, over an optional window:
+:func:`verticality.simulation.stabilization.compare_heads` (the ekf-* setting with a fixed and a
+stabilized head). Prints max and RMS tilt error after the settling time for both heads and their RMS
+ratio; writes the tilt series and P13 Fig. 2's figure on request.
 """
 
 from __future__ import annotations
