@@ -202,7 +202,8 @@ class Layout:
             a += _size(shape)
         self.n_ambient = a
         n_x = self.n_tangent if chart == "tangent" else self.n_state
-        self.unknown_coords = {name: slice(n_x + s.start - self.n_state, n_x + s.stop - self.n_state)
+        self.unknown_coords = {name: slice(n_x + s.start - self.n_state,
+                                           n_x + s.stop - self.n_state)
                                for name, _, s in self.unknown_blocks}
         self.n_coords = n_x + a - self.n_state
         self.input_blocks = []

@@ -105,8 +105,10 @@ def _duration(quick: bool) -> float:
     return 3.0 if quick else 10.0
 
 
-@register("ambiguity-known-acc", "Tilt estimation and head control with the acceleration known (F §4.5.2)",
-          source="F §4.5.2, Fig. 4.11, 4.14", figures=lambda r, d: figures(r, d, "ambiguity-known-acc"))
+@register("ambiguity-known-acc",
+          "Tilt estimation and head control with the acceleration known (F §4.5.2)",
+          source="F §4.5.2, Fig. 4.11, 4.14",
+          figures=lambda r, d: figures(r, d, "ambiguity-known-acc"))
 def run_known(quick: bool = False) -> Result:
     duration = _duration(quick)
     refs = [-20.0, 0.0, 20.0] if quick else [-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0]
@@ -140,8 +142,10 @@ def printed_relations() -> dict:
     phi_F = -np.asarray(am.otolith_angles(a, 0.0, ty))[..., 1]
     phi0_F = -np.asarray(am.otolith_angles(a))[..., 1]
     f316 = -az * np.sin(phi_F) + ax * np.cos(phi_F) - g * np.sin(phi_F - ty)
-    return {"f314_with_conventions_max_error_m_s2": float(np.abs(ax - (g + az) * np.tan(phi0_F)).max()),
-            "f314_as_printed_a_z_up_max_error_m_s2": float(np.abs(ax - (g - az) * np.tan(phi0_F)).max()),
+    return {"f314_with_conventions_max_error_m_s2":
+                float(np.abs(ax - (g + az) * np.tan(phi0_F)).max()),
+            "f314_as_printed_a_z_up_max_error_m_s2":
+                float(np.abs(ax - (g - az) * np.tan(phi0_F)).max()),
             "f316_with_conventions_max_error_m_s2": float(np.abs(f316).max())}
 
 
@@ -171,8 +175,10 @@ def _unknown(values, th0, refs, duration, swept: str):
 
 
 @register("ambiguity-initial-tilt",
-          "Acceleration reconstructed from the otolith: stabilizing upright from an initial tilt (F §4.5.2)",
-          source="F §4.5.2, Fig. 4.12, 4.15", figures=lambda r, d: figures(r, d, "ambiguity-initial-tilt"))
+          "Acceleration reconstructed from the otolith: stabilizing upright from an initial tilt "
+          "(F §4.5.2)",
+          source="F §4.5.2, Fig. 4.12, 4.15",
+          figures=lambda r, d: figures(r, d, "ambiguity-initial-tilt"))
 def run_initial(quick: bool = False) -> Result:
     duration = _duration(quick)
     values = [0.0, 12.0, 25.0] if quick else [0.0, 5.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0]
@@ -193,8 +199,10 @@ def run_initial(quick: bool = False) -> Result:
 
 
 @register("ambiguity-desired-tilt",
-          "Acceleration reconstructed from the otolith: holding the head at a desired tilt (F §4.5.2)",
-          source="F §4.5.2, Fig. 4.12, 4.16", figures=lambda r, d: figures(r, d, "ambiguity-desired-tilt"))
+          "Acceleration reconstructed from the otolith: holding the head at a desired tilt "
+          "(F §4.5.2)",
+          source="F §4.5.2, Fig. 4.12, 4.16",
+          figures=lambda r, d: figures(r, d, "ambiguity-desired-tilt"))
 def run_desired(quick: bool = False) -> Result:
     duration = _duration(quick)
     values = [0.0, 6.0] if quick else [0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 15.0]
@@ -241,7 +249,8 @@ def _relation_maps(fig, axes, rows, sweep_values):
     the exact F 3.16; the upright assumption F 3.14) over head tilt × horizontal acceleration."""
     ax = axes[0]
     ax.plot(sweep_values, [r["final_tilt_error_deg"] for r in rows], "o-", label="final |θ̂ − θ|")
-    ax.plot(sweep_values, [r["final_head_error_deg"] for r in rows], "s-", label="final |θ − θ_ref|")
+    ax.plot(sweep_values, [r["final_head_error_deg"] for r in rows], "s-",
+            label="final |θ − θ_ref|")
     ax.axhline(CONVERGED_DEG, color="0.3", ls="--", lw=0.8, label="convergence bound")
     ax.set_xlabel("desired tilt [deg]")
     ax.set_ylabel("deg")
@@ -279,7 +288,8 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
     fig, axes = new_figure(3, 3, width=13, sharex=False)
     for j, i in enumerate(picks):
         prefix = feeds[0][0]
-        axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_H"]), label="head tilt (Luenberger loop)")
+        axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_H"]),
+                        label="head tilt (Luenberger loop)")
         axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_hat"]), lw=0.8, label="its estimate")
         if len(feeds) > 1:
             axes[0, j].plot(t, np.degrees(s[f"ekf_gauss_markov/{i}/theta_H"]),
@@ -288,7 +298,8 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
                             label="its estimate")
         axes[0, j].set_title(f"{name}: {sweep_values[i]:g}°", fontsize=9)
         axes[0, j].set_ylabel("deg")
-        axes[1, j].plot(t, np.degrees(np.abs(s[f"{prefix}{i}/theta_hat"] - s[f"{prefix}{i}/theta_H"])),
+        axes[1, j].plot(t, np.degrees(np.abs(s[f"{prefix}{i}/theta_hat"]
+                                             - s[f"{prefix}{i}/theta_H"])),
                         color="C3", label="|estimate − tilt| (Luenberger)")
         axes[1, j].set_ylabel("deg")
         axes[2, j].plot(t, s[f"{prefix}{i}/a_true"], label="ᴴa_h true")
@@ -309,7 +320,8 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
         ax.legend(fontsize=7)
         ax = axes[1, 2]
         for label, rows in feeds:
-            ax.plot(sweep_values, [float(r["converged"]) for r in rows], "o-", label=label.rstrip("/"))
+            ax.plot(sweep_values, [float(r["converged"]) for r in rows], "o-",
+                    label=label.rstrip("/"))
         ax.set_ylabel("converged")
         ax.set_xlabel("sweep value [deg]")
         ax.legend(fontsize=7)

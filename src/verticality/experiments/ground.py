@@ -86,8 +86,8 @@ def add_noise(key, y_true):
     k1, k2, k3 = jax.random.split(key, 3)
     steps = sensors.random_walk_increments(k1, (n,), DRIFT_INTENSITY, 1.0 / FS_HZ)
     drift = sensors.random_walk(steps.at[0].set(0.0))  # the drift starts at 0 at the first sample
-    sig = jnp.array([JOINT_SIGMA_RAD, JOINT_SIGMA_RAD, JOINT_RATE_SIGMA_RAD_S, JOINT_RATE_SIGMA_RAD_S,
-                     GYRO_SIGMA_RAD_S, ACC_SIGMA_M_S2])
+    sig = jnp.array([JOINT_SIGMA_RAD, JOINT_SIGMA_RAD, JOINT_RATE_SIGMA_RAD_S,
+                     JOINT_RATE_SIGMA_RAD_S, GYRO_SIGMA_RAD_S, ACC_SIGMA_M_S2])
     y = sensors.white(k2, y_true, sig) + jnp.zeros((n, 6)).at[:, 4].set(drift)
     return y, drift
 
@@ -136,7 +136,8 @@ def trial(quick: bool = False, poles: tuple = EDO_POLES, seed: int = 11):
            "ours_gain_max_abs_placed_outputs": float(np.max(np.abs(np.asarray(obs.L))))}
     res = {
         "t_s": t, "theta1": ds[:, 0], "theta1_dot": ds[:, 1], "theta1_ddot": ds[:, 2],
-        "kf_theta1": np.asarray(g_kf.theta1_rad), "kf_theta1_dot": np.asarray(g_kf.theta1_dot_rad_s),
+        "kf_theta1": np.asarray(g_kf.theta1_rad),
+        "kf_theta1_dot": np.asarray(g_kf.theta1_dot_rad_s),
         "edo_theta1": np.asarray(x_edo[:, 4]), "edo_theta1_dot": np.asarray(x_edo[:, 5]),
         "edo_theta1_ddot": np.asarray(x_edo[:, 6]),
         "theta2": np.asarray(xs[:, 0]), "theta3": np.asarray(xs[:, 1]),

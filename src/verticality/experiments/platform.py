@@ -130,7 +130,8 @@ def run(quick: bool = False) -> Result:
         unstable[feed] = unstable[feed] or uns
         by_axis.setdefault(feed, {})[axis] = uns
         m = np.abs(th[i][t >= SETTLE_S])
-        max_tilt.setdefault(feed, {})[axis] = float(m.max()) if np.all(np.isfinite(m)) else float("nan")
+        max_tilt.setdefault(feed, {})[axis] = (float(m.max()) if np.all(np.isfinite(m))
+                                               else float("nan"))
         reading_deg.setdefault(feed, {})[axis] = float(np.degrees(np.abs(y[i][swing]).max()))
         transl_tilt.setdefault(feed, {})[axis] = float(np.abs(th[i][transl]).max())
         for name, arr in (("tilt", th[i]), ("reading", y[i]), ("estimate", th_hat[i]),
@@ -138,7 +139,8 @@ def run(quick: bool = False) -> Result:
             series[f"{feed}/{axis}/{name}"] = arr[::3]
     obs_max = max(max_tilt["observer_feedback"].values())
     acc_max = max(max_tilt["accelerometer_fed"].values())
-    base_swing = {ax: float(np.abs(base[rows.index(("observer_feedback", ax))]).max()) for ax in AXES}
+    base_swing = {ax: float(np.abs(base[rows.index(("observer_feedback", ax))]).max())
+                  for ax in AXES}
 
     def est_err(feed):
         return {ax: float(np.abs(th_hat[i] - th[i])[t >= SETTLE_S].max())
@@ -174,13 +176,15 @@ def run(quick: bool = False) -> Result:
         },
         "fig_5_8": {"max_inclinometer_reading_deg": {
             k: max(reading_deg[k].values()) for k in ("observer_feedback", "accelerometer_fed")}},
-        "fig_5_9": {"max_tilt_translation_rad": {k: max(v.values()) for k, v in transl_tilt.items()},
+        "fig_5_9": {"max_tilt_translation_rad": {k: max(v.values())
+                                                 for k, v in transl_tilt.items()},
                     "translation_only_max_tilt_rad": {
                         k: None if None in v.values() else max(v.values())
                         for k, v in transl_only.items()},
                     "translation_only_max_tilt_rad_by_axis": transl_only},
         "checks": {
-            "sensor_unstable": check(float(unstable["sensor_feedback"]), 0.0, unstable["sensor_feedback"]),
+            "sensor_unstable": check(float(unstable["sensor_feedback"]), 0.0,
+                                     unstable["sensor_feedback"]),
             "observer_stable": check(float(unstable["observer_feedback"]), 0.0,
                                      not unstable["observer_feedback"]),
             "observer_tilt_le_0.1": check(obs_max, 0.1, obs_max <= 0.1),
@@ -218,7 +222,8 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
         ax.axvline(s["swing_s"], color="k", lw=0.6, ls=":")
         ax.set_ylim(-1.5, 1.5)
         uns = unstable[feed][axis]
-        ax.set_title(f"{axis}, {feed.replace('_', ' ')}: {'UNSTABLE' if uns else 'stable'}", fontsize=9)
+        ax.set_title(f"{axis}, {feed.replace('_', ' ')}: {'UNSTABLE' if uns else 'stable'}",
+                     fontsize=9)
         ax.set_ylabel("rad")
         ax = axes[1, j]
         ax.plot(t, np.abs(s[f"{k}/tilt"]), color="C1", lw=0.8, label="|platform tilt|")

@@ -170,7 +170,8 @@ def run(quick: bool = False) -> Result:
     series = {"t": t[::5]}
     for i, (noise, feed, ref_name, ref, _) in enumerate(rows):
         cond = "noisy" if noise else "nominal"
-        unstable_by.setdefault(cond, {}).setdefault(feed, {})[ref_name] = is_unstable(t, th[i] - ref)
+        unstable_by.setdefault(cond, {}).setdefault(feed, {})[ref_name] = is_unstable(
+            t, th[i] - ref)
         dev = np.abs(th[i] - ref)[settle]
         dev_by.setdefault(cond, {}).setdefault(feed, {})[ref_name] = float(np.nanmax(dev))
         if feed in ("luenberger", "kalman"):
@@ -197,8 +198,8 @@ def run(quick: bool = False) -> Result:
         "lateral": lateral,
         "checks": {
             "luenberger_ref0_le_0.05": check(lu_err["ref0"], 0.05, lu_err["ref0"] <= 0.05),
-            "luenberger_ref1_over_ref0_ge_5": check(lu_err["ref1"] / max(lu_err["ref0"], 1e-12), 5.0,
-                                                    lu_err["ref1"] >= 5.0 * lu_err["ref0"]),
+            "luenberger_ref1_over_ref0_ge_5": check(lu_err["ref1"] / max(lu_err["ref0"], 1e-12),
+                                                    5.0, lu_err["ref1"] >= 5.0 * lu_err["ref0"]),
             "sensor_unstable": check(float(all(nom["sensor"].values())), 0.0,
                                      all(nom["sensor"].values())),
             "state_stable": check(float(any(nom["state"].values())), 0.0,
@@ -247,7 +248,8 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
             ax.axhline(ref, color="k", lw=0.8, ls=":", label="reference")
             unstable = result.metrics["unstable_by_ref"]["nominal"][feed][ref_name]
             ax.set_title(f"{feed} feedback, ref {ref:g} rad: {'UNSTABLE' if unstable else 'stable'}"
-                         f" (F Fig. 4.9: {'unstable' if feed == 'sensor' else 'stable'})", fontsize=9)
+                         f" (F Fig. 4.9: {'unstable' if feed == 'sensor' else 'stable'})",
+                         fontsize=9)
             ax.set_ylim(-2.5, 3.5)
             ax.set_ylabel("rad")
     axes[0, 0].legend(fontsize=7, loc="upper right")

@@ -365,7 +365,8 @@ def perceive_file(motion_path, params, otolith: str = "unity", canal: str = "hig
     rec = load_motion(motion_path)
     r = perceive(rec, params, otolith, canal)
     if out_csv is not None:
-        write_columns_csv(out_csv, dict(zip(PERCEPTION_COLUMNS, perception_table(r).T, strict=True)))
+        write_columns_csv(out_csv,
+                          dict(zip(PERCEPTION_COLUMNS, perception_table(r).T, strict=True)))
     if plot_png is not None:
         plot_series(series({model: r}, "axis"), plot_png, f"{model}: {motion_path}")
     tilt_err = tilt_error_deg(r)

@@ -50,7 +50,8 @@ class AxisCfg(NamedTuple):
     obs: ContinuousObserver
     use_observer: jnp.ndarray  # 0.0 sensor, 1.0 observer
     key: jnp.ndarray
-    use_accelerometer: jnp.ndarray = 0.0  # the observer's a_h: 0.0 the true one, 1.0 the accelerometer's
+    # the observer's a_h: 0.0 the true one, 1.0 the accelerometer's
+    use_accelerometer: jnp.ndarray = 0.0
 
 
 def _ramp(t, t0):
@@ -64,7 +65,8 @@ def _drive(cfg: AxisCfg, t, swing_s):
     omega_base = jnp.where(in_swing, r * cfg.base_amp * cfg.base_w * jnp.cos(cfg.base_w * t)
                            + (t < 1.0) * cfg.base_amp * jnp.sin(cfg.base_w * t), 0.0)
     a = jnp.where(in_swing, 0.0,
-                  _ramp(t, swing_s) * ACC_AMP_M_S2 * jnp.sin(cfg.acc_w * (t - swing_s) + cfg.acc_phase))
+                  _ramp(t, swing_s) * ACC_AMP_M_S2
+                  * jnp.sin(cfg.acc_w * (t - swing_s) + cfg.acc_phase))
     return omega_base, a
 
 

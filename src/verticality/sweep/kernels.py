@@ -263,8 +263,8 @@ def _check_newton_knobs(extents: dict[str, tuple[float, float]]) -> str | None:
     for leaf in PARAMETERS:
         least = extents[_rel_name(leaf)][0]
         if least - level <= -1.0:
-            return (f"{_rel_name(leaf)} down to {least:g} with error_level up to {level:g} can make "
-                    f"the observer's {leaf} zero or negative (the sum must stay above −1)")
+            return (f"{_rel_name(leaf)} down to {least:g} with error_level up to {level:g} can "
+                    f"make the observer's {leaf} zero or negative (the sum must stay above −1)")
     return None
 
 

@@ -91,7 +91,8 @@ def draw_errors(rng: np.random.Generator) -> SensorErrors:
 def _sines(rng, n_axes, amp, f_lo, f_hi, n_terms=3):
     """Random sums of ``n_terms`` sinusoids per axis: (amplitudes, frequencies Hz, phases)."""
     a = rng.uniform(0.3, 1.0, (n_axes, n_terms)) * np.asarray(amp, float)[:, None] / n_terms
-    return a, rng.uniform(f_lo, f_hi, (n_axes, n_terms)), rng.uniform(0, 2 * np.pi, (n_axes, n_terms))
+    return (a, rng.uniform(f_lo, f_hi, (n_axes, n_terms)),
+            rng.uniform(0, 2 * np.pi, (n_axes, n_terms)))
 
 
 def _envelope(t, breaks: bool, period_s: float = 20.0):
