@@ -101,7 +101,8 @@ def test_one_medial_value_through_simulator_ekf_newton_linearization_observabili
         quantities={"tilt": lambda x, th: x.head.R_I_H.T @ jnp.array([0.0, 0.0, 1.0])},
         sample=lambda g: (otolith_head.OtolithHeadState(
             (PendulumState(obs.random_rotation(g), g.standard_normal(3)),),
-            HeadState(obs.random_rotation(g), g.standard_normal(3))), {"a_H": g.standard_normal(3)}))
+            HeadState(obs.random_rotation(g), g.standard_normal(3))),
+            {"a_H": g.standard_normal(3)}))
     result = obs.analyze(prob, order=4, points=1)
     assert result.n_coords == 15 and 0 < result.rank < result.n_coords
     assert not result.quantities["tilt"].observable
@@ -110,8 +111,8 @@ def test_one_medial_value_through_simulator_ekf_newton_linearization_observabili
     still = dataclasses.replace(MEDIAL, gyro=False)
     _, xs = mc.run_model(still, _upright(), lambda t, x: HeadInput(jnp.zeros(3), jnp.zeros(3)),
                          1e-3, 200)
-    np.testing.assert_allclose(np.asarray(xs.pendula[0].R_I_S), np.broadcast_to(np.eye(3), (200, 3, 3)),
-                               atol=1e-12)
+    np.testing.assert_allclose(np.asarray(xs.pendula[0].R_I_S),
+                               np.broadcast_to(np.eye(3), (200, 3, 3)), atol=1e-12)
 
 
 # ------------------------------------------------------------------------------ the code's shape
@@ -149,7 +150,8 @@ def test_no_module_imports_another_modules_private_objects():
                    if (isinstance(node, ast.Import) and a.name.startswith("verticality"))
                    or (isinstance(node, ast.ImportFrom)
                        and _resolve(module, path, node).startswith("verticality")
-                       and (SRC.parent / Path(*_resolve(module, path, node).split("."), a.name)).exists())}
+                       and (SRC.parent / Path(*_resolve(module, path, node).split("."),
+                                              a.name)).exists())}
         offenders += [f"{module}: {node.value.id}.{node.attr}" for node in ast.walk(tree)
                       if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
                       and node.value.id in aliases and node.attr.startswith("_")

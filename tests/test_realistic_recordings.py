@@ -48,7 +48,8 @@ def test_the_drawn_errors_are_applied_and_the_readings_clip(pair):
     # what remains is the white noise and the bias walk
     resid = rec.gyr_rad_s - expect
     assert np.std(resid) < 5 * e.gyr_noise_rad_s_sqrt_hz * np.sqrt(e.rate_hz / 2) + 1e-3
-    clipped = readings.axes_reading(ide.acc_m_s2 * 10, np.zeros((3, 3)), np.zeros(3), np.zeros(3), 0.0, 20.0)
+    clipped = readings.axes_reading(ide.acc_m_s2 * 10, np.zeros((3, 3)), np.zeros(3), np.zeros(3),
+                                    0.0, 20.0)
     assert clipped.max() == 20.0 and clipped.min() == -20.0
 
 

@@ -68,7 +68,8 @@ def summarize_upright(s: LoopSummary, ref_deg) -> list[dict]:
     last1 = np.arange(n) >= n - int(round(1.0 / (OUT_EVERY * UPRIGHT_DT_S)))
     after1 = np.arange(n) >= int(round(1.0 / (OUT_EVERY * UPRIGHT_DT_S)))
     rows = []
-    for i, ref in enumerate(np.radians(np.broadcast_to(np.asarray(ref_deg, float), (len(s.theta_H),)))):
+    for i, ref in enumerate(np.radians(np.broadcast_to(np.asarray(ref_deg, float),
+                                                       (len(s.theta_H),)))):
         est = np.degrees(np.abs(s.theta_hat[i] - s.theta_H[i]))
         head = np.degrees(np.abs(s.theta_H[i] - ref))
         finite = all(np.all(np.isfinite(v[i])) for v in s)

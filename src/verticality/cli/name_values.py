@@ -11,7 +11,8 @@ from verticality.core.errors import InputError
 def parse_name_values(items, names, allow_inf: bool = False) -> dict[str, float]:
     """``["NAME=VALUE", ...]`` (the ``--param`` options of a command) → ``{NAME: value}``, each
     NAME one of ``names`` and each VALUE a number: finite, or also ±inf with ``allow_inf`` (an
-    infinite time constant, say); never NaN (:class:`verticality.core.errors.InputError`, one line each)."""
+    infinite time constant, say); never NaN (:class:`verticality.core.errors.InputError`, one line
+    each)."""
     out: dict[str, float] = {}
     for item in items:
         name, sep, value = str(item).partition("=")

@@ -1,16 +1,18 @@
 """`ambiguity-*` — F §4.5.2: observer-based head stabilization when the head's acceleration is
 known (Fig. 4.11, 4.14) or reconstructed from the otolith (Fig. 4.12, 4.15, 4.16).
 
-Plant (truth): the planar head carrying the medial otolith, :class:`~verticality.models.planar.PlanarHead`
-driven through :class:`~verticality.models.planar.WithHeadFrameInput` (torque and head-frame
-acceleration), nonlinear, RK4 with 4 sub-steps per 1 ms sample. Parameters (F §4.5.2,
+Plant (truth): the planar head carrying the medial otolith,
+:class:`~verticality.models.planar.PlanarHead` driven through
+:class:`~verticality.models.planar.WithHeadFrameInput` (torque and head-frame acceleration),
+nonlinear, RK4 with 4 sub-steps per 1 ms sample. Parameters (F §4.5.2,
 :mod:`verticality.models.params`): otolith critically damped at 300 Hz (``g/l = (2π·300)²``,
 ``β/(m l²) = 2·2π·300``; only the ratios matter), head inertia 0.0174 kg·m². Sagittal plane: the
-planar model's rotation is about the head's y axis with ``h = −x`` (:mod:`verticality.models.planar`),
-so a forward head acceleration is ``a_h = −a_x``. Walking: the built-in
-:func:`verticality.simulation.trajectories.walking` (F Fig. 4.13, after Menz, Lord & Fitzpatrick 2003); its
-forward and vertical accelerations drive the head as head-frame components ``ᴴa`` (F's input;
-head-mounted accelerometers measure in the head frame), sampled at every RK4 stage time.
+planar model's rotation is about the head's y axis with ``h = −x``
+(:mod:`verticality.models.planar`), so a forward head acceleration is ``a_h = −a_x``. Walking: the
+built-in :func:`verticality.simulation.trajectories.walking` (F Fig. 4.13, after Menz, Lord &
+Fitzpatrick 2003); its forward and vertical accelerations drive the head as head-frame components
+``ᴴa`` (F's input; head-mounted accelerometers measure in the head frame), sampled at every RK4
+stage time.
 
 Internal model (F 4.10): the same model value linearized at upright
 (:func:`verticality.models.linearize.linearize`), inputs the torque and ``ᴴa_h`` (F: "the only
@@ -38,8 +40,8 @@ Readings the thesis leaves open, fixed here:
   The *known*-acceleration observer itself keeps a walking-driven error on the linear internal
   model (it neglects ``ᴴa_z`` and the products of acceleration and angle: 1.9° at upright, up to
   5° at ±20°); the Luenberger loops that drift or diverge end beyond 25°. 10° sits in that gap:
-  any bound from 5° to 25° gives the Luenberger feeds the same regions. ``rms_acc_error_m_s2``: RMS of
-  ``â_h − a_h`` after the first second. Non-finite values are reported as null.
+  any bound from 5° to 25° gives the Luenberger feeds the same regions. ``rms_acc_error_m_s2``: RMS
+  of ``â_h − a_h`` after the first second. Non-finite values are reported as null.
 - ``rotation_only``: the same sweeps with the walking acceleration switched off (the head only
   rotates): where the reconstruction works when nothing but tilt moves the otolith.
 
@@ -49,9 +51,9 @@ model value with the horizontal acceleration as a random-walk state
 (:class:`~verticality.models.planar.WithAccelerationState`, discretized with 4 RK4 sub-steps), fed
 the same reading, torque and saccule ``a_z`` (the ``ekf`` feed), and with the acceleration a
 first-order Gauss–Markov process of time constant 0.2 s instead (``ekf_gauss_markov``: zero on
-average, as for a head that walks on). Q per 0.1 ms step: σ = 1e-6 rad and 1e-3 rad/s on the otolith,
-1e-6 rad and 1e-3 rad/s on the head, 0.05 m/s² on ``a_h``; R = (1e-3 rad)²; P0 = diag(0.1 rad,
-1 rad/s, 0.5 rad, 1 rad/s, 3 m/s²)², started at zero like the observer.
+average, as for a head that walks on). Q per 0.1 ms step: σ = 1e-6 rad and 1e-3 rad/s on the
+otolith, 1e-6 rad and 1e-3 rad/s on the head, 0.05 m/s² on ``a_h``; R = (1e-3 rad)²; P0 = diag(0.1
+rad, 1 rad/s, 0.5 rad, 1 rad/s, 3 m/s²)², started at zero like the observer.
 
 Sampling: the otolith's 300 Hz (1885 rad/s) and observer poles near 4000 rad/s need the
 measurement far faster than 1 kHz (held over 1 ms the reading lags the observer by half a sample,
@@ -103,8 +105,10 @@ def _duration(quick: bool) -> float:
     return 3.0 if quick else 10.0
 
 
-@register("ambiguity-known-acc", "Tilt estimation and head control with the acceleration known (F §4.5.2)",
-          source="F §4.5.2, Fig. 4.11, 4.14", figures=lambda r, d: figures(r, d, "ambiguity-known-acc"))
+@register("ambiguity-known-acc",
+          "Tilt estimation and head control with the acceleration known (F §4.5.2)",
+          source="F §4.5.2, Fig. 4.11, 4.14",
+          figures=lambda r, d: figures(r, d, "ambiguity-known-acc"))
 def run_known(quick: bool = False) -> Result:
     duration = _duration(quick)
     refs = [-20.0, 0.0, 20.0] if quick else [-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0]
@@ -138,8 +142,10 @@ def printed_relations() -> dict:
     phi_F = -np.asarray(am.otolith_angles(a, 0.0, ty))[..., 1]
     phi0_F = -np.asarray(am.otolith_angles(a))[..., 1]
     f316 = -az * np.sin(phi_F) + ax * np.cos(phi_F) - g * np.sin(phi_F - ty)
-    return {"f314_with_conventions_max_error_m_s2": float(np.abs(ax - (g + az) * np.tan(phi0_F)).max()),
-            "f314_as_printed_a_z_up_max_error_m_s2": float(np.abs(ax - (g - az) * np.tan(phi0_F)).max()),
+    return {"f314_with_conventions_max_error_m_s2":
+                float(np.abs(ax - (g + az) * np.tan(phi0_F)).max()),
+            "f314_as_printed_a_z_up_max_error_m_s2":
+                float(np.abs(ax - (g - az) * np.tan(phi0_F)).max()),
             "f316_with_conventions_max_error_m_s2": float(np.abs(f316).max())}
 
 
@@ -169,8 +175,10 @@ def _unknown(values, th0, refs, duration, swept: str):
 
 
 @register("ambiguity-initial-tilt",
-          "Acceleration reconstructed from the otolith: stabilizing upright from an initial tilt (F §4.5.2)",
-          source="F §4.5.2, Fig. 4.12, 4.15", figures=lambda r, d: figures(r, d, "ambiguity-initial-tilt"))
+          "Acceleration reconstructed from the otolith: stabilizing upright from an initial tilt "
+          "(F §4.5.2)",
+          source="F §4.5.2, Fig. 4.12, 4.15",
+          figures=lambda r, d: figures(r, d, "ambiguity-initial-tilt"))
 def run_initial(quick: bool = False) -> Result:
     duration = _duration(quick)
     values = [0.0, 12.0, 25.0] if quick else [0.0, 5.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0]
@@ -191,8 +199,10 @@ def run_initial(quick: bool = False) -> Result:
 
 
 @register("ambiguity-desired-tilt",
-          "Acceleration reconstructed from the otolith: holding the head at a desired tilt (F §4.5.2)",
-          source="F §4.5.2, Fig. 4.12, 4.16", figures=lambda r, d: figures(r, d, "ambiguity-desired-tilt"))
+          "Acceleration reconstructed from the otolith: holding the head at a desired tilt "
+          "(F §4.5.2)",
+          source="F §4.5.2, Fig. 4.12, 4.16",
+          figures=lambda r, d: figures(r, d, "ambiguity-desired-tilt"))
 def run_desired(quick: bool = False) -> Result:
     duration = _duration(quick)
     values = [0.0, 6.0] if quick else [0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 15.0]
@@ -239,7 +249,8 @@ def _relation_maps(fig, axes, rows, sweep_values):
     the exact F 3.16; the upright assumption F 3.14) over head tilt × horizontal acceleration."""
     ax = axes[0]
     ax.plot(sweep_values, [r["final_tilt_error_deg"] for r in rows], "o-", label="final |θ̂ − θ|")
-    ax.plot(sweep_values, [r["final_head_error_deg"] for r in rows], "s-", label="final |θ − θ_ref|")
+    ax.plot(sweep_values, [r["final_head_error_deg"] for r in rows], "s-",
+            label="final |θ − θ_ref|")
     ax.axhline(CONVERGED_DEG, color="0.3", ls="--", lw=0.8, label="convergence bound")
     ax.set_xlabel("desired tilt [deg]")
     ax.set_ylabel("deg")
@@ -277,7 +288,8 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
     fig, axes = new_figure(3, 3, width=13, sharex=False)
     for j, i in enumerate(picks):
         prefix = feeds[0][0]
-        axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_H"]), label="head tilt (Luenberger loop)")
+        axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_H"]),
+                        label="head tilt (Luenberger loop)")
         axes[0, j].plot(t, np.degrees(s[f"{prefix}{i}/theta_hat"]), lw=0.8, label="its estimate")
         if len(feeds) > 1:
             axes[0, j].plot(t, np.degrees(s[f"ekf_gauss_markov/{i}/theta_H"]),
@@ -286,7 +298,8 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
                             label="its estimate")
         axes[0, j].set_title(f"{name}: {sweep_values[i]:g}°", fontsize=9)
         axes[0, j].set_ylabel("deg")
-        axes[1, j].plot(t, np.degrees(np.abs(s[f"{prefix}{i}/theta_hat"] - s[f"{prefix}{i}/theta_H"])),
+        axes[1, j].plot(t, np.degrees(np.abs(s[f"{prefix}{i}/theta_hat"]
+                                             - s[f"{prefix}{i}/theta_H"])),
                         color="C3", label="|estimate − tilt| (Luenberger)")
         axes[1, j].set_ylabel("deg")
         axes[2, j].plot(t, s[f"{prefix}{i}/a_true"], label="ᴴa_h true")
@@ -307,7 +320,8 @@ def figures(result: Result, out_dir: Path, name: str) -> list[Path]:
         ax.legend(fontsize=7)
         ax = axes[1, 2]
         for label, rows in feeds:
-            ax.plot(sweep_values, [float(r["converged"]) for r in rows], "o-", label=label.rstrip("/"))
+            ax.plot(sweep_values, [float(r["converged"]) for r in rows], "o-",
+                    label=label.rstrip("/"))
         ax.set_ylabel("converged")
         ax.set_xlabel("sweep value [deg]")
         ax.legend(fontsize=7)

@@ -20,9 +20,10 @@ The head, otolith, internal model, observer and walking are those of
 - **A soft PD.** F gives no gains; the head's loop is critically damped at 4 rad/s
   (:data:`PD_LOOP_RAD_S`, the middle of 3–5 rad/s) instead of the sibling's 10 rad/s; the grid of
   :func:`sweeps` reports how the outcome moves with it.
-- **Walking at the step frequency** (``harmonics=0`` of :func:`verticality.simulation.trajectories.walking`):
-  0.32 g vertical, 0.16 g fore–aft at 2 steps/s, the bounce a quarter step behind the forward sway;
-  F Fig. 4.13 gives no numbers, and the built-in walking's 2nd harmonics are a grid parameter.
+- **Walking at the step frequency** (``harmonics=0`` of
+  :func:`verticality.simulation.trajectories.walking`): 0.32 g vertical, 0.16 g fore–aft at 2
+  steps/s, the bounce a quarter step behind the forward sway; F Fig. 4.13 gives no numbers, and the
+  built-in walking's 2nd harmonics are a grid parameter.
 
 Runs last 20 s from the gait's steady part; "converged" is the sibling's (mean ``|θ̂ − θ|`` and
 ``|θ − θ_ref|`` over the last second ≤ 10°). The grid moves one parameter of :data:`NOMINAL` at a

@@ -24,12 +24,12 @@ superimposed. Readings and choices (the paper leaves them open):
   −30…−31.5 s⁻¹, disturbance poles at −10, −15, −20 s⁻¹ (chosen by a small grid search of body
   poles 6–40 s⁻¹ and disturbance poles 1–12 s⁻¹ on the quick 20 s trial of this seed, so the
   full 60 s run is partly out of sample: slower disturbance poles make θ̈1 lag the sinusoidal
-  ground — Friedland's model holds θ̈1 piecewise constant — faster ones amplify noise into it). The observer takes all of
-  y_e (T eq. 23) and includes the torque feed-through ``D u`` of the accelerometer, but the gain is
-  placed with the five kinematic outputs (a_x column of L_e zero): pole placement ignores noise,
-  and with a_x in the placement its noise drives the θ1 error from ≈ 0.2° to ≈ 1–2° because
-  a_x's sensitivity to θ1 is only ≈ 0.51 m/s²/rad given the motor command. The metric
-  ``rms_error_deg_all_outputs`` reports the all-outputs design on the same trial.
+  ground — Friedland's model holds θ̈1 piecewise constant — faster ones amplify noise into it). The
+  observer takes all of y_e (T eq. 23) and includes the torque feed-through ``D u`` of the
+  accelerometer, but the gain is placed with the five kinematic outputs (a_x column of L_e zero):
+  pole placement ignores noise, and with a_x in the placement its noise drives the θ1 error from
+  ≈ 0.2° to ≈ 1–2° because a_x's sensitivity to θ1 is only ≈ 0.51 m/s²/rad given the motor command.
+  The metric ``rms_error_deg_all_outputs`` reports the all-outputs design on the same trial.
 * Both estimators start at the true initial state (the trial starts with θ1(0) ≈ 1°, θ3(0) = 0
   but a hip reference of 2.4°); errors after t ≥ 1 s. Run 60 s (quick 20 s); one fixed seed.
 """
@@ -86,8 +86,8 @@ def add_noise(key, y_true):
     k1, k2, k3 = jax.random.split(key, 3)
     steps = sensors.random_walk_increments(k1, (n,), DRIFT_INTENSITY, 1.0 / FS_HZ)
     drift = sensors.random_walk(steps.at[0].set(0.0))  # the drift starts at 0 at the first sample
-    sig = jnp.array([JOINT_SIGMA_RAD, JOINT_SIGMA_RAD, JOINT_RATE_SIGMA_RAD_S, JOINT_RATE_SIGMA_RAD_S,
-                     GYRO_SIGMA_RAD_S, ACC_SIGMA_M_S2])
+    sig = jnp.array([JOINT_SIGMA_RAD, JOINT_SIGMA_RAD, JOINT_RATE_SIGMA_RAD_S,
+                     JOINT_RATE_SIGMA_RAD_S, GYRO_SIGMA_RAD_S, ACC_SIGMA_M_S2])
     y = sensors.white(k2, y_true, sig) + jnp.zeros((n, 6)).at[:, 4].set(drift)
     return y, drift
 
@@ -136,7 +136,8 @@ def trial(quick: bool = False, poles: tuple = EDO_POLES, seed: int = 11):
            "ours_gain_max_abs_placed_outputs": float(np.max(np.abs(np.asarray(obs.L))))}
     res = {
         "t_s": t, "theta1": ds[:, 0], "theta1_dot": ds[:, 1], "theta1_ddot": ds[:, 2],
-        "kf_theta1": np.asarray(g_kf.theta1_rad), "kf_theta1_dot": np.asarray(g_kf.theta1_dot_rad_s),
+        "kf_theta1": np.asarray(g_kf.theta1_rad),
+        "kf_theta1_dot": np.asarray(g_kf.theta1_dot_rad_s),
         "edo_theta1": np.asarray(x_edo[:, 4]), "edo_theta1_dot": np.asarray(x_edo[:, 5]),
         "edo_theta1_ddot": np.asarray(x_edo[:, 6]),
         "theta2": np.asarray(xs[:, 0]), "theta3": np.asarray(xs[:, 1]),

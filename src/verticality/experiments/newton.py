@@ -150,8 +150,9 @@ def jacobian_agreement(scheme: str = "euler", t0_s: float = 2.0) -> float:
 
     J = np.asarray(jax.jacfwd(h_t)(xi))
     step = 1e-6 * (1.0 + np.abs(np.asarray(xi)))
-    J_fd = np.stack([(np.asarray(h_t(xi.at[i].add(step[i]))) - np.asarray(h_t(xi.at[i].add(-step[i]))))
-                     / (2 * step[i]) for i in range(4)], axis=1)
+    J_fd = np.stack([(np.asarray(h_t(xi.at[i].add(step[i])))
+                      - np.asarray(h_t(xi.at[i].add(-step[i])))) / (2 * step[i])
+                     for i in range(4)], axis=1)
     return float(np.max(np.abs(J - J_fd)) / np.max(np.abs(J)))
 
 
@@ -176,7 +177,8 @@ def p11_euler_setting(duration: float) -> tuple[dict, dict]:
     errs = _errors(batch, CASES, SETTLE_S)
     late = _errors(batch, CASES, TRANSIENT_S)
     quant = {c: max_error_after(_pick(batch, 4 + j)) for j, c in enumerate(("fixed", "stabilized"))}
-    swing = {c: inclinometer_swing_deg(_pick(batch, j)) for j, c in enumerate(("fixed", "stabilized"))}
+    swing = {c: inclinometer_swing_deg(_pick(batch, j))
+             for j, c in enumerate(("fixed", "stabilized"))}
     ratio = {m: _ratio(errs, m) for m in ("exact", "perturbed")}
     ratio_late = {m: _ratio(late, m) for m in ("exact", "perturbed")}
     jac = jacobian_agreement("euler")
@@ -189,7 +191,8 @@ def p11_euler_setting(duration: float) -> tuple[dict, dict]:
                             "ratio_fixed_over_stabilized": quant["fixed"] / quant["stabilized"]},
         "inclinometer_swing_deg": swing,
         "jacobian_fd_relative_difference": jac,
-        "checks": {"stabilized_10x_better_exact": check(ratio["exact"], 10.0, ratio["exact"] >= 10.0),
+        "checks": {"stabilized_10x_better_exact": check(ratio["exact"], 10.0,
+                                                        ratio["exact"] >= 10.0),
                    "stabilized_10x_better_perturbed": check(ratio["perturbed"], 10.0,
                                                             ratio["perturbed"] >= 10.0),
                    "stabilized_swing_about_4deg": check(swing["stabilized"], 4.0,
@@ -258,7 +261,8 @@ def run_uncertainty(quick: bool = False) -> Result:
         if bad:
             diverged[cond].append(LEVELS[i % n])
     div = diverged["fixed"][0] if diverged["fixed"] else None
-    fail = next((lv for lv, e in zip(LEVELS, raw["fixed"], strict=True) if not (np.isfinite(e) and e <= FAIL_DEG)),
+    fail = next((lv for lv, e in zip(LEVELS, raw["fixed"], strict=True)
+                 if not (np.isfinite(e) and e <= FAIL_DEG)),
                 None)
     stab_ok = all(v is not None and v <= 3.0 for v in out["stabilized"])
     levels_pct = [round(100 * lv) for lv in LEVELS]
@@ -269,7 +273,8 @@ def run_uncertainty(quick: bool = False) -> Result:
         "fixed_fails_at_level_pct": None if fail is None else round(100 * fail),
         "fixed_diverges_at_level_pct": None if div is None else round(100 * div),
         "checks": {"stabilized_within_3deg_up_to_50pct": check(
-            max((v for v in out["stabilized"] if v is not None), default=float("nan")), 3.0, stab_ok)},
+            max((v for v in out["stabilized"] if v is not None), default=float("nan")), 3.0,
+            stab_ok)},
     }
     paper = {"max_tilt_error_deg": {"stabilized": [3.0] * n},
              "fixed_fails_at_level_pct": 20, "fixed_diverges_at_level_pct": 20}
@@ -293,7 +298,8 @@ def _figures_lissajous(result: Result, out_dir: Path) -> list[Path]:
             ax.plot(t, np.rad2deg(s.theta_H_hat_rad), "--", label="estimated", lw=1.0)
             ax.plot(t, np.rad2deg(s.reading_rad), ":", label="inclinometer reading", lw=1.0)
             ax.set_title(f"{cond} head, {model} model")
-            lim = 1.4 * max(np.max(np.abs(np.rad2deg(s.theta_H_rad))), np.max(np.abs(np.rad2deg(s.reading_rad))))
+            lim = 1.4 * max(np.max(np.abs(np.rad2deg(s.theta_H_rad))),
+                            np.max(np.abs(np.rad2deg(s.reading_rad))))
             ax.set_ylim(-lim, lim)
             ax.set_ylabel("angle (deg)")
             ax.legend(fontsize=7, loc="upper right")

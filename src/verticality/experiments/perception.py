@@ -171,15 +171,18 @@ def run_post_rotatory_tilt(quick: bool = False) -> Result:
         taus = {}
         for cond, tilt in (("upright", False), ("tilted", True)):
             r = pc.perceive(pp.post_rotatory_tilt(tilt, OMEGA_DEG_S, after_s=after_s), v)
-            taus[cond] = pc.e_fold_time(r.t_s, np.linalg.norm(r.omega_H_perceived_rad_s, axis=1), stop + 2.0)
+            taus[cond] = pc.e_fold_time(r.t_s, np.linalg.norm(r.omega_H_perceived_rad_s, axis=1),
+                                        stop + 2.0)
             if tilt:
                 runs[k] = r
         metrics[k] = {"tau_upright_s": taus["upright"], "tau_tilted_s": taus["tilted"],
                       "ratio": taus["tilted"] / taus["upright"]}
-    metrics["checks"] = {f"{k}_ratio_le_0.7": check(metrics[k]["ratio"], 0.7, metrics[k]["ratio"] <= 0.7)
+    metrics["checks"] = {f"{k}_ratio_le_0.7": check(metrics[k]["ratio"], 0.7,
+                                                     metrics[k]["ratio"] <= 0.7)
                          for k in MODELS}
     t_end = float(runs["merfeld"].t_s[-1])
-    return Result(metrics=metrics, paper={"ratio_at_most": 0.7}, series=pc.series(runs, "speed", DECIMATE),
+    return Result(metrics=metrics, paper={"ratio_at_most": 0.7},
+                  series=pc.series(runs, "speed", DECIMATE),
                   simulated_s=t_end * 2 * len(MODELS))
 
 
@@ -299,7 +302,8 @@ def _swing_figure(result: Result, out_dir: Path) -> list[Path]:
     fig, axes = new_figure(2, len(conds), width=13, height_per_row=2.6)
     for j, c in enumerate(conds):
         t = s[f"{c}/t"]
-        for i, (key, label) in enumerate((("roll_deg", "roll (°)"), ("v_y_cm_s", "y velocity (cm/s)"))):
+        for i, (key, label) in enumerate((("roll_deg", "roll (°)"),
+                                          ("v_y_cm_s", "y velocity (cm/s)"))):
             ax = axes[i, j]
             ax.plot(t, s[f"{c}/actual/{key}"], color="k", lw=1.2, label="actual")
             for k in SWING_MODELS:
@@ -347,7 +351,8 @@ def run_roll_swing(quick: bool = False) -> Result:
             roll = roll_deg(r.g_H_perceived)
             vy = 100 * r.v_H_perceived_m_s[:, 1]
             row[k] = {"tilt_deg": _amplitude(roll[last]),
-                      "peak_omega_deg_s": _amplitude(np.degrees(r.omega_H_perceived_rad_s[last, 0])),
+                      "peak_omega_deg_s":
+                          _amplitude(np.degrees(r.omega_H_perceived_rad_s[last, 0])),
                       "peak_vy_cm_s": _amplitude(vy[last])}
             series[f"{c}/{k}/roll_deg"] = roll[k_dec]
             series[f"{c}/{k}/v_y_cm_s"] = vy[k_dec]

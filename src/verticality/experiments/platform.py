@@ -1,11 +1,12 @@
 """`platform` — F ch. 5: simulated copy of the gimbal platform, inclinometer-fed vs observer-fed PD.
 
-Each gimbal axis is its identified model (F §5.2; :class:`verticality.models.platform.PlatformAxis`): pitch
-J1 = 0.008, b1 = 1.35; roll J2 = 0.0006, b2 = 0.137 (``J θ̈ + b (θ̇ − θ̇_base) = u``), with the
-identified inclinometer ``J_s ÿ + b_s ẏ + k_s y = k_s ψ`` (J_s = 0.0015, b_s = 0.3776, k_s = 5.629),
-ψ = θ + atan2(a_h, g). The axes are decoupled (F §5.1.1) and simulated side by side (``vmap``).
-The controller runs every 3 ms (F §5.1.4) with the command held; the plant is integrated by RK4 at
-1 ms. Two feeds of a PD ``u = k_p (0 − θ̃) − k_d ω̃`` that keeps the platform horizontal:
+Each gimbal axis is its identified model (F §5.2;
+:class:`verticality.models.platform.PlatformAxis`): pitch J1 = 0.008, b1 = 1.35; roll J2 = 0.0006,
+b2 = 0.137 (``J θ̈ + b (θ̇ − θ̇_base) = u``), with the identified inclinometer
+``J_s ÿ + b_s ẏ + k_s y = k_s ψ`` (J_s = 0.0015, b_s = 0.3776, k_s = 5.629), ψ = θ + atan2(a_h, g).
+The axes are decoupled (F §5.1.1) and simulated side by side (``vmap``). The controller runs every 3
+ms (F §5.1.4) with the command held; the plant is integrated by RK4 at 1 ms. Two feeds of a PD
+``u = k_p (0 − θ̃) − k_d ω̃`` that keeps the platform horizontal:
 
 - ``sensor_feedback``: θ̃ the inclinometer reading, ω̃ its backward difference over 3 ms (F §5.2);
 - ``observer_feedback``: θ̃, ω̃ from :mod:`verticality.estimators.luenberger` on the same model value
@@ -129,7 +130,8 @@ def run(quick: bool = False) -> Result:
         unstable[feed] = unstable[feed] or uns
         by_axis.setdefault(feed, {})[axis] = uns
         m = np.abs(th[i][t >= SETTLE_S])
-        max_tilt.setdefault(feed, {})[axis] = float(m.max()) if np.all(np.isfinite(m)) else float("nan")
+        max_tilt.setdefault(feed, {})[axis] = (float(m.max()) if np.all(np.isfinite(m))
+                                               else float("nan"))
         reading_deg.setdefault(feed, {})[axis] = float(np.degrees(np.abs(y[i][swing]).max()))
         transl_tilt.setdefault(feed, {})[axis] = float(np.abs(th[i][transl]).max())
         for name, arr in (("tilt", th[i]), ("reading", y[i]), ("estimate", th_hat[i]),
@@ -137,7 +139,8 @@ def run(quick: bool = False) -> Result:
             series[f"{feed}/{axis}/{name}"] = arr[::3]
     obs_max = max(max_tilt["observer_feedback"].values())
     acc_max = max(max_tilt["accelerometer_fed"].values())
-    base_swing = {ax: float(np.abs(base[rows.index(("observer_feedback", ax))]).max()) for ax in AXES}
+    base_swing = {ax: float(np.abs(base[rows.index(("observer_feedback", ax))]).max())
+                  for ax in AXES}
 
     def est_err(feed):
         return {ax: float(np.abs(th_hat[i] - th[i])[t >= SETTLE_S].max())
@@ -173,13 +176,15 @@ def run(quick: bool = False) -> Result:
         },
         "fig_5_8": {"max_inclinometer_reading_deg": {
             k: max(reading_deg[k].values()) for k in ("observer_feedback", "accelerometer_fed")}},
-        "fig_5_9": {"max_tilt_translation_rad": {k: max(v.values()) for k, v in transl_tilt.items()},
+        "fig_5_9": {"max_tilt_translation_rad": {k: max(v.values())
+                                                 for k, v in transl_tilt.items()},
                     "translation_only_max_tilt_rad": {
                         k: None if None in v.values() else max(v.values())
                         for k, v in transl_only.items()},
                     "translation_only_max_tilt_rad_by_axis": transl_only},
         "checks": {
-            "sensor_unstable": check(float(unstable["sensor_feedback"]), 0.0, unstable["sensor_feedback"]),
+            "sensor_unstable": check(float(unstable["sensor_feedback"]), 0.0,
+                                     unstable["sensor_feedback"]),
             "observer_stable": check(float(unstable["observer_feedback"]), 0.0,
                                      not unstable["observer_feedback"]),
             "observer_tilt_le_0.1": check(obs_max, 0.1, obs_max <= 0.1),
@@ -217,7 +222,8 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
         ax.axvline(s["swing_s"], color="k", lw=0.6, ls=":")
         ax.set_ylim(-1.5, 1.5)
         uns = unstable[feed][axis]
-        ax.set_title(f"{axis}, {feed.replace('_', ' ')}: {'UNSTABLE' if uns else 'stable'}", fontsize=9)
+        ax.set_title(f"{axis}, {feed.replace('_', ' ')}: {'UNSTABLE' if uns else 'stable'}",
+                     fontsize=9)
         ax.set_ylabel("rad")
         ax = axes[1, j]
         ax.plot(t, np.abs(s[f"{k}/tilt"]), color="C1", lw=0.8, label="|platform tilt|")

@@ -1,4 +1,5 @@
-"""`separation` — F §4.4: linear observer + linear PD on the nonlinear platform (separation principle).
+"""`separation` — F §4.4: linear observer + linear PD on the nonlinear platform (separation
+principle).
 
 Plant (truth): the planar sagittal platform with the 10 Hz critically damped liquid inclinometer,
 :func:`verticality.models.platform.f44_platform` driven through the head-frame input adapter of
@@ -29,7 +30,8 @@ Readings the thesis leaves open, fixed here:
   ever non-finite or exceeds 1 rad in magnitude after t ≥ 1 s, or if its envelope grows (max |error|
   over the last quarter of the run > 2 × that over the second quarter, and > 0.05 rad).
   The loop is called unstable when it is unstable at both references (F: "not stable both for ...").
-- Errors (``max_error_rad``) are max |θ̂_H − θ_H| for t ≥ 1 s (docs/reproduction.md's settling default).
+- Errors (``max_error_rad``) are max |θ̂_H − θ_H| for t ≥ 1 s (docs/reproduction.md's settling
+  default).
 """
 
 from __future__ import annotations
@@ -168,7 +170,8 @@ def run(quick: bool = False) -> Result:
     series = {"t": t[::5]}
     for i, (noise, feed, ref_name, ref, _) in enumerate(rows):
         cond = "noisy" if noise else "nominal"
-        unstable_by.setdefault(cond, {}).setdefault(feed, {})[ref_name] = is_unstable(t, th[i] - ref)
+        unstable_by.setdefault(cond, {}).setdefault(feed, {})[ref_name] = is_unstable(
+            t, th[i] - ref)
         dev = np.abs(th[i] - ref)[settle]
         dev_by.setdefault(cond, {}).setdefault(feed, {})[ref_name] = float(np.nanmax(dev))
         if feed in ("luenberger", "kalman"):
@@ -195,8 +198,8 @@ def run(quick: bool = False) -> Result:
         "lateral": lateral,
         "checks": {
             "luenberger_ref0_le_0.05": check(lu_err["ref0"], 0.05, lu_err["ref0"] <= 0.05),
-            "luenberger_ref1_over_ref0_ge_5": check(lu_err["ref1"] / max(lu_err["ref0"], 1e-12), 5.0,
-                                                    lu_err["ref1"] >= 5.0 * lu_err["ref0"]),
+            "luenberger_ref1_over_ref0_ge_5": check(lu_err["ref1"] / max(lu_err["ref0"], 1e-12),
+                                                    5.0, lu_err["ref1"] >= 5.0 * lu_err["ref0"]),
             "sensor_unstable": check(float(all(nom["sensor"].values())), 0.0,
                                      all(nom["sensor"].values())),
             "state_stable": check(float(any(nom["state"].values())), 0.0,
@@ -245,7 +248,8 @@ def figures(result: Result, out_dir: Path) -> list[Path]:
             ax.axhline(ref, color="k", lw=0.8, ls=":", label="reference")
             unstable = result.metrics["unstable_by_ref"]["nominal"][feed][ref_name]
             ax.set_title(f"{feed} feedback, ref {ref:g} rad: {'UNSTABLE' if unstable else 'stable'}"
-                         f" (F Fig. 4.9: {'unstable' if feed == 'sensor' else 'stable'})", fontsize=9)
+                         f" (F Fig. 4.9: {'unstable' if feed == 'sensor' else 'stable'})",
+                         fontsize=9)
             ax.set_ylim(-2.5, 3.5)
             ax.set_ylabel("rad")
     axes[0, 0].legend(fontsize=7, loc="upper right")

@@ -95,7 +95,8 @@ def estimate_lean(ys, fs_hz: float = FS_HZ, form: str = "steady", phi0_rad: floa
     """Run the otolith–canal filter on samples ``ys`` (n, 2); estimate aligned with the samples.
 
     The steady-state form holds sample k over [t_k, t_k+1) and returns x̂(t_k+1); the estimate at
-    t_0 is the initial state ``(phi0_rad, omega0_rad_s, 0)``. The time-varying form updates with sample k at t_k.
+    t_0 is the initial state ``(phi0_rad, omega0_rad_s, 0)``. The time-varying form updates with
+    sample k at t_k.
     """
     dt = 1.0 / fs_hz
     x0 = jnp.array([phi0_rad, omega0_rad_s, 0.0])
@@ -126,7 +127,8 @@ def _lean_experiment(command, seed: int, extra_forms: bool = False):
         x_tv = estimate_lean(ys, form="time-varying")
         metrics["rms_error_deg_time_varying"] = _rms_deg(x_tv[:, 0] - phi, t)
         series["phi_hat_tv_rad"] = np.asarray(x_tv[:, 0])
-    metrics["max_error_deg"] = float(np.degrees(np.max(np.abs(np.asarray(x_hat[:, 0] - phi)[t >= SETTLE_S]))))
+    metrics["max_error_deg"] = float(np.degrees(np.max(np.abs(
+        np.asarray(x_hat[:, 0] - phi)[t >= SETTLE_S]))))
     return metrics, series, float(t[-1] + 1.0 / FS_HZ)
 
 
@@ -183,8 +185,8 @@ def _time_figure(name, fig_label):
         ax_e.plot(s["t_s"], np.degrees(s["phi_hat_rad"] - s["phi_rad"]), lw=0.8)
         ax_e.set_ylabel("error [deg]")
         ax_e.set_xlabel("time [s]")
-        ax_e.text(0.01, 0.9, f"rms {result.metrics['rms_error_deg']:.3f}°", transform=ax_e.transAxes,
-                  fontsize=8, va="top")
+        ax_e.text(0.01, 0.9, f"rms {result.metrics['rms_error_deg']:.3f}°",
+                  transform=ax_e.transAxes, fontsize=8, va="top")
         return [save(fig, out_dir / f"{name.replace('-', '_')}.png")]
 
     return figures
@@ -216,8 +218,8 @@ def _prts_figures(result: Result, out_dir: Path):
     from verticality.core.plots import new_figure, save
 
     m = result.metrics
-    fig = frequency.bode_figure(np.array(m["frequency_hz"]), np.array(m["gain"]), np.array(m["phase_deg"]),
-                                np.array(m["coherence"]),
+    fig = frequency.bode_figure(np.array(m["frequency_hz"]), np.array(m["gain"]),
+                                np.array(m["phase_deg"]), np.array(m["coherence"]),
                                 title="tahboub-prts: actual → estimated lean (cf. T Fig. 7–8)")
     paths = [save(fig, out_dir / "tahboub_prts_bode.png")]
     s = result.series
@@ -248,8 +250,8 @@ def run_prts(quick: bool = False) -> Result:
     per = int(PRTS_LENGTH * PRTS_DT_S * FS_HZ)
     command = prts_command(n_cycles)
     metrics, series, sim = _lean_experiment(command, seed=7)
-    f, H, coh = frequency.cycle_transfer_function(series["phi_rad"], series["phi_hat_rad"], per, FS_HZ,
-                                                  end_match=True)
+    f, H, coh = frequency.cycle_transfer_function(series["phi_rad"], series["phi_hat_rad"], per,
+                                                  FS_HZ, end_match=True)
     f0, H0, coh0 = frequency.cycle_transfer_function(series["phi_rad"], series["phi_hat_rad"], per,
                                                      FS_HZ, end_match=False)
     raw = frequency.band_summary(f0, H0, coh0)

@@ -24,9 +24,10 @@ WARN_ROWS = 5  # unreadable rows named one by one, then counted
 def parse_clean_rows(rows: list[str], lay) -> tuple[np.ndarray, np.ndarray] | None:
     """The fast path of :func:`verticality.io.imu.read_imu_csv` (NumPy's C parser, instead of
     :func:`parse_rows`' Python loop over rows; docs/tilt.md, "Command line"): ``(data, t_raw)``
-    when every cell is a number (``nan`` included) and every row has the header's number of columns, with the values :func:`parse_rows` would give;
-    None otherwise (empty cells, text, ragged rows, a time column that is not all finite), and then
-    :func:`parse_rows` reads the file, with its messages."""
+    when every cell is a number (``nan`` included) and every row has the header's number of columns,
+    with the values :func:`parse_rows` would give; None otherwise (empty cells, text, ragged rows, a
+    time column that is not all finite), and then :func:`parse_rows` reads the file, with its
+    messages."""
     try:
         data = np.loadtxt(rows, delimiter=",", comments="#", dtype=np.float64, ndmin=2)
     except ValueError:

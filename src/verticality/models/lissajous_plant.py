@@ -34,7 +34,8 @@ from verticality.models.ramp_discretized import RampDiscretized
 
 
 def p11_head(scale: float = 1.0) -> PlanarHead:
-    """P11 §VI plant (m = 50 g, l = 0.1 m, J = m l², b = 0.005, K = 100 J), masses scaled by ``scale``.
+    """P11 §VI plant (m = 50 g, l = 0.1 m, J = m l², b = 0.005, K = 100 J), masses scaled by
+    ``scale``.
 
     ``scale = 1.1`` gives P11's perturbed observer model (m̂ = 0.055 kg, b̂ = 0.0055, Ĵ = m̂ l²,
     K̂ = 100 Ĵ; l and g unchanged).

@@ -64,7 +64,8 @@ def yaw_model(p: LaurensParams):
     a, b = canal.implicit_euler_coefficients(p.tau_c_s, p.dt_s)
     D = np.diag([0.0, a])
     E = np.array([[1.0], [b]])
-    return D, np.array([[1.0, -1.0]]), E @ E.T * p.sigma_omega_rad_s**2, np.array([[p.sigma_v_rad_s**2]])
+    return (D, np.array([[1.0, -1.0]]), E @ E.T * p.sigma_omega_rad_s**2,
+            np.array([[p.sigma_v_rad_s**2]]))
 
 
 def tilt_model(p: LaurensParams):
@@ -134,7 +135,8 @@ class LaurensAngelaki:
         a = jnp.cross(K[3, 0] * dV_perp + K[3, 1] * e_F, g) - self.k_a_parallel * dF_par * g
         v = state.v_H_m_s + dt * (G_M_S2 * a - jnp.cross(omega, state.v_H_m_s))
         new, _ = keep_finite(LaurensState(g_new, omega, c, a, v), state)
-        return new, LaurensOut(new.g_H, new.omega_H_rad_s, G_M_S2 * new.a_H_g, new.v_H_m_s, measured)
+        return new, LaurensOut(new.g_H, new.omega_H_rad_s, G_M_S2 * new.a_H_g, new.v_H_m_s,
+                               measured)
 
     def run(self, state: LaurensState, us, ys, dts):
         return scan_steps(self.step, state, us, ys, dts)

@@ -12,9 +12,9 @@ Sensors (the ``canal`` and ``otolith`` options):
   (:mod:`verticality.models.canal`). Integrated by RK4, ω_H held over each interval.
 * otolith — ``unity``: the papers' sensor, the gravito-inertial force ``f_H = R_HI (g_I − a_I)/g₀``
   (in g); ``pendulum``: the project's damped otolith pendulum (medial, P13 parameters) under the
-  same motion (:func:`verticality.simulation.closed_loop.otolith_replay`): its arm direction ``s_H`` (unit, from
-  pivot to mass, i.e. along the GIF). Reading: the pendulum reports a direction only, so its
-  signal has length 1 g.
+  same motion (:func:`verticality.simulation.closed_loop.otolith_replay`): its arm direction ``s_H``
+  (unit, from pivot to mass, i.e. along the GIF). Reading: the pendulum reports a direction only, so
+  its signal has length 1 g.
 
 Tilt angles (degrees) are the angles between the perceived (or true) gravity and the head's −z
 axis; :func:`pitch_up_deg` is the pitch (nose up positive) that gravity implies.
@@ -365,7 +365,8 @@ def perceive_file(motion_path, params, otolith: str = "unity", canal: str = "hig
     rec = load_motion(motion_path)
     r = perceive(rec, params, otolith, canal)
     if out_csv is not None:
-        write_columns_csv(out_csv, dict(zip(PERCEPTION_COLUMNS, perception_table(r).T, strict=True)))
+        write_columns_csv(out_csv,
+                          dict(zip(PERCEPTION_COLUMNS, perception_table(r).T, strict=True)))
     if plot_png is not None:
         plot_series(series({model: r}, "axis"), plot_png, f"{model}: {motion_path}")
     tilt_err = tilt_error_deg(r)

@@ -1003,11 +1003,11 @@ DIFFERENCES: tuple[Difference, ...] = (
               "F eq. 5.2 (inclinometer input).",
         ours="T eq. 4 prints +(L2+Lv)θ̈ in the accelerometer signal; a real accelerometer reading "
              "+g sin φ for a forward lean reads −h φ̈ for a forward angular acceleration, and we "
-             f"simulate the physics. F's arm S l = (0, 0, l) with g = (0, 0, −{G_M_S2}) read literally "
-             "is an inverted pendulum; we model the hanging one (the frame's z from mass to "
-             "pivot). F eq. 2.8–2.9 read row 3 of R_HS, which depends on the pendulum's turn "
-             "about its own arm, while F's prose describes column 3 (the arm's direction); we "
-             "keep the printed formulas and report the arm direction too. F eq. 5.2's signs are "
+             f"simulate the physics. F's arm S l = (0, 0, l) with g = (0, 0, −{G_M_S2}) read "
+             "literally is an inverted pendulum; we model the hanging one (the frame's z from "
+             "mass to pivot). F eq. 2.8–2.9 read row 3 of R_HS, which depends on the pendulum's "
+             "turn about its own arm, while F's prose describes column 3 (the arm's direction); "
+             "we keep the printed formulas and report the arm direction too. F eq. 5.2's signs are "
              "read as a_x = −a_h, a_y = −a_z.",
         why="Each reading is the one under which the physics and the published figures are "
             "consistent; the model checks test the consequences.",

@@ -17,7 +17,8 @@ RESULTS_NAME = "results.json"
 
 
 def to_jsonable(value: Any) -> Any:
-    """Plain-JSON copy of ``value``: arrays to lists, NumPy/JAX scalars to Python, NaN/inf to None."""
+    """Plain-JSON copy of ``value``: arrays to lists, NumPy/JAX scalars to Python, NaN/inf to
+    None."""
     if isinstance(value, dict):
         return {str(k): to_jsonable(v) for k, v in value.items()}
     if isinstance(value, list | tuple):

@@ -50,7 +50,8 @@ class AxisCfg(NamedTuple):
     obs: ContinuousObserver
     use_observer: jnp.ndarray  # 0.0 sensor, 1.0 observer
     key: jnp.ndarray
-    use_accelerometer: jnp.ndarray = 0.0  # the observer's a_h: 0.0 the true one, 1.0 the accelerometer's
+    # the observer's a_h: 0.0 the true one, 1.0 the accelerometer's
+    use_accelerometer: jnp.ndarray = 0.0
 
 
 def _ramp(t, t0):
@@ -64,16 +65,18 @@ def _drive(cfg: AxisCfg, t, swing_s):
     omega_base = jnp.where(in_swing, r * cfg.base_amp * cfg.base_w * jnp.cos(cfg.base_w * t)
                            + (t < 1.0) * cfg.base_amp * jnp.sin(cfg.base_w * t), 0.0)
     a = jnp.where(in_swing, 0.0,
-                  _ramp(t, swing_s) * ACC_AMP_M_S2 * jnp.sin(cfg.acc_w * (t - swing_s) + cfg.acc_phase))
+                  _ramp(t, swing_s) * ACC_AMP_M_S2
+                  * jnp.sin(cfg.acc_w * (t - swing_s) + cfg.acc_phase))
     return omega_base, a
 
 
 def accelerometer_reading(key, theta_rad, omega_rad_s, a_h_I_m_s2):
     """The platform accelerometer's reading along the axis' horizontal (F §5.1.1: tri-axial, at the
-    platform's centre, axes aligned with the platform's): :func:`verticality.sensors.readings.accelerometer`
-    for the platform tilted by θ about its axis and accelerated by ``a_h`` — the specific force
-    ``a_h cos θ + g sin θ`` plus white noise of σ :data:`SIGMA_ACC_M_S2` (signs of the
-    inclinometer's apparent tilt ``θ + atan2(a_h, g)``: the tilt about y is ``−θ``)."""
+    platform's centre, axes aligned with the platform's):
+    :func:`verticality.sensors.readings.accelerometer` for the platform tilted by θ about its axis
+    and accelerated by ``a_h`` — the specific force ``a_h cos θ + g sin θ`` plus white noise of σ
+    :data:`SIGMA_ACC_M_S2` (signs of the inclinometer's apparent tilt ``θ + atan2(a_h, g)``: the
+    tilt about y is ``−θ``)."""
     c, s_ = jnp.cos(theta_rad), jnp.sin(theta_rad)
     R_I_B = jnp.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # R_y(−θ)
     w = jnp.stack([0.0 * omega_rad_s, -omega_rad_s, 0.0 * omega_rad_s])

@@ -168,7 +168,8 @@ def from_record(t_s, q_I_T_wxyz, omega_T_rad_s, a_I_m_s2, name: str = "recorded"
         raise InputError(f"shapes disagree: t {t.shape}, q {q.shape}, ω {w.shape}, a {a.shape}")
     if not np.all(np.diff(t) > 0.0):
         raise InputError("the times must increase strictly")
-    rpy = np.array(jax.vmap(lambda qi: so3.rpy_from_matrix(so3.matrix_from_quat(qi)))(jnp.asarray(q)))
+    rpy = np.array(jax.vmap(lambda qi: so3.rpy_from_matrix(so3.matrix_from_quat(qi)))(
+        jnp.asarray(q)))
     pitch_deg = np.degrees(np.abs(rpy[:, 1]))
     bad = np.nonzero(pitch_deg > PITCH_LIMIT_DEG)[0]
     if bad.size:

@@ -145,7 +145,8 @@ def lateral_plant(euler: float = 0.0, r_m: float = LATERAL_R_M) -> PlanarLateral
 
 
 def lateral_linear_model() -> LinearModel:
-    """F 4.10 for the lateral model: linearized at upright; inputs (τ, a_h); outputs both readings."""
+    """F 4.10 for the lateral model: linearized at upright; inputs (τ, a_h); outputs both
+    readings."""
     z = jnp.asarray(0.0)
     lin = linearize(lateral_plant(), PlanarLateralState(*([z] * 6)), PlanarInput(z, z, z))
     return select_inputs(lin, [0, 1])

@@ -1,4 +1,5 @@
-"""Sweep kernels: an experiment's closed loop as a batch function ``(knob columns, seeds) -> metrics``.
+"""Sweep kernels: an experiment's closed loop as a batch function
+``(knob columns, seeds) -> metrics``.
 
 A :class:`Kernel` declares its knobs (:class:`Knob`: default, allowed values), its options (fixed
 settings of a sweep, e.g. the simulated duration) and its metrics, and runs a batch of runs at
@@ -262,8 +263,8 @@ def _check_newton_knobs(extents: dict[str, tuple[float, float]]) -> str | None:
     for leaf in PARAMETERS:
         least = extents[_rel_name(leaf)][0]
         if least - level <= -1.0:
-            return (f"{_rel_name(leaf)} down to {least:g} with error_level up to {level:g} can make "
-                    f"the observer's {leaf} zero or negative (the sum must stay above −1)")
+            return (f"{_rel_name(leaf)} down to {least:g} with error_level up to {level:g} can "
+                    f"make the observer's {leaf} zero or negative (the sum must stay above −1)")
     return None
 
 

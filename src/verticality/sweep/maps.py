@@ -4,10 +4,11 @@ For each cell of two knobs (``x``, ``y``) and each head (``fixed``, ``stabilized
 **probability of divergence** (share of the cell's runs flagged ``diverged``), the **median max
 error** (degrees, over the cell's runs that did not diverge; NaN when all did), the number of runs,
 and the **ratio** of the fixed head's median max error to the stabilized head's. A knob with at
-most :data:`~verticality.sweep.grid.MAX_LEVELS` distinct values is mapped value by value; a knob with more (a random
-design) is cut into :data:`~verticality.sweep.grid.BINS` equal-width bins, each cell labelled by its centre. The kernel's
-published point (:attr:`~verticality.sweep.kernels.Kernel.published`), when both knobs are among
-its settings, is marked on every panel.
+most :data:`~verticality.sweep.grid.MAX_LEVELS` distinct values is mapped value by value; a knob
+with more (a random design) is cut into :data:`~verticality.sweep.grid.BINS` equal-width bins, each
+cell labelled by its centre. The kernel's published point
+(:attr:`~verticality.sweep.kernels.Kernel.published`), when both knobs are among its settings, is
+marked on every panel.
 
 :func:`compute` makes the maps from the table's columns; :func:`write` reads ``DIR/results.parquet``
 and ``DIR/spec.toml`` and writes ``DIR/maps-X-Y.png``.

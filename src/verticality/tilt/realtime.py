@@ -4,8 +4,8 @@ type as :func:`verticality.tilt.estimate` (one sample of a
 
 It runs the plain-Python implementation (:class:`verticality.tilt.stream.Stream`: scalar ``math``
 per sample, NumPy at each Kalman update: cheaper per sample than a jitted JAX call, which pays
-a dispatch each time; docs/tilt.md, "Python API"), which is tested against the filter's core to 1e-9; this class adds the time (stamps or a
-fixed period) and the output type.
+a dispatch each time; docs/tilt.md, "Python API"), which is tested against the filter's core to
+1e-9; this class adds the time (stamps or a fixed period) and the output type.
 """
 
 from __future__ import annotations

@@ -109,7 +109,8 @@ def run(args) -> int:
     if args.plot is not None:
         from verticality.tilt.plots import plot_estimate
 
-        print(f"wrote {plot_estimate(args.plot, run.t_s, run.out, args.filter, run.tilt_sigma_rad)}")
+        print("wrote "
+              f"{plot_estimate(args.plot, run.t_s, run.out, args.filter, run.tilt_sigma_rad)}")
     return 0
 
 

@@ -3,10 +3,10 @@
 
 Would servoing the head upright help on *this* trunk motion? The trunk of MOTION.csv (t, q_I_T,
 ω_T, a_I; :mod:`verticality.io.motion`), or of a BROAD-layout recording converted as
-``verticality motion`` does, over an optional window: :func:`verticality.simulation.stabilization.compare_heads`
-(the ekf-* setting with a fixed and a stabilized head). Prints max and RMS tilt error after the
-settling time for both heads and their RMS ratio; writes the tilt series and P13 Fig. 2's figure on
-request.
+``verticality motion`` does, over an optional window:
+:func:`verticality.simulation.stabilization.compare_heads` (the ekf-* setting with a fixed and a
+stabilized head). Prints max and RMS tilt error after the settling time for both heads and their RMS
+ratio; writes the tilt series and P13 Fig. 2's figure on request.
 """
 
 from __future__ import annotations
@@ -46,8 +46,8 @@ def register(sub):
     p.add_argument("--exact-model", action="store_true",
                    help="give the EKF the plant's true parameters (default: P13's wrong ones)")
     p.add_argument("--settle", type=float, default=None, metavar="S",
-                   help="seconds from the recording's start excluded from the metrics while the EKF "
-                        "converges (default 2)")
+                   help="seconds from the recording's start excluded from the metrics while the "
+                        "EKF converges (default 2)")
     p.set_defaults(func=run)
 
 
@@ -100,8 +100,8 @@ def _print_table(report: dict) -> None:
 
     from verticality.cli.commands import print_table
 
-    table = Table(title=f"{report['input']}: {report['duration_s']:g} s, {report['seeds']} seed(s), "
-                        f"EKF model {report['filter_model']}")
+    table = Table(title=f"{report['input']}: {report['duration_s']:g} s, "
+                        f"{report['seeds']} seed(s), EKF model {report['filter_model']}")
     after = f"t ≥ {report['settle_s']:g} s"
     table.add_column("head", no_wrap=True)
     table.add_column(f"max tilt error, {after} (deg)", justify="right")
@@ -116,4 +116,5 @@ def _print_table(report: dict) -> None:
     console = Console()
     print_table(table, console)
     if report["rms_ratio_stabilized_over_fixed"] is not None:
-        console.print(f"RMS ratio stabilized / fixed: {report['rms_ratio_stabilized_over_fixed']:.3f}")
+        console.print("RMS ratio stabilized / fixed: "
+                      f"{report['rms_ratio_stabilized_over_fixed']:.3f}")

@@ -3,11 +3,12 @@ generalization check of the tilt filter that the project runs itself, beside VQF
 that no parameter of the filter was chosen on (docs/tilt.md, "Realistic synthetic recordings").
 
 A recording is a motion class (like BROAD's: slow or fast rotation, slow or fast translation, with
-or without rest breaks), drawn at random, simulated exactly (:mod:`verticality.simulation.trajectories`,
-autodiff kinematics; the accelerometer is :func:`verticality.sensors.readings.specific_force_B` at a lever
-arm from the rotation centre, as a hand's IMU sits away from the wrist), and read by a sensor with
-errors drawn per recording from consumer MEMS datasheet ranges (:func:`draw_errors`; e.g. Bosch
-BMI160, InvenSense MPU-9250 and ICM-20948 data sheets):
+or without rest breaks), drawn at random, simulated exactly
+(:mod:`verticality.simulation.trajectories`, autodiff kinematics; the accelerometer is
+:func:`verticality.sensors.readings.specific_force_B` at a lever arm from the rotation centre, as a
+hand's IMU sits away from the wrist), and read by a sensor with errors drawn per recording from
+consumer MEMS datasheet ranges (:func:`draw_errors`; e.g. Bosch BMI160, InvenSense MPU-9250 and
+ICM-20948 data sheets):
 
 * gyro: zero-rate offset uniform in ±1 °/s per axis, sensitivity (scale) error ±1 %, cross-axis
   sensitivity (misalignment) ±1 %, white noise density 0.01 °/s/√Hz, bias random walk
@@ -90,7 +91,8 @@ def draw_errors(rng: np.random.Generator) -> SensorErrors:
 def _sines(rng, n_axes, amp, f_lo, f_hi, n_terms=3):
     """Random sums of ``n_terms`` sinusoids per axis: (amplitudes, frequencies Hz, phases)."""
     a = rng.uniform(0.3, 1.0, (n_axes, n_terms)) * np.asarray(amp, float)[:, None] / n_terms
-    return a, rng.uniform(f_lo, f_hi, (n_axes, n_terms)), rng.uniform(0, 2 * np.pi, (n_axes, n_terms))
+    return (a, rng.uniform(f_lo, f_hi, (n_axes, n_terms)),
+            rng.uniform(0, 2 * np.pi, (n_axes, n_terms)))
 
 
 def _envelope(t, breaks: bool, period_s: float = 20.0):
