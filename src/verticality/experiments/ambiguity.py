@@ -52,8 +52,8 @@ model value with the horizontal acceleration as a random-walk state
 the same reading, torque and saccule ``a_z`` (the ``ekf`` feed), and with the acceleration a
 first-order Gauss–Markov process of time constant 0.2 s instead (``ekf_gauss_markov``: zero on
 average, as for a head that walks on). Q per 0.1 ms step: σ = 1e-6 rad and 1e-3 rad/s on the
-otolith, 1e-6 rad and 1e-3 rad/s on the head, 0.05 m/s² on ``a_h``; R = (1e-3 rad)²; P0 = diag(0.1
-rad, 1 rad/s, 0.5 rad, 1 rad/s, 3 m/s²)², started at zero like the observer.
+otolith, 1e-6 rad and 1e-3 rad/s on the head, 0.05 m/s² on ``a_h``; R = (1e-3 rad)²;
+P0 = diag(0.1 rad, 1 rad/s, 0.5 rad, 1 rad/s, 3 m/s²)², started at zero like the observer.
 
 Sampling: the otolith's 300 Hz (1885 rad/s) and observer poles near 4000 rad/s need the
 measurement far faster than 1 kHz (held over 1 ms the reading lags the observer by half a sample,

@@ -1,4 +1,4 @@
-"""`ekf-impact` and `ekf-jump`: the EKF on the gimbal head, fixed versus stabilized (P13 §5, F §4.2.2).
+"""`ekf-impact` and `ekf-jump`: the EKF on the gimbal head, fixed vs stabilized (P13 §5, F §4.2.2).
 
 The runs, their settings and the readings where the papers are silent are those of
 :mod:`verticality.simulation.ekf_runs`; this module runs them for each reading, scores the ratio
@@ -38,8 +38,10 @@ def _experiment(traj, quick: bool, scenario: str) -> Result:
     # (suffix, variant, torque reading, process noise, acceleration frame, P0, parameter noise)
     runs = [("", "multiplicative", "gimbal", SIGMA_PROCESS, "inertial", "common", True)]
     if not quick:
-        runs += [("_head_frame_accel", "multiplicative", "gimbal", SIGMA_PROCESS, "head", "common", True),
-                 ("_total_torque", "multiplicative", "total", SIGMA_PROCESS, "inertial", "common", True),
+        runs += [("_head_frame_accel", "multiplicative", "gimbal", SIGMA_PROCESS, "head",
+                  "common", True),
+                 ("_total_torque", "multiplicative", "total", SIGMA_PROCESS, "inertial",
+                  "common", True),
                  ("_constant_q", "multiplicative", "gimbal", SIGMA_PROCESS_CONSTANT, "inertial",
                   "common", False),
                  ("_stacked", "stacked", "gimbal", None, "inertial", "common", False)]
@@ -51,11 +53,14 @@ def _experiment(traj, quick: bool, scenario: str) -> Result:
             m, s = run_condition(traj, cond, variant, torque, sig, seeds, frame, p0, consider)
             metrics[mx][cond] = m["max_tilt_error_deg"]
             metrics[rms][cond] = m["rms_tilt_error_deg"]
-            metrics.setdefault(f"max_tilt_error_deg_per_seed{suffix}", {})[cond] = m["max_tilt_error_deg_per_seed"]
-            metrics.setdefault(f"orthonormality_error_max{suffix}", {})[cond] = m["orthonormality_error_max"]
+            metrics.setdefault(f"max_tilt_error_deg_per_seed{suffix}", {})[cond] = (
+                m["max_tilt_error_deg_per_seed"])
+            metrics.setdefault(f"orthonormality_error_max{suffix}", {})[cond] = (
+                m["orthonormality_error_max"])
             metrics.setdefault(f"rejected_updates{suffix}", {})[cond] = m["rejected_updates"]
             series[f"{cond}{suffix}"] = s
-        metrics[f"rms_ratio{suffix}"] = metrics[rms]["stabilized"] / max(metrics[rms]["fixed"], 1e-12)
+        metrics[f"rms_ratio{suffix}"] = (metrics[rms]["stabilized"]
+                                         / max(metrics[rms]["fixed"], 1e-12))
     metrics["seeds"] = list(seeds)
     mx, rms = metrics["max_tilt_error_deg"], metrics["rms_tilt_error_deg"]
     ratio = rms["stabilized"] / max(rms["fixed"], 1e-12)
@@ -64,8 +69,10 @@ def _experiment(traj, quick: bool, scenario: str) -> Result:
     metrics["stabilized_max_le_1deg"] = check(mx["stabilized"], 1.0, mx["stabilized"] <= 1.0)
     claim = "'much smaller'" if scenario == "impact" else "'also smaller'"
     paper = {
-        "max_tilt_error_deg": {"fixed": "no number (Fig. 2)", "stabilized": f"P13: {claim} than fixed"},
-        "rms_tilt_error_deg": {"fixed": "no number (Fig. 2)", "stabilized": f"P13: {claim} than fixed"},
+        "max_tilt_error_deg": {"fixed": "no number (Fig. 2)",
+                               "stabilized": f"P13: {claim} than fixed"},
+        "rms_tilt_error_deg": {"fixed": "no number (Fig. 2)",
+                               "stabilized": f"P13: {claim} than fixed"},
         "rms_ratio_stabilized_over_fixed": f"check <= {RATIO_LIMIT_TEXT[scenario]}; P13: {claim}",
         "stabilized_max_le_1deg": "check <= 1 deg after 2 s",
         "note": PAPER_NOTE,
@@ -91,10 +98,12 @@ def _figures_jump(result, out_dir):
     return _figures(result, out_dir, "ekf-jump")
 
 
-@register("ekf-impact", "EKF on SO(3), scenario A: 3-D oscillation and 30 m/s² impact, fixed vs stabilized",
+@register("ekf-impact", "EKF on SO(3), scenario A: 3-D oscillation and 30 m/s² impact, "
+          "fixed vs stabilized",
           source="P13 §5 Fig. 2a–c, F §4.2.2 Fig. 4.2", figures=_figures_impact)
 def run_impact(quick: bool = False) -> Result:
-    """P13 scenario A. ``quick``: 6.5 s (the impact at 5 s included), one seed, multiplicative EKF only."""
+    """P13 scenario A. ``quick``: 6.5 s (the impact at 5 s included), one seed, multiplicative
+    EKF only."""
     return _experiment(scenario_trajectory("impact", quick), quick, "impact")
 
 

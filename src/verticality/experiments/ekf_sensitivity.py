@@ -1,4 +1,4 @@
-"""`ekf-sensitivity`: what the EKF's stabilization benefit in `ekf-impact` and `ekf-jump` depends on.
+"""`ekf-sensitivity`: what the EKF's stabilization benefit in `ekf-impact`/`ekf-jump` depends on.
 
 The three one-at-a-time sweeps (the fixed head's head-rate process noise, the jump's trunk pitch,
 the sensor noise) and their metrics are those of :mod:`verticality.simulation.ekf_ratio_sweeps`;
@@ -17,8 +17,9 @@ from verticality.simulation.ekf_ratio_sweeps import DEFAULT_PITCH_RAD, P13_SIGMA
 from verticality.simulation.ekf_runs import SEEDS, SIGMA_MEASUREMENT
 
 
-@register("ekf-sensitivity", "What the EKF's fixed-vs-stabilized ratio depends on (head-rate noise, "
-          "jump pitch, sensor noise)", source="P13 §5 (analysis of ekf-impact / ekf-jump)",
+@register("ekf-sensitivity", "What the EKF's fixed-vs-stabilized ratio depends on "
+          "(head-rate noise, jump pitch, sensor noise)",
+          source="P13 §5 (analysis of ekf-impact / ekf-jump)",
           figures=lambda r, d: _figures(r, d))
 def run_sensitivity(quick: bool = False) -> Result:
     """Full: 3 seeds, all three sweeps (22 closed-loop runs, each a batch of its seeds on the
@@ -29,7 +30,8 @@ def run_sensitivity(quick: bool = False) -> Result:
     metrics = dict(sweeps)
     metrics["seeds"] = list(SEEDS[:1] if quick else SEEDS)
     paper = {"note": "P13 §5 uses σ_w = 0.001 for every process-noise element and gives no trunk "
-                     "rotation for the jump; the checks ask rms_ratio ≤ 1/3 (impact) and ≤ 1/2 (jump) at the ekf-* setting "
+                     "rotation for the jump; the checks ask rms_ratio ≤ 1/3 (impact) and ≤ 1/2 "
+                     "(jump) at the ekf-* setting "
                      f"(σ_ωH = {P13_SIGMA_W:g}, pitch {DEFAULT_PITCH_RAD:g} rad, noise "
                      f"{SIGMA_MEASUREMENT:g})"}
     return Result(metrics=metrics, paper=paper, simulated_s=simulated_s,
@@ -47,10 +49,12 @@ def _plot_ratio(ax, table: dict, prefix: str, suffix: str, color: str, label: st
 
 
 def _figures(result: Result, out_dir: Path) -> list[Path]:
-    """One panel per sweep present (quick: the head-rate sweep only): the RMS ratio (stabilized /
-    fixed) against the swept value, with the impact check's 1/3 line and the ekf-* setting marked."""
+    """One panel per sweep present (quick: the head-rate sweep only): the RMS ratio
+    (stabilized / fixed) against the swept value, with the impact check's 1/3 line and the ekf-*
+    setting marked."""
     m = result.metrics
-    panels = [("fixed_head_rate_sigma", "sigma_", "", "fixed head's head-rate noise σ_ωH (rad/s per step)",
+    panels = [("fixed_head_rate_sigma", "sigma_", "",
+               "fixed head's head-rate noise σ_ωH (rad/s per step)",
                P13_SIGMA_W, "P13 σ_w (ekf-*)", True),
               ("jump_pitch", "pitch_", "_rad", "jump: trunk pitch (rad)", DEFAULT_PITCH_RAD,
                "ekf-jump setting", False),

@@ -4,9 +4,9 @@ Each gimbal axis is its identified model (F §5.2;
 :class:`verticality.models.platform.PlatformAxis`): pitch J1 = 0.008, b1 = 1.35; roll J2 = 0.0006,
 b2 = 0.137 (``J θ̈ + b (θ̇ − θ̇_base) = u``), with the identified inclinometer
 ``J_s ÿ + b_s ẏ + k_s y = k_s ψ`` (J_s = 0.0015, b_s = 0.3776, k_s = 5.629), ψ = θ + atan2(a_h, g).
-The axes are decoupled (F §5.1.1) and simulated side by side (``vmap``). The controller runs every 3
-ms (F §5.1.4) with the command held; the plant is integrated by RK4 at 1 ms. Two feeds of a PD
-``u = k_p (0 − θ̃) − k_d ω̃`` that keeps the platform horizontal:
+The axes are decoupled (F §5.1.1) and simulated side by side (``vmap``). The controller runs
+every 3 ms (F §5.1.4) with the command held; the plant is integrated by RK4 at 1 ms. Two feeds
+of a PD ``u = k_p (0 − θ̃) − k_d ω̃`` that keeps the platform horizontal:
 
 - ``sensor_feedback``: θ̃ the inclinometer reading, ω̃ its backward difference over 3 ms (F §5.2);
 - ``observer_feedback``: θ̃, ω̃ from :mod:`verticality.estimators.luenberger` on the same model value

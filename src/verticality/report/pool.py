@@ -3,12 +3,12 @@
 :func:`run_pool` starts ``jobs`` worker processes (``spawn``: a fresh interpreter each, as JAX
 wants, no forked copy of its threads) that take the experiments from one queue, longest expected
 first (:mod:`verticality.report.costs`), run each with the same function as the in-process path
-(:func:`verticality.report.entries.run_one`, figures included) and send its entry back. The workers load
-and store compiled kernels in this process's JAX persistent compilation cache, so that a function
-one of them compiled is loaded by the others and by the next run; within a worker, experiments
-that share a compiled function (the ekf-* closed loops, keyed on their static settings) reuse it
-from memory. Ctrl-C ends the workers (they ignore the interrupt themselves, so that only this
-process reports it).
+(:func:`verticality.report.entries.run_one`, figures included) and send its entry back. The workers
+load and store compiled kernels in this process's JAX persistent compilation cache, so that a
+function one of them compiled is loaded by the others and by the next run; within a worker,
+experiments that share a compiled function (the ekf-* closed loops, keyed on their static settings)
+reuse it from memory. Ctrl-C ends the workers (they ignore the interrupt themselves, so that only
+this process reports it).
 """
 
 from __future__ import annotations

@@ -43,8 +43,9 @@ called once per estimator tick t_k (k ≥ 1) with
                        ``SimConfig(accel_frame="head")`` a
                        :class:`~verticality.models.otolith_head.HeadFrameInput` ``(τ_H, ᴴa)``
                        (F §4.2.1's u = (ᴴτ, ᴴa)) instead;
-    y  (2·P + 3,)      the P otolith pendulums' angles (φ_x, φ_y) of F 2.8–2.9, each with white noise
-                       σ = ``noise.otolith_std_rad``, then the gyro (ω_H + bias + noise), at t_k;
+    y  (2·P + 3,)      the P otolith pendulums' angles (φ_x, φ_y) of F 2.8–2.9, each with white
+                       noise σ = ``noise.otolith_std_rad``, then the gyro (ω_H + bias + noise),
+                       at t_k;
     dt                 dt_estimator_s.
 
 ``verticality.estimators.ekf.medial_filter`` fits this directly::
@@ -68,9 +69,9 @@ k_d = 5 N·m·s/rad, θ_d = Λ⁻¹ of the upright head for R̂_IT = R̂_IH Λ(�
 error and its rate (F §4.2.2: the controller "used the estimated head's angular orientation and
 velocity").
 
-Records (:class:`Record`, leading axis = estimator ticks t_1 … t_K, plus the optional per-control-tick
-:class:`ControlRecord`) hold the truth, the estimate, measurements and inputs, and the tilt error of
-docs/conventions.md.
+Records (:class:`Record`, leading axis = estimator ticks t_1 … t_K, plus the optional
+per-control-tick :class:`ControlRecord`) hold the truth, the estimate, measurements and inputs,
+and the tilt error of docs/conventions.md.
 """
 
 from __future__ import annotations
@@ -112,7 +113,8 @@ class SimConfig(NamedTuple):
     dt_estimator_s: float = 0.02
     u_blocks: int = 1  # sub-interval means of u handed to the estimator per tick
     record_control: bool = False  # also record the truth at every control tick
-    accel_frame: str = "inertial"  # u's acceleration: "inertial" (ᴵa, P13 §4) or "head" (ᴴa, F §4.2.1)
+    # u's acceleration: "inertial" (ᴵa, P13 §4) or "head" (ᴴa, F §4.2.1)
+    accel_frame: str = "inertial"
 
 
 DEFAULT_CONFIG = SimConfig()
@@ -185,8 +187,8 @@ class SimResult(NamedTuple):
 @cache
 def p13_controller(kp: float = P13_KP_NM_RAD, kd: float = P13_KD_NMS_RAD,
                    tracking: bool = True) -> Callable:
-    """P13 §3 joint-space PD (via :mod:`verticality.simulation.control`), θ_d = Λ⁻¹ of the upright head for the
-    trunk estimate R̂_IT = R̂_IH Λ(θ)ᵀ.
+    """P13 §3 joint-space PD (via :mod:`verticality.simulation.control`), θ_d = Λ⁻¹ of the upright
+    head for the trunk estimate R̂_IT = R̂_IH Λ(θ)ᵀ.
 
     ``tracking=True`` (default): m = k_p (θ_d − θ) + k_d (θ̇_d − θ̇), P13's ``PD(θ_d − θ)`` with θ̇_d
     from the head's gyro and the encoders (:func:`control.joint_space_pd_tracking`).
@@ -591,8 +593,8 @@ def _replay_chunk(otoliths: Otoliths, x0: tuple, rows, xs):
 
     def body(x, inp):
         i, f0, fh, h = inp
-        heads = jax.tree_util.tree_map(lambda *a: jnp.stack(a),
-                                       head_at(i, f0), head_at(i, f0 + 0.5 * fh), head_at(i, f0 + fh))
+        heads = jax.tree_util.tree_map(lambda *a: jnp.stack(a), head_at(i, f0),
+                                       head_at(i, f0 + 0.5 * fh), head_at(i, f0 + fh))
         x_new, _ = rk4_step_staged(rate, heads, x, h, project=otoliths.project)
         R_I_H = heads.R_I_B[2]
         s = jnp.stack([arm_direction_H(xp, R_I_H) for xp in x_new])
@@ -616,8 +618,9 @@ def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendula: tuple[Pend
     simulated output is not finite is refused (:class:`InputError`), never written as NaN.
     The pendulums start at rest relative to the head, along the gravito-inertial vertical of the
     first row (:meth:`Pendulum.rest_state`). ``pendula``: the :class:`Pendulum` values (one for
-    the medial model; :func:`verticality.models.params.lateral_pendulums` for the lateral one). Returns
-    ``s_H`` (N, P, 3) and ``φ`` (N, P, 2) on the rows. ``progress(done, total)`` is called after each chunk of sub-steps.
+    the medial model; :func:`verticality.models.params.lateral_pendulums` for the lateral one).
+    Returns ``s_H`` (N, P, 3) and ``φ`` (N, P, 2) on the rows. ``progress(done, total)`` is called
+    after each chunk of sub-steps.
     """
     t = np.asarray(t_s, float)
     q = np.array(q_I_H_wxyz, float)
@@ -653,7 +656,8 @@ def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendula: tuple[Pend
     n_chunks = (total + pad) // chunk
     for c in range(n_chunks):
         sl = slice(c * chunk, (c + 1) * chunk)
-        x, (s_c, phi_c) = _replay_chunk_jit(otoliths, x, rows, tuple(jnp.asarray(v[sl]) for v in xs))
+        x, (s_c, phi_c) = _replay_chunk_jit(otoliths, x, rows,
+                                            tuple(jnp.asarray(v[sl]) for v in xs))
         s_out.append(np.asarray(s_c))
         phi_out.append(np.asarray(phi_c))
         if progress is not None:
@@ -665,7 +669,8 @@ def otolith_replay(t_s, q_I_H_wxyz, omega_H_rad_s, a_I_m_s2, pendula: tuple[Pend
     bad = ~(np.all(np.isfinite(s_rows), axis=(1, 2)) & np.all(np.isfinite(phi_rows), axis=(1, 2)))
     if np.any(bad):
         k = int(np.argmax(bad))
-        raise InputError(f"the simulated pendulum became non-finite at row {k + 1} (t = {t[k]:g} s): "
+        raise InputError(f"the simulated pendulum became non-finite at row {k + 1} "
+                         f"(t = {t[k]:g} s): "
                          "the head's motion is beyond what the model integrates (an acceleration "
                          f"of {np.max(np.abs(a[:k + 1])):.3g} m/s² or a rate of "
                          f"{np.max(np.abs(w[:k + 1])):.3g} rad/s by then); no row is written")
@@ -721,9 +726,9 @@ def replay_substep_s(pendula, max_substep_s: float = 1e-3) -> float:
 
 def check_replay_size(t_s, substep_s: float) -> None:
     """Refuse, before anything is allocated, a replay of times ``t_s`` whose RK4 sub-steps of
-    ``substep_s`` do not fit in memory (:func:`verticality.core.sizing.check_work_size`; a time stamp
-    that jumps by 10⁶ s, a stiff model over a long recording), naming the size, the largest step
-    and what to change."""
+    ``substep_s`` do not fit in memory (:func:`verticality.core.sizing.check_work_size`; a time
+    stamp that jumps by 10⁶ s, a stiff model over a long recording), naming the size, the largest
+    step and what to change."""
     from verticality.core.sizing import check_work_size
 
     t = np.asarray(t_s, float)

@@ -2,13 +2,13 @@
 kernels and `stabilize`: the EKF on the gimbal head, fixed versus stabilized (P13 §5, F §4.2.2).
 
 Plant (truth, :mod:`verticality.simulation.closed_loop`): the head on the 2-DOF gimbal over the
-moving trunk, carrying the otolith pendulum, P13's true parameters (m = 50 g, l = 0.06 m, J_H =
-0.125 I, β = 0.001), fixed-step RK4 at 1 ms; the joint-space PD of P13 §3 (k_p = 32, k_d = 5) at 1
-ms, fed by the latest estimate; the EKF every 20 ms; measurement noise σ = 0.02 on the two
-inclinometer angles and the three gyro rates (seeded). Trajectories:
+moving trunk, carrying the otolith pendulum, P13's true parameters (m = 50 g, l = 0.06 m,
+J_H = 0.125 I, β = 0.001), fixed-step RK4 at 1 ms; the joint-space PD of P13 §3 (k_p = 32,
+k_d = 5) at 1 ms, fed by the latest estimate; the EKF every 20 ms; measurement noise σ = 0.02 on
+the two inclinometer angles and the three gyro rates (seeded). Trajectories:
 :func:`verticality.simulation.trajectories.impact` and
-:func:`verticality.simulation.trajectories.jump` (their docstrings give their readings of P13 Fig.
-2).
+:func:`verticality.simulation.trajectories.jump` (their docstrings give their readings of P13
+Fig. 2).
 
 Estimators: the multiplicative EKF on SO(3) (:mod:`verticality.estimators.ekf`, the metrics of
 docs/reproduction.md) and the papers' stacked 24-element EKF

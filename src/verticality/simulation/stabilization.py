@@ -75,17 +75,19 @@ def check_options(duration_s: float, seeds: int, noise: float, settle_s: float,
     if seeds < 1:
         raise InputError(f"--seeds must be at least 1, not {seeds}")
     if not (math.isfinite(noise) and noise > 0.0):
-        raise InputError(f"--noise must be a positive number (it is also the filter's R), not {noise}")
+        raise InputError("--noise must be a positive number (it is also the filter's R), "
+                         f"not {noise}")
     if not (math.isfinite(settle_s) and settle_s >= 0.0):
         raise InputError(f"--settle must be a non-negative number, not {settle_s}")
     if settle_s + 2 * period_s > duration_s:
-        raise InputError(f"the recording lasts {duration_s:g} s, which leaves no EKF sample after the "
-                         f"{settle_s:g} s settling time (shorten it with --settle)")
+        raise InputError(f"the recording lasts {duration_s:g} s, which leaves no EKF sample "
+                         f"after the {settle_s:g} s settling time (shorten it with --settle)")
     from verticality.core.sizing import check_work_size
 
     # the plant's 1 ms RK4 steps of every seed are held at once (~58 B each, measured)
     check_work_size(duration_s / PLANT_STEP_S * seeds, 64,
-                    f"plant steps ({duration_s:g} s at {PLANT_STEP_S * 1e3:g} ms × {seeds} seed(s))",
+                    f"plant steps ({duration_s:g} s at {PLANT_STEP_S * 1e3:g} ms "
+                    f"× {seeds} seed(s))",
                     "take a shorter window (--start, --duration; a time stamp that jumps makes a "
                     "long recording) or fewer --seeds")
 
@@ -105,10 +107,10 @@ def compare_heads(record: MotionRecord, name: str = "recorded", *, source: str |
     """The fixed and the stabilized head on the trunk motion ``record`` (see the module doc).
 
     ``name``: the recording's name (figure titles); ``source``: where it came from (the report's
-    ``input``, default ``name``); ``seeds``: sensor-noise realizations (one batch); ``noise``: σ of the inclinometer and gyro noise,
-    also the filter's R (default P13's 0.02); ``exact_model``: the filter gets the plant's
-    parameters; ``settle_s``: seconds excluded from the metrics (default 2). ``progress(text)`` is
-    called before each head's (compiled, batched) run."""
+    ``input``, default ``name``); ``seeds``: sensor-noise realizations (one batch); ``noise``: σ
+    of the inclinometer and gyro noise, also the filter's R (default P13's 0.02); ``exact_model``:
+    the filter gets the plant's parameters; ``settle_s``: seconds excluded from the metrics
+    (default 2). ``progress(text)`` is called before each head's (compiled, batched) run."""
     traj = rt.from_record(record.t_s, record.q_I_H_wxyz, record.omega_H_rad_s, record.a_I_m_s2,
                           name=name)
     recorded_s = traj.duration_s
@@ -125,7 +127,8 @@ def compare_heads(record: MotionRecord, name: str = "recorded", *, source: str |
     diverged: dict = {}
     for cond in sim.CONDITIONS:
         if progress is not None:
-            progress(f"{cond} head: compiling and simulating {traj.duration_s:g} s × {seeds} seed(s)")
+            progress(f"{cond} head: compiling and simulating {traj.duration_s:g} s "
+                     f"× {seeds} seed(s)")
         m, s = ekf_runs.run_condition(traj, cond, seeds=seed_list, sensor_noise_std=noise,
                                      model_params=model, t_settle_s=settle_s)
         where = first_non_finite(s, t0)
@@ -139,10 +142,10 @@ def compare_heads(record: MotionRecord, name: str = "recorded", *, source: str |
     rms = metrics["rms_tilt_error_deg"]
     metrics["rms_ratio_stabilized_over_fixed"] = (
         None if diverged else rms["stabilized"] / max(rms["fixed"], 1e-12))
-    report = {"input": name if source is None else source, "duration_s": traj.duration_s, "rows": int(record.t_s.size),
-              "seeds": seeds, "sensor_noise_std": noise, "settle_s": settle_s,
-              "filter_model": "exact" if exact_model else "p13-mismatched", **metrics,
-              "diverged": diverged}
+    report = {"input": name if source is None else source, "duration_s": traj.duration_s,
+              "rows": int(record.t_s.size), "seeds": seeds, "sensor_noise_std": noise,
+              "settle_s": settle_s, "filter_model": "exact" if exact_model else "p13-mismatched",
+              **metrics, "diverged": diverged}
     return Comparison(report, series, name, t0, recorded_s, mismatch, t_mismatch,
                       float(np.max(np.diff(record.t_s))))
 

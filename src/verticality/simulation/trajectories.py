@@ -74,7 +74,8 @@ def omega_from_rpy_rates(rpy, rpy_dot):
     phi, theta = rpy[0], rpy[1]
     dphi, dtheta, dpsi = rpy_dot[0], rpy_dot[1], rpy_dot[2]
     sf, cf, st, ct = jnp.sin(phi), jnp.cos(phi), jnp.sin(theta), jnp.cos(theta)
-    return jnp.stack([dphi - dpsi * st, dtheta * cf + dpsi * sf * ct, -dtheta * sf + dpsi * cf * ct])
+    return jnp.stack([dphi - dpsi * st, dtheta * cf + dpsi * sf * ct,
+                      -dtheta * sf + dpsi * cf * ct])
 
 
 def motion_from(position_fn, rpy_fn, t) -> RigidMotion:
@@ -203,9 +204,9 @@ def impact(
     rotation_amplitude_rad=(0.2, 0.3, 0.2),
     rotation_frequency_hz=(0.7, 0.5, 0.3),
 ) -> Trajectory:
-    """P13 §5 scenario A (docs/reproduction.md, `ekf-impact`): the trunk oscillates in 3-D (rotation and
-    translation, amplitudes of tenths of a radian and of a metre, 0.3–1 Hz), a sudden impact at
-    ``t_impact_s`` gives a 30 m/s² acceleration spike, then the trunk stops.
+    """P13 §5 scenario A (docs/reproduction.md, `ekf-impact`): the trunk oscillates in 3-D
+    (rotation and translation, amplitudes of tenths of a radian and of a metre, 0.3–1 Hz), a sudden
+    impact at ``t_impact_s`` gives a 30 m/s² acceleration spike, then the trunk stops.
 
     Readings where P13 is silent (documented choices):
     - oscillation: x, y, z = (0.3, 0.2, 0.1) m at (0.5, 0.3, 1.0) Hz; roll, pitch, yaw = (0.2, 0.3,
@@ -262,14 +263,15 @@ def jump(
 
     The head centre's acceleration (gravity excluded) is built from closed-form pieces whose double
     integrals are exact: a Gaussian push pulse centred at ``t_push_s`` (up and forward), a smoothed
-    step to −g during the flight (free fall: a = (0, 0, −g), the centre's acceleration is gravity's),
-    and a Gaussian landing pulse (up and backward) that brings the body to rest. The vertical
-    velocity changes balance (push + landing = g·flight) and their timing returns the body to its
-    starting height; the landing pulse's width is chosen so that the *net* vertical acceleration
-    peaks at ``landing_peak_m_s2`` (the flight's −g is still fading when it starts). The trunk
-    pitches forward by ``pitch_rad`` and rolls by ``roll_rad`` (Gaussian bumps over the jump) so the
-    motion is 3-D, as in P13 Fig. 2d–e. Values P13 leaves open (flight 0.45 s,
-    0.8 m long, push σ = 60 ms; the centre rises 0.25 m during the flight and ≈ 0.4 m in all) are this module's choice.
+    step to −g during the flight (free fall: a = (0, 0, −g), the centre's acceleration is
+    gravity's), and a Gaussian landing pulse (up and backward) that brings the body to rest. The
+    vertical velocity changes balance (push + landing = g·flight) and their timing returns the body
+    to its starting height; the landing pulse's width is chosen so that the *net* vertical
+    acceleration peaks at ``landing_peak_m_s2`` (the flight's −g is still fading when it starts).
+    The trunk pitches forward by ``pitch_rad`` and rolls by ``roll_rad`` (Gaussian bumps over the
+    jump) so the motion is 3-D, as in P13 Fig. 2d–e. Values P13 leaves open (flight 0.45 s, 0.8 m
+    long, push σ = 60 ms; the centre rises 0.25 m during the flight and ≈ 0.4 m in all) are this
+    module's choice.
     """
     g = G_M_S2
     t_p = float(t_push_s)
@@ -360,7 +362,8 @@ def walking(
         u = jnp.clip(t / ramp_in_s, 0.0, 1.0)
         integral = ramp_in_s * (7.0 * u**5 - 14.0 * u**6 + 10.0 * u**7 - 2.5 * u**8)
         x_prog = speed_m_s * (integral + jnp.maximum(t - ramp_in_s, 0.0))
-        x_osc = fore_aft_amplitude_m * (jnp.sin(w * t) + harmonics * 0.3 * jnp.sin(2.0 * w * t + 0.7))
+        x_osc = fore_aft_amplitude_m * (jnp.sin(w * t)
+                                        + harmonics * 0.3 * jnp.sin(2.0 * w * t + 0.7))
         z_osc = vertical_amplitude_m * (jnp.sin(w * t - 0.5 * jnp.pi)
                                         + harmonics * 0.15 * jnp.sin(2.0 * w * t))
         return jnp.stack([x_prog + e * x_osc, 0.0 * t, e * z_osc])
@@ -395,8 +398,9 @@ def _lean(angle_fn, lever_m: float, duration_s: float, name: str) -> Trajectory:
 
 def step(amplitude_rad: float = math.radians(5.0), t_step_s: float = 1.0, settle_s: float = 0.3,
          lever_m: float = 0.0, duration_s: float = 10.0) -> Trajectory:
-    """T §III.A (docs/reproduction.md, `tahboub-step`): a lean of ``amplitude_rad`` commanded as a step
-    through a critically damped 2nd-order response, θ = A(1 − (1 + ω τ) e^{−ω τ}), τ = t − t_step.
+    """T §III.A (docs/reproduction.md, `tahboub-step`): a lean of ``amplitude_rad`` commanded as a
+    step through a critically damped 2nd-order response, θ = A(1 − (1 + ω τ) e^{−ω τ}),
+    τ = t − t_step.
 
     Reading: "0.3 s" is the 95 % settling time, so ω = 4.744/0.3 s⁻¹. The angular acceleration
     jumps to Aω² at onset (the published stimulus's own discontinuity; θ and θ̇ are continuous).
