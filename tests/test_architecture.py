@@ -228,6 +228,19 @@ def test_no_test_benchmark_or_default_reads_beside_the_clone():
     assert hits == []
 
 
+def _imported_names(module, path, tree) -> set[str]:
+    """Every name a module imports, anywhere in it (function-level imports included): the
+    modules, and ``module.name`` for each name taken from one."""
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            src = _resolve(module, path, node)
+            names |= {src} | {f"{src}.{a.name}" for a in node.names}
+        elif isinstance(node, ast.Import):
+            names |= {a.name for a in node.names}
+    return names
+
+
 def test_the_tilt_filter_lives_in_one_subpackage():
     """Tilt from an IMU is one subpackage (docs/architecture.md): no tilt module is left in
     ``estimators`` or ``analysis``, and outside ``verticality.tilt`` no module imports the filter's
@@ -239,15 +252,8 @@ def test_the_tilt_filter_lives_in_one_subpackage():
     for module, path, tree in _modules():
         if module == "verticality.tilt" or module.startswith("verticality.tilt."):
             continue
-        for node in ast.walk(tree):
-            if isinstance(node, ast.ImportFrom):
-                src = _resolve(module, path, node)
-                names = {src} | {f"{src}.{a.name}" for a in node.names}
-            elif isinstance(node, ast.Import):
-                names = {a.name for a in node.names}
-            else:
-                continue
-            offenders += [f"{module}: {n}" for n in sorted(names & internals)]
+        names = _imported_names(module, path, tree)
+        offenders += [f"{module}: {n}" for n in sorted(names & internals)]
     assert offenders == []
 
 
@@ -268,14 +274,6 @@ def test_experiments_are_leaves():
     for module, path, tree in _modules():
         if any(module == a or module.startswith(a + ".") for a in allowed):
             continue
-        for node in ast.walk(tree):
-            if isinstance(node, ast.ImportFrom):
-                src = _resolve(module, path, node)
-                names = {src} | {f"{src}.{a.name}" for a in node.names}
-            elif isinstance(node, ast.Import):
-                names = {a.name for a in node.names}
-            else:
-                continue
-            offenders += [f"{module}: {n}" for n in sorted(names) if n == "verticality.experiments"
-                          or n.startswith("verticality.experiments.")]
+        offenders += [f"{module}: {n}" for n in sorted(_imported_names(module, path, tree))
+                      if n == "verticality.experiments" or n.startswith("verticality.experiments.")]
     assert offenders == []
