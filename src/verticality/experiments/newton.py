@@ -73,14 +73,16 @@ K̂: the observer turns the known torque into a head acceleration 1/(1 + level) 
 That is why the fixed head, driven by large torques, suffers, and the stabilized head does not.
 
 Tilt error: |θ̂_H − θ_H| (the planar case of the angle between true and estimated gravity in the
-head frame), in degrees. `newton-uncertainty` uses the perturbed setting with levels 0–50 % (same
-noise seed); a run **diverged** if its estimate became non-finite or its max tilt error after 1 s
-exceeds 30° (at that point the estimate carries no information about the ±45° trunk tilt, and
-for the stabilized head the loop itself is lost); it is reported as null and listed in
-`diverged_levels_pct`. `fixed_fails_at_level_pct` is the first level at which the fixed head misses
-P11 §VII's success criterion (max error < 3°, which the stabilized head meets up to 50 %);
-`fixed_diverges_at_level_pct` the first level at which it diverges (null: never, up to 50 %).
-P11 reports both at 20 % (fails/diverges "beyond 15 %").
+head frame), in degrees. `newton-uncertainty` uses the perturbed setting (same noise seed) at
+levels 0–50 %: the seed's reading (P11 §VI's pattern, every parameter over-estimated, l exact, J and
+K derived; each window warm-started) and the readings P11 §VII leaves open (:data:`READINGS`: the
+errors' sign and pattern, each window's Newton iteration started from zero). A run is **lost**
+(:func:`verticality.analysis.newton_errors.is_lost`) when its error after 1 s passes 90°, is not
+finite, or most windows' iterations do not converge; it is reported as null and listed in
+``lost_levels_pct``. `fixed_fails_at_level_pct` is the first level at which the fixed head misses
+P11's bar (max error < 3°, which the stabilized head meets up to 50 %),
+`fixed_within_3deg_up_to_pct` the last level before it, `fixed_lost_at_level_pct` the first lost
+level (null: never, up to 50 %). P11: lost "if the uncertainties exceeded 15 %", judged at 17.5 %.
 """
 
 from __future__ import annotations
