@@ -2,7 +2,7 @@
 
 Each gimbal axis is its identified model (F §5.2;
 :class:`verticality.models.platform.PlatformAxis`): pitch J1 = 0.008, b1 = 1.35; roll J2 = 0.0006,
-b2 = 0.137 (``J θ̈ + b (θ̇ − θ̇_base) = u``), with the identified inclinometer
+b2 = 0.137 (``J θ̈ + b (θ̇ − s θ̇_base) = u``), with the identified inclinometer
 ``J_s ÿ + b_s ẏ + k_s y = k_s ψ`` (J_s = 0.0015, b_s = 0.3776, k_s = 5.629), ψ = θ + atan2(a_h, g).
 The axes are decoupled (F §5.1.1) and simulated side by side (``vmap``). The controller runs
 every 3 ms (F §5.1.4) with the command held; the plant is integrated by RK4 at 1 ms. Two feeds
@@ -25,11 +25,21 @@ Readings the thesis leaves open, fixed here:
   45° (pitch, 0.4 Hz) and 40° (roll, 0.5 Hz) amplitude, ramped in over 1 s; phase 2: base still,
   the platform centre accelerated with a(t) = 2 sin(2π·0.8 t) m/s² (pitch) and 2 cos(2π·1.1 t)
   m/s² (roll), ramped in over 1 s.
-- The base motion enters the platform only through the joint damping (motor back-EMF and friction
-  act on the joint velocity); it is unknown to the observer, which knows u and the linear
-  acceleration a_h: ideal in ``observer_feedback`` (as in F §4.4's simulations), measured in
+- The base motion enters the platform only through the joint damping, through the share s of the
+  identified b (F identified ``J θ̈ + b θ̇ = u`` with the base still, so the split is not in F):
+  the seed's reading s = :data:`SEED_DRAG_SHARE` = 0.1 (F §5.1.2's "low friction" cable drive),
+  beside it 0.3 and 1 (all of b on the joint's velocity, earlier releases), ``metrics.readings``.
+  The base motion is unknown to the observer, which knows u and the linear acceleration a_h:
+  gravity-free in ``observer_feedback`` (as in F §4.4's simulations), the raw reading in
   ``accelerometer_fed`` (an accelerometer on the platform measures the same gravito-inertial
-  combination as the inclinometer, so it separates them only while the platform stays near level).
+  combination as the inclinometer, so the observer cannot see a slow tilt).
+- The accelerometer is ideal (unbiased, at the pivot) unless stated; F gives neither its offset nor
+  its distance from the pivot (it sat on the platform's lower surface). :data:`FRAGILITY`: F Fig.
+  5.9's translation alone with a 1 mg offset and with the sensor 5 mm below the pivot (then it
+  also reads ``d·ω̇``), for both observer feeds (``metrics.fig_5_9.accelerometer_errors``).
+- F's swing is judged as F states it: the platform's amplitude against the base's motion relative
+  to it (``swing.*.tilt_over_relative_motion``; F: "significantly smaller", at most 0.5 ours; the
+  relative motion, the larger axis, against F's 40–50°); F's "< 0.1 rad" is the translation's.
 - PD gains (not printed in F): pitch k_p = 300, k_d = 1.0; roll k_p = 40, k_d = 0.05 (state-fed
   closed loops well damped, crossover above the inclinometer's slow pole at 15.9 rad/s).
 - Observer poles −150, −170, −190, −210 s⁻¹ for both axes (≈ 10× the inclinometer's slow pole;
@@ -38,7 +48,7 @@ Readings the thesis leaves open, fixed here:
 - Reading noise σ = 1e-3 rad (ADC) on the inclinometer, the same in both feeds.
 - **Unstable**: |θ| exceeds 1 rad (the workspace) or is non-finite, or the tilt envelope grows
   (max over the last quarter > 2 × max over the second quarter of a phase, and > 0.05 rad), in
-  either axis. ``max_platform_tilt_rad`` is max |θ| over both axes, both phases, t ≥ 1 s.
+  either axis. ``swing_max_tilt_rad`` is max |θ| over both axes in the swing, t ≥ 1 s.
 """
 
 from __future__ import annotations

@@ -1070,16 +1070,16 @@ DIFFERENCES: tuple[Difference, ...] = (
                                         ("l_under_K_exact_cold", "l̂ low, K̂ exact, from zero"),
                                         ("all_under_warm", "all five low, warm start"))
                     for key, what, unit in (("levels_pct", "fixed head's levels", " %"),
-                                            ("max_tilt_error_deg", "fixed head's max error",
-                                             "°"))),
+                                            ("max_tilt_error_deg",
+                                             "fixed head's max error (null: lost)", "°"))),
                   Evidence("newton-uncertainty", ("readings", "l_under_cold", "stabilized",
                                                   "max_tilt_error_deg"),
-                           "l̂ low, started from zero: stabilized head's max error at 20, 50 %",
-                           "°", none_text="lost"),
+                           "l̂ low, started from zero: stabilized head's max error at 20, 50 % "
+                           "(null: lost)", "°", none_text="lost"),
                   Evidence("newton-uncertainty", ("readings", "all_under_warm", "stabilized",
                                                   "max_tilt_error_deg"),
-                           "all five low: stabilized head's max error at 30, 40, 50 %", "°",
-                           none_text="lost")),
+                           "all five low: stabilized head's max error at 30, 40, 50 % "
+                           "(null: lost)", "°", none_text="lost")),
         pages=("newton.md", "sweep.md"),
     ),
     Difference(

@@ -142,6 +142,7 @@ def simulate(p_true: PlanarHead, p_obs: PlanarHead, fixed, noise_rad, key, n_blo
     return RunSeries(t, th.reshape(-1), thh.reshape(-1), rd.reshape(-1), tau.reshape(-1),
                      conv, rdef, res, its)
 
+
 #: the observer's parameters as multiples of the plant's, per "pattern" of P11 §VII's
 #: "uncertainty" at a level ε (:func:`scales_for`): (m, l, b, J, K) with Ĵ = m̂ l̂² and K̂ = 100 Ĵ
 #: unless a pattern sets them apart. ``over``: P11 §VI's own pattern (m̂, b̂ high by ε, l exact,

@@ -50,7 +50,8 @@ class AxisCfg(NamedTuple):
     obs: ContinuousObserver
     use_observer: jnp.ndarray  # 0.0 sensor, 1.0 observer
     key: jnp.ndarray
-    # the observer's a_h: 0.0 the true one, 1.0 the accelerometer's
+    # the observer's a_h: 0.0 the true one (gravity-free; with the accelerometer's offset and
+    # lever-arm errors when those are set), 1.0 the accelerometer's reading
     use_accelerometer: jnp.ndarray = 0.0
     acc_bias_m_s2: jnp.ndarray = 0.0  # the accelerometer's constant offset along its axis
     acc_below_pivot_m: jnp.ndarray = 0.0  # its distance below the pivot (F: the lower surface)
