@@ -92,3 +92,44 @@ def test_16bit_quantized_reading_keeps_the_finding(quick):
     g = quick["max_tilt_error_deg"]
     for cond in ("fixed", "stabilized"):
         assert 0.5 < q["max_tilt_error_deg"][cond] / g[cond]["perturbed"] < 2.0
+
+
+def test_uncertainty_patterns_scale_the_observers_parameters():
+    """P11 §VI's pattern is p11_head(1 + level); l̂ low with Ĵ = m l̂², K̂ = 100 Ĵ; all five low."""
+    from verticality.simulation import newton_loop as nl
+
+    def head(pattern, level):
+        return nl.scaled_head(P, jnp.asarray(nl.scales_for(pattern, level)))
+
+    over, ref = head("over", 0.1), lp.p11_head(1.1)
+    for name in ("m_kg", "l_m", "J_kg_m2", "beta_Nms", "K_kg_m2"):
+        assert float(getattr(over, name)) == pytest.approx(float(getattr(ref, name)), rel=1e-14)
+    lu = head("l_under", 0.2)
+    assert float(lu.l_m) == pytest.approx(0.08)
+    assert float(lu.J_kg_m2) == pytest.approx(0.05 * 0.08**2)
+    assert float(lu.K_kg_m2) == pytest.approx(100 * 0.05 * 0.08**2)
+    assert float(head("l_under_K_exact", 0.2).K_kg_m2) == pytest.approx(float(P.K_kg_m2))
+    au = head("all_under", 0.3)
+    for name in ("m_kg", "l_m", "J_kg_m2", "beta_Nms", "K_kg_m2"):
+        assert float(getattr(au, name)) == pytest.approx(0.7 * float(getattr(P, name)))
+    with pytest.raises(ValueError, match="pattern"):
+        nl.scales_for("sideways", 0.1)
+
+
+def test_a_run_is_lost_past_90_degrees_or_when_its_iterations_do_not_converge():
+    from verticality.analysis.newton_errors import is_lost
+    from verticality.simulation.newton_loop import RunSeries
+
+    t = np.arange(1, 3001) * 1e-3
+    truth = 0.5 * np.sin(t)
+    n_solves = t.size // 25
+
+    def run(err_rad, converged=True):
+        return RunSeries(t, truth, truth + err_rad, truth, 0 * t,
+                         np.full(n_solves, converged), np.zeros(n_solves, bool),
+                         np.zeros(n_solves), np.ones(n_solves))
+
+    assert not is_lost(run(np.radians(60.0) * (t > 1.5)))
+    assert is_lost(run(np.radians(120.0) * (t > 1.5)))
+    assert is_lost(run(0.0 * t, converged=False))
+    assert is_lost(run(np.where(t > 2.0, np.nan, 0.0)))

@@ -108,6 +108,22 @@ def test_laurens_somatogravic_pitch_and_time_constant():
     assert t63 == pytest.approx(1.3, rel=0.2)
 
 
+def test_canal_direct_passes_the_canal_afferent_into_the_rotation_estimate():
+    """With no conflict and the internal canal at rest, ω̂ = (c_d + kω)/(1 + kω)·α: 0.75 of the
+    canal signal as the equations are printed (c_d = 0), all of it with ``canal_direct = 1``."""
+    import jax.numpy as jnp
+
+    from verticality.perception.merfeld import MerfeldZupan, upright_state
+
+    alpha, f = jnp.array([0.4, 0.0, 0.0]), jnp.array([0.0, 0.0, -1.0])
+    for direct, gain in ((0.0, 0.75), (1.0, 1.0)):
+        p = MERFELD_PRESETS["observer"]._replace(canal_direct=direct)
+        w_hat, _, _ = MerfeldZupan(p).signals(upright_state(), alpha, f, jnp.array(True))
+        np.testing.assert_allclose(np.asarray(w_hat), gain * np.asarray(alpha), atol=1e-15)
+    with pytest.raises(InputError):
+        perception_params("merfeld", "observer", {"canal_direct": 1.5})
+
+
 def test_parameters_and_options_are_checked():
     from verticality.cli.name_values import parse_name_values
 
@@ -225,3 +241,13 @@ def test_roll_swing_experiment_passes_its_checks():
     assert abs(cond["center"]["actual"]["tilt_deg"] - 10.0) < 0.05
     assert abs(cond["y-null"]["actual"]["peak_vy_cm_s"]
                - 1.22 * np.radians(10) * 2 * np.pi * 0.45 * 100) < 1.0
+    # the verdicts on Rader et al.'s Table 4 (quick mode: 21.0°/s, 28.5 cm/s, 7.2° as printed;
+    # 28.0°/s, 38.5 cm/s, 9.6° with the canal passed directly): the rotation percept as printed is
+    # kω/(1 + kω) of the actual one, and the direct canal path gives Table 4's 27°/s and 38 cm/s
+    yn = cond["y-null"]
+    assert yn["merfeld"]["peak_omega_deg_s"] == pytest.approx(
+        0.75 * yn["actual"]["peak_omega_deg_s"], rel=0.03)
+    assert yn["merfeld"]["peak_vy_cm_s"] < 0.85 * 38.0 and yn["merfeld"]["tilt_deg"] < 0.9 * 11.0
+    assert yn["merfeld_direct"]["peak_omega_deg_s"] == pytest.approx(27.0, rel=0.1)
+    assert yn["merfeld_direct"]["peak_vy_cm_s"] == pytest.approx(38.0, rel=0.15)
+    assert yn["merfeld_direct"]["tilt_deg"] < 0.9 * 11.0

@@ -27,6 +27,29 @@ def test_identified_axes_and_base_drag():
     assert float(pf.ROLL.output(_axis_state([0.3, 0.0, 0.2, 0.0]))[0]) == 0.2
 
 
+def test_base_drag_share_splits_the_identified_damping():
+    """``J ω̇ = u − b (ω − s ω_base)``: the base drags the platform through s·b, the whole
+    identified b still damps the platform's own rate."""
+    x = _axis_state([0.0, 0.5, 0.0, 0.0])
+    for share in (0.0, 0.1, 1.0):
+        p = pf.PlatformAxis(J_kg_m2=0.008, b_Nms=1.35, base_drag_share=share)
+        d = p.dynamics(x, pf.AxisInput(0.2, 0.0, 2.0))
+        assert float(d.omega_rad_s) == pytest.approx((0.2 - 1.35 * (0.5 - share * 2.0)) / 0.008)
+
+
+def test_accelerometer_offset_and_lever_arm_enter_the_reading():
+    """The platform accelerometer's constant offset adds to its reading; a sensor d below the
+    pivot also reads the platform's angular acceleration, d·ω̇ along its axis (same noise draw)."""
+    key = jax.random.PRNGKey(3)
+    f0 = float(platform_loop.accelerometer_reading(key, 0.1, 0.3, 1.0, 4.0))
+    biased = float(platform_loop.accelerometer_reading(key, 0.1, 0.3, 1.0, 4.0, bias_m_s2=0.01))
+    assert biased - f0 == pytest.approx(0.01, abs=1e-12)
+    low = float(platform_loop.accelerometer_reading(key, 0.1, 0.3, 1.0, 4.0, below_pivot_m=0.005))
+    assert abs(low - f0) == pytest.approx(0.005 * 4.0, rel=1e-9)
+    # at the pivot the angular acceleration does not enter
+    assert float(platform_loop.accelerometer_reading(key, 0.1, 0.3, 1.0, 0.0)) == f0
+
+
 def test_f44_platform_ratios():
     p = pf.f44_platform()
     assert p.g_m_s2 / p.l_m == pytest.approx(3943.8)

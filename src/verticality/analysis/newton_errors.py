@@ -11,6 +11,11 @@ from verticality.simulation.newton_loop import RunSeries
 
 SETTLE_S = 1.0
 DIVERGED_DEG = 30.0
+#: a run is **lost** when its estimate points away from the truth by more than this after the
+#: start-up (the estimate no longer tells the tilt's sign), when it is not finite, or when fewer
+#: than :data:`LOST_CONVERGED_FRACTION` of its windows' Newton iterations converged
+LOST_DEG = 90.0
+LOST_CONVERGED_FRACTION = 0.5
 
 PAPER_LISSAJOUS = {"max_tilt_error_deg": {"fixed": {"exact": 3.0, "perturbed": 6.0},
                                           "stabilized": {"exact": 0.1, "perturbed": 0.5}},
@@ -29,6 +34,22 @@ def max_error_after(s: RunSeries, t0: float = SETTLE_S) -> float:
     if not np.all(np.isfinite(sel)) or not np.all(np.isfinite(np.asarray(s.theta_H_hat_rad))):
         return float("nan")
     return float(np.max(sel))
+
+
+def converged_fraction(s: RunSeries, t0: float = SETTLE_S) -> float:
+    """Share of the observer's solves after ``t0`` whose Newton iteration converged."""
+    t = np.asarray(s.t_s)
+    per_block = t.size // np.asarray(s.converged).size
+    t_solve = t[per_block - 1::per_block]
+    return float(np.mean(np.asarray(s.converged)[t_solve >= t0 - 1e-9]))
+
+
+def is_lost(s: RunSeries, t0: float = SETTLE_S) -> bool:
+    """The run is lost (:data:`LOST_DEG`): its error after ``t0`` passes 90° or is not finite, or
+    most of its Newton iterations did not converge."""
+    e = max_error_after(s, t0)
+    return bool(not np.isfinite(e) or e > LOST_DEG
+                or converged_fraction(s, t0) < LOST_CONVERGED_FRACTION)
 
 
 def inclinometer_swing_deg(s: RunSeries, t0: float = SETTLE_S) -> float:

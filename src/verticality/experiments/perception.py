@@ -263,13 +263,18 @@ def run_centrifuge(quick: bool = False) -> Result:
 
 # ------------------------------------------------------------------------------ roll swing
 
-SWING_MODELS = {"merfeld": MERFELD_PRESETS["observer"], "laurens": LAURENS_PRESETS["default"]}
+SWING_MODELS = {"merfeld": MERFELD_PRESETS["observer"], "laurens": LAURENS_PRESETS["default"],
+                # the reading under which the rotation percept is the Observer model's (Rader et
+                # al. 2009, Table 4: 27°/s of 28): the canal afferent passed directly
+                "merfeld_direct": MERFELD_PRESETS["observer"]._replace(canal_direct=1.0)}
 SWING_RADIUS_M, SWING_TILT_DEG, SWING_HZ = 1.22, 10.0, 0.45
 RADER_TABLE4 = {  # Rader et al. 2009, Table 4 (C, YN, ZN, ZD): the Observer model and subjects
     "model_tilt_deg": {"center": 10.5, "y-null": 11.0, "z-null": 12.0, "z-double": 13.0},
     "subjects_tilt_deg": {"center": 9.5, "y-null": 14.0, "z-null": 13.0, "z-double": 15.0},
     "model_peak_vy_cm_s": {"center": 10.0, "y-null": 38.0, "z-null": 38.0, "z-double": 38.0},
     "model_peak_omega_deg_s": {"center": 27.0, "y-null": 27.0, "z-null": 27.0, "z-double": 27.0},
+    "model_translation_cm": {"center": 3.0, "y-null": 31.0, "z-null": 31.0, "z-double": 31.0},
+    "subjects_translation_cm": {"center": 11.0, "y-null": 33.0, "z-null": 25.0, "z-double": 43.0},
 }
 
 
@@ -307,7 +312,8 @@ def _swing_figure(result: Result, out_dir: Path) -> list[Path]:
             ax = axes[i, j]
             ax.plot(t, s[f"{c}/actual/{key}"], color="k", lw=1.2, label="actual")
             for k in SWING_MODELS:
-                ax.plot(t, s[f"{c}/{k}/{key}"], lw=1.0, label=f"perceived: {k}")
+                if f"{c}/{k}/{key}" in s:
+                    ax.plot(t, s[f"{c}/{k}/{key}"], lw=1.0, label=f"perceived: {k}")
             ax.grid(alpha=0.3)
             if j == 0:
                 ax.set_ylabel(label)
@@ -351,6 +357,7 @@ def run_roll_swing(quick: bool = False) -> Result:
             roll = roll_deg(r.g_H_perceived)
             vy = 100 * r.v_H_perceived_m_s[:, 1]
             row[k] = {"tilt_deg": _amplitude(roll[last]),
+                      "tilt_over_actual": _amplitude(roll[last]) / _amplitude(true_roll[last]),
                       "peak_omega_deg_s":
                           _amplitude(np.degrees(r.omega_H_perceived_rad_s[last, 0])),
                       "peak_vy_cm_s": _amplitude(vy[last])}

@@ -8,11 +8,12 @@
 
 **F ch. 5 gimbal** (:class:`PlatformAxis`). Each of the two decoupled axes was identified as
 ``J θ̈ + b θ̇ = u`` (F §5.2: pitch J1 = 0.008 kg·m², b1 = 1.35 N·m·s; roll J2 = 0.0006 kg·m²,
-b2 = 0.137 N·m·s; u the amplifier reference, in N·m-equivalent units). On a moving base the damping
-(motor back-EMF, cable and bearing friction) acts on the joint velocity, so a swinging base drags
-the platform (our reading)::
+b2 = 0.137 N·m·s; u the amplifier reference, in N·m-equivalent units). F identified b with the base
+still, so F does not fix how much of it acts on the joint's velocity (a swinging base then drags
+the platform) and how much on the platform's own rate; ``base_drag_share`` s is that split (a
+reading, :mod:`verticality.experiments.platform`)::
 
-    J ω̇ = u − b (ω − ω_base),   θ̇ = ω                      (θ, ω: platform tilt/rate in the world)
+    J ω̇ = u − b (ω − s ω_base),   θ̇ = ω                    (θ, ω: platform tilt/rate in the world)
 
 The inclinometer on it is the identified 2nd-order model
 (:class:`~verticality.models.inclinometer.IdentifiedInclinometer`), a component of the axis, driven
@@ -61,15 +62,19 @@ class AxisInput(NamedTuple):
 
 @model_dataclass
 class PlatformAxis(EuclideanState):
-    """One identified gimbal axis, ``J θ̈ + b (θ̇ − θ̇_base) = u`` (F §5.2), carrying its
-    inclinometer: state :class:`AxisState`, input :class:`AxisInput`, output the reading ``y``."""
+    """One identified gimbal axis, ``J θ̈ + b (θ̇ − s θ̇_base) = u`` (F §5.2), carrying its
+    inclinometer: state :class:`AxisState`, input :class:`AxisInput`, output the reading ``y``.
+    ``base_drag_share`` s: the share of b through which the base drags the platform (1: all of it
+    acts on the joint's velocity)."""
 
     J_kg_m2: Any
     b_Nms: Any
     inclinometer: IdentifiedInclinometer = IdentifiedInclinometer()
+    base_drag_share: Any = 1.0
 
     def dynamics(self, x: AxisState, u: AxisInput) -> AxisState:
-        omega_dot = (u.u - self.b_Nms * (x.omega_rad_s - u.omega_base_rad_s)) / self.J_kg_m2
+        omega_dot = (u.u - self.b_Nms * (x.omega_rad_s - self.base_drag_share
+                                         * u.omega_base_rad_s)) / self.J_kg_m2
         s = self.inclinometer.dynamics(IdentifiedInclinometerState(x.y_rad, x.ydot_rad_s),
                                        FrameMotion(x.theta_rad, x.omega_rad_s, u.a_h_I_m_s2, 0.0))
         return AxisState(x.omega_rad_s, omega_dot, s.y_rad, s.ydot_rad_s)

@@ -12,7 +12,8 @@ Internal model and the four feedback channels (head frame; the estimates carry h
     α̂_scc = canal(ω̂)                        internal canal model (models.canal.HighPassCanal):
                                               ĉ' = (ω̂ − ĉ)/τ, d̂' = (ω̂ − ĉ − d̂)/τ_a,
                                               α̂ = ω̂ − ĉ − d̂
-    ω̂ = kω (α_scc − α̂_scc) + kfω e_f          (angular velocity)
+    ω̂ = c_d α_scc + kω (α_scc − α̂_scc) + kfω e_f   (angular velocity; c_d = canal_direct, 0
+                                              in every preset)
     ĝ' = −(ω̂ + kf e_f) × ĝ                   (F eq. 1.4, plus the GIF correction)
     f̂ = ĝ − â,    â = ka (f − f̂)              (linear acceleration, in g)
     v̂' = g₀ â − ω̂ × v̂ − v̂/τ_v                (perceived velocity, m/s; τ_v = inf: no leak)
@@ -26,7 +27,7 @@ Readings where the paper leaves a choice (stated so that they can be changed):
   positive except ka; ``−(kf e_f) × ĝ`` rotates ĝ toward f, and ``kfω e_f`` enters ω̂ with the
   sign that, through ``−ω̂ × ĝ``, also turns ĝ toward f.
 * The two algebraic loops (ω̂ through α̂, â through f̂) are solved exactly:
-  ``ω̂ = (kω (α + ĉ + d̂) + kfω e_f)/(1 + kω)`` and ``â = ka/(1 − ka) (f − ĝ)``.
+  ``ω̂ = ((c_d + kω) α + kω (ĉ + d̂) + kfω e_f)/(1 + kω)`` and ``â = ka/(1 − ka) (f − ĝ)``.
 * ĝ is rotated, never scaled, so ``|ĝ| = 1`` (it starts at unit length).
 * The perceived velocity is kept in the head frame (hence the transport term ``−ω̂ × v̂``); the
   Observer tool's leaky integration is the ``−v̂/τ_v`` term.
@@ -109,7 +110,9 @@ class MerfeldZupan:
         a_hat = p.k_a / (1.0 - p.k_a) * (f - x.g_H)
         e_f = rotation_error(f, x.g_H - a_hat)
         k_w = jnp.where(canal_ok, p.k_omega, 0.0)
-        w_hat = (k_w * (alpha + x.c_rad_s + x.d_rad_s) + p.k_f_omega * e_f) / (1.0 + k_w)
+        direct = jnp.where(canal_ok, p.canal_direct, 0.0)
+        w_hat = ((direct + k_w) * alpha + k_w * (x.c_rad_s + x.d_rad_s)
+                 + p.k_f_omega * e_f) / (1.0 + k_w)
         return w_hat, a_hat, e_f
 
     def rates(self, x: MerfeldState, alpha, f, canal_ok) -> MerfeldState:

@@ -3,8 +3,13 @@
 Merfeld & Zupan 2002 observer (:mod:`verticality.perception.merfeld`)
     ``k_omega`` (kω, canal error → angular velocity), ``k_a`` (ka, GIF difference → acceleration),
     ``k_f`` (kf, GIF rotation error → gravity), ``k_f_omega`` (kfω, GIF rotation error → angular
-    velocity); canal time constant ``tau_s``, adaptation ``tau_a_s`` (inf: none), and the leak of
-    the perceived-velocity integrator ``tau_v_s`` (inf: a pure integrator).
+    velocity); canal time constant ``tau_s``, adaptation ``tau_a_s`` (inf: none), the leak of
+    the perceived-velocity integrator ``tau_v_s`` (inf: a pure integrator), and ``canal_direct``
+    (0 in every preset): the gain of a direct path of the canal afferent into the rotation estimate,
+    ``ω̂ = canal_direct·α + kω (α − α̂) + kfω e_f`` (:mod:`verticality.perception.merfeld`). With 0
+    (Merfeld & Zupan 2002 as we read it) the rotation percept at mid frequencies is kω/(1 + kω) of
+    the true rotation; with 1 it is about the true one, the reading under which the roll swing's
+    rotation and y-velocity percepts match the Observer model's in Rader et al. 2009, Table 4.
 
     Naming: Merfeld & Zupan 2002 write the fourth gain k_fω ("f to ω"); Rader et al. 2009 (Table 4)
     and the later Observer tool label the same gain K_ωf ("GIFω gain"). They are one number:
@@ -48,6 +53,7 @@ class MerfeldParams(NamedTuple):
     tau_s: float
     tau_a_s: float = math.inf
     tau_v_s: float = math.inf
+    canal_direct: float = 0.0
 
 
 class LaurensParams(NamedTuple):
@@ -79,7 +85,7 @@ PRESETS = {"merfeld": MERFELD_PRESETS, "laurens": LAURENS_PRESETS}
 PARAM_DOMAIN: dict[str, tuple[float, float, bool]] = {
     "k_omega": (0.0, 1e3, False), "k_a": (-1e3, 0.999, False), "k_f": (0.0, 1e3, False),
     "k_f_omega": (0.0, 1e3, False), "tau_s": (1e-2, 1e4, False), "tau_a_s": (1e-2, 1e6, True),
-    "tau_v_s": (1e-2, 1e6, True),
+    "tau_v_s": (1e-2, 1e6, True), "canal_direct": (0.0, 1.0, False),
     "dt_s": (1e-4, 0.1, False), "tau_c_s": (1e-2, 1e4, False),
     "sigma_omega_rad_s": (1e-6, 1e3, False), "sigma_v_rad_s": (1e-6, 1e3, False),
     "sigma_a_g": (1e-6, 1e3, False), "sigma_f_g": (1e-6, 1e3, False),

@@ -46,6 +46,7 @@ class GyroParams(NamedTuple):
 class AccelParams(NamedTuple):
     noise_std_m_s2: float = 0.0
     lever_B_m: jnp.ndarray | None = None  # sensor position from the body centre, body frame
+    bias_B_m_s2: jnp.ndarray | float = 0.0  # constant offset of the reading (zero-g level)
 
 
 # -------------------------------------------------------------------------------------------
@@ -147,7 +148,7 @@ def specific_force_B(motion: RigidMotion, lever_B_m=None):
 
 def accelerometer(key, motion: RigidMotion, p: AccelParams):
     """One accelerometer sample (use ``jax.vmap`` over keys and motions for a record)."""
-    f = specific_force_B(motion, p.lever_B_m)
+    f = specific_force_B(motion, p.lever_B_m) + p.bias_B_m_s2
     return f + p.noise_std_m_s2 * jax.random.normal(key, f.shape)
 
 

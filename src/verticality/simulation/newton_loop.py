@@ -75,7 +75,7 @@ def make_observer(p_obs: PlanarHead, config: newton.NewtonConfig = CONFIG,
 def simulate(p_true: PlanarHead, p_obs: PlanarHead, fixed, noise_rad, key, n_blocks: int,
              config: newton.NewtonConfig = CONFIG, *, amplitude_scale=1.0, frequency_scale=1.0,
              kp_Nm_rad=KP, kd_Nms_rad=KD, scheme: str = "rk4-ramp",
-             quantized=False) -> RunSeries:
+             quantized=False, cold_start=False) -> RunSeries:
     """Closed loop of plant, 1 ms estimate propagation, PD (stabilized) and the Newton observer.
 
     The trunk moves through :func:`lissajous_plant.trunk` with amplitude ``amplitude_scale`` × P11's
@@ -86,7 +86,9 @@ def simulate(p_true: PlanarHead, p_obs: PlanarHead, fixed, noise_rad, key, n_blo
     ``scheme`` (static): the observer's discretization (:data:`SCHEMES`), used both for F_T and
     for the 1 ms propagation of the estimate between solves. ``quantized`` (traced): the reading
     is the true one rounded by a :data:`ADC_BITS`-bit ADC over ±:data:`ADC_FULL_SCALE_RAD`
-    instead of the true one plus Gaussian noise of σ ``noise_rad``."""
+    instead of the true one plus Gaussian noise of σ ``noise_rad``. ``cold_start`` (traced): each
+    window's Newton iteration starts from the zero state (ξ_k⁰ = 0) instead of the previous
+    window's solution carried forward (the warm start; P11 §V.B does not say where ξ_k⁰ is)."""
     obs = make_observer(p_obs, config, scheme=scheme)
     step_obs = step_euler if scheme == "euler" else step_rk4
     plant, model = lp.plant(p_true), lp.plant(p_obs)
@@ -119,6 +121,10 @@ def simulate(p_true: PlanarHead, p_obs: PlanarHead, fixed, noise_rad, key, n_blo
         b, trunk_blk = b_trunk
         x, ost = carry
         xh = ost.x_hat
+        # a cold start: the window's first guess (its carried trajectory's entry 1, which the
+        # step shifts to the front) is the zero state; the present estimate is kept
+        ost = ost._replace(xs_window=jax.tree_util.tree_map(
+            lambda a: jnp.where(cold_start, jnp.zeros_like(a), a), ost.xs_window))
         (x, _), (u_blk, th, thh, rd) = jax.lax.scan(fast, (x, xh), trunk_blk)
         y = jnp.where(quantized,
                       sensors.quantize(inclinometer_reading(x), ADC_BITS, ADC_FULL_SCALE_RAD),
@@ -136,21 +142,59 @@ def simulate(p_true: PlanarHead, p_obs: PlanarHead, fixed, noise_rad, key, n_blo
     return RunSeries(t, th.reshape(-1), thh.reshape(-1), rd.reshape(-1), tau.reshape(-1),
                      conv, rdef, res, its)
 
+
+#: the observer's parameters as multiples of the plant's, per "pattern" of P11 §VII's
+#: "uncertainty" at a level ε (:func:`scales_for`): (m, l, b, J, K) with Ĵ = m̂ l̂² and K̂ = 100 Ĵ
+#: unless a pattern sets them apart. ``over``: P11 §VI's own pattern (m̂, b̂ high by ε, l exact,
+#: J and K derived); ``l_under``: l̂ low by ε, J and K derived from it (m, b exact);
+#: ``l_under_K_exact``: the same with K̂ = K; ``all_under``: each of the five low by ε.
+PATTERNS = ("over", "l_under", "l_under_K_exact", "all_under")
+
+
+def scales_for(pattern: str, level: float) -> tuple[float, float, float, float, float]:
+    """The multiples (m, l, b, J, K) of the plant's parameters that the observer is given."""
+    e = float(level)
+    if pattern == "over":
+        s = 1.0 + e
+        return (s, 1.0, s, s, s)
+    if pattern == "l_under":
+        return (1.0, 1.0 - e, 1.0, (1.0 - e) ** 2, (1.0 - e) ** 2)
+    if pattern == "l_under_K_exact":
+        return (1.0, 1.0 - e, 1.0, (1.0 - e) ** 2, 1.0)
+    if pattern == "all_under":
+        return (1.0 - e,) * 5
+    raise ValueError(f"unknown pattern {pattern!r}; known: {PATTERNS}")
+
+
+def scaled_head(p: PlanarHead, scales) -> PlanarHead:
+    """``p`` with its (m, l, b, J, K) multiplied by ``scales`` (traced)."""
+    s_m, s_l, s_b, s_J, s_K = (scales[i] for i in range(5))
+    return PlanarHead(m_kg=p.m_kg * s_m, l_m=p.l_m * s_l, J_kg_m2=p.J_kg_m2 * s_J,
+                      beta_Nms=p.beta_Nms * s_b, K_kg_m2=p.K_kg_m2 * s_K, g_m_s2=p.g_m_s2)
+
+
 def run_batch(fixed, level, noise_rad, seed: int, duration_s: float,
               config: newton.NewtonConfig = CONFIG, scheme: str = "rk4-ramp",
-              quantized=None) -> RunSeries:
+              quantized=None, scales=None, cold_start=None) -> RunSeries:
     """vmap of :func:`simulate` over conditions (fixed flags, levels, noise σ, quantized flags),
-    one compile per ``scheme``."""
+    one compile per ``scheme``. The observer's model is P11's plant with m̂, b̂, Ĵ, K̂ scaled by
+    1 + level (P11 §VI's pattern), or, given ``scales`` ((B, 5): :func:`scales_for`), by those;
+    ``cold_start`` (B,) flags: :func:`simulate`'s."""
     fixed = jnp.asarray(fixed, dtype=bool)
     level = jnp.asarray(level, dtype=float)
     noise = jnp.asarray(noise_rad, dtype=float)
     quant = jnp.zeros_like(fixed) if quantized is None else jnp.asarray(quantized, dtype=bool)
+    cold = jnp.zeros_like(fixed) if cold_start is None else jnp.asarray(cold_start, dtype=bool)
+    if scales is None:
+        scales = jnp.stack([1.0 + level, jnp.ones_like(level), 1.0 + level, 1.0 + level,
+                            1.0 + level], axis=1)
+    scales = jnp.asarray(scales, dtype=float)
     n_blocks = int(round(duration_s / (SUBSTEPS * DT_S)))
     key = jax.random.PRNGKey(seed)
     p_true = lp.p11_head(1.0)
 
-    def one(f, lv, sg, q):
-        return simulate(p_true, lp.p11_head(1.0 + lv), f, sg, key, n_blocks, config,
-                        scheme=scheme, quantized=q)
+    def one(f, sc, sg, q, c):
+        return simulate(p_true, scaled_head(p_true, sc), f, sg, key, n_blocks, config,
+                        scheme=scheme, quantized=q, cold_start=c)
 
-    return jax.vmap(one)(fixed, level, noise, quant)
+    return jax.vmap(one)(fixed, scales, noise, quant, cold)

@@ -50,8 +50,11 @@ class AxisCfg(NamedTuple):
     obs: ContinuousObserver
     use_observer: jnp.ndarray  # 0.0 sensor, 1.0 observer
     key: jnp.ndarray
-    # the observer's a_h: 0.0 the true one, 1.0 the accelerometer's
+    # the observer's a_h: 0.0 the true one (gravity-free; with the accelerometer's offset and
+    # lever-arm errors when those are set), 1.0 the accelerometer's reading
     use_accelerometer: jnp.ndarray = 0.0
+    acc_bias_m_s2: jnp.ndarray = 0.0  # the accelerometer's constant offset along its axis
+    acc_below_pivot_m: jnp.ndarray = 0.0  # its distance below the pivot (F: the lower surface)
 
 
 def _ramp(t, t0):
@@ -70,18 +73,26 @@ def _drive(cfg: AxisCfg, t, swing_s):
     return omega_base, a
 
 
-def accelerometer_reading(key, theta_rad, omega_rad_s, a_h_I_m_s2):
-    """The platform accelerometer's reading along the axis' horizontal (F §5.1.1: tri-axial, at the
-    platform's centre, axes aligned with the platform's):
+def accelerometer_reading(key, theta_rad, omega_rad_s, a_h_I_m_s2, omegadot_rad_s2=0.0,
+                          bias_m_s2=0.0, below_pivot_m=0.0):
+    """The platform accelerometer's reading along the axis' horizontal (F §5.1.1: tri-axial, on
+    the platform, axes aligned with the platform's):
     :func:`verticality.sensors.readings.accelerometer` for the platform tilted by θ about its axis
-    and accelerated by ``a_h`` — the specific force ``a_h cos θ + g sin θ`` plus white noise of σ
-    :data:`SIGMA_ACC_M_S2` (signs of the inclinometer's apparent tilt ``θ + atan2(a_h, g)``: the
-    tilt about y is ``−θ``)."""
+    and its pivot accelerated by ``a_h`` — the specific force ``a_h cos θ + g sin θ`` plus white
+    noise of σ :data:`SIGMA_ACC_M_S2` (signs of the inclinometer's apparent tilt
+    ``θ + atan2(a_h, g)``: the tilt about y is ``−θ``); with a constant offset ``bias_m_s2`` and
+    the sensor ``below_pivot_m`` below the pivot (it then also reads the platform's angular
+    acceleration, ``below_pivot_m · ω̇``)."""
     c, s_ = jnp.cos(theta_rad), jnp.sin(theta_rad)
     R_I_B = jnp.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # R_y(−θ)
-    w = jnp.stack([0.0 * omega_rad_s, -omega_rad_s, 0.0 * omega_rad_s])
-    motion = RigidMotion(R_I_B, w, jnp.zeros(3), jnp.stack([a_h_I_m_s2, 0.0, 0.0]))
-    return sensors.accelerometer(key, motion, sensors.AccelParams(SIGMA_ACC_M_S2))[0]
+    z = 0.0 * omega_rad_s
+    w = jnp.stack([z, -omega_rad_s, z])
+    w_dot = jnp.stack([z, -(z + omegadot_rad_s2), z])
+    motion = RigidMotion(R_I_B, w, w_dot, jnp.stack([a_h_I_m_s2, 0.0, 0.0]))
+    lever = jnp.stack([z, z, -(z + below_pivot_m)])
+    bias = jnp.stack([z + bias_m_s2, z, z])
+    return sensors.accelerometer(key, motion,
+                                 sensors.AccelParams(SIGMA_ACC_M_S2, lever, bias))[0]
 
 
 def simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
@@ -97,11 +108,18 @@ def simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
         return cfg.p.dynamics(x, pf.AxisInput(u, a, omega_base))
 
     def read(plant, k):
-        # the inclinometer and the platform accelerometer (the true acceleration beside it)
-        x, _ = plant
-        _, a_now = _drive(cfg, k * LOOP_DT_S, swing_s)
-        a_acc = accelerometer_reading(acc_keys[k], x.theta_rad, x.omega_rad_s, a_now)
-        return x.y_rad + noise[k], a_now, a_acc
+        # the inclinometer and the platform accelerometer (the true acceleration beside it); the
+        # platform's angular acceleration under the command still held
+        x, _, u_held = plant
+        t = k * LOOP_DT_S
+        _, a_now = _drive(cfg, t, swing_s)
+        omega_dot = f_plant(t, x, u_held).omega_rad_s
+        a_acc = accelerometer_reading(acc_keys[k], x.theta_rad, x.omega_rad_s, a_now, omega_dot,
+                                      cfg.acc_bias_m_s2, cfg.acc_below_pivot_m)
+        # the gravity-free feed: the true acceleration with the accelerometer's offset and
+        # lever-arm errors (zero unless the configuration sets them), its noise left out
+        a_err = a_acc - accelerometer_reading(acc_keys[k], x.theta_rad, x.omega_rad_s, a_now)
+        return x.y_rad + noise[k], a_now + a_err, a_acc
 
     def control(est, y, k):
         ls, y_prev = est
@@ -126,15 +144,15 @@ def simulate(cfg: AxisCfg, n_loops: int, swing_s: float):
             om_b, _ = _drive(cfg, ts, swing_s)
             return rk4_step(f_plant, ts, xx, h, u), bb + h * om_b
 
-        return jax.lax.fori_loop(0, SUBSTEPS, sub, plant)
+        return (*jax.lax.fori_loop(0, SUBSTEPS, sub, plant[:2]), u)
 
     def record(plant, est, y, u, k):
-        (x, base), (reading, a_now, a_acc) = plant, y
+        (x, base, _), (reading, a_now, a_acc) = plant, y
         return x.theta_rad, reading, est[0].x[0], base, u, a_now, a_acc
 
     z = jnp.asarray(0.0)
     parts = loop.LoopParts(read, loop.unchanged, control, predict, advance, record)
-    plant0 = (pf.AxisState(z, z, z, z), 0.0)
+    plant0 = (pf.AxisState(z, z, z, z), 0.0, z)
     return loop.run(parts, plant0, (cfg.obs.init(jnp.zeros(4)), 0.0), n_loops)[1]
 
 
