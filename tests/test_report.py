@@ -173,7 +173,8 @@ def _pub(kind, value, **kw):
     ("equals", True, True, "meets"), ("equals", 20, None, "differs"),
     ("within", [[1.0, 2.0]], [[1.04, 1.95]], "meets"),
     ("within", [[1.0, 2.0]], [[1.2, 2.0]], "differs"),
-    ("within", [[1.0, 2.0]], [1.0, 2.0], "differs"), ("context", 0.15, 0.25, "no published number"),
+    ("within", [[1.0, 2.0]], [1.0, 2.0], "differs"), ("context", 0.15, 0.25, "not judged"),
+    ("context", None, 0.25, "no published number"),
 ])
 def test_verdicts(kind, value, ours, status):
     pub = _pub(kind, value, rel=0.05 if kind == "within" else 0.25)
@@ -382,3 +383,22 @@ def test_docs_hook_lets_a_list_follow_a_paragraph_line():
                                           "After.\n\n1. first")
     untouched = "```\ncode line\n- not a list\n```\n| a |\n- x\n# T\n- y\n\n- z"
     assert hook.breakless_lists(untouched) == untouched
+
+
+def test_every_published_figure_shown_without_a_verdict_says_why():
+    """A published figure beside ours is judged, or its row says plainly why it is not: a reader
+    must not take the experiment's verdict for a row that was never compared."""
+    from verticality.report.claims import CLAIMS
+
+    unexplained = []
+    for name, claim in CLAIMS.items():
+        for pub in claim.published:
+            if pub.kind != "context":
+                continue
+            shows_figure = pub.value is not None or any(c.isdigit() for c in pub.text) or (
+                pub.text.strip("—“” ") not in ("", "no number", "no published number",
+                                               "not published", "(no number)"))
+            says_why = "not judged" in pub.text or "no number" in pub.text
+            if shows_figure and not says_why:
+                unexplained.append(f"{name}: {pub.label} = {pub.text}")
+    assert unexplained == []

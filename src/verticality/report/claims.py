@@ -246,13 +246,16 @@ CLAIMS: dict[str, Claim] = {
                    Published("RMS error of θ1", "T Fig. 11–13", "no number",
                              ("rms_error_deg",), unit="°"),
                    Published("T's printed gain on our linearized body: observer stable",
-                             "T eq. 24", "T's observer (its body)",
+                             "T eq. 24", "T's observer on its own body (not judged: T does not "
+                             "print all of PostuRob II's parameters, so ours is another body)",
                              ("t_eq24_gain", "stable"), "context"),
                    Published("T's printed gain on our linearized body: slowest pole (real part)",
                              "T eq. 24", "—", ("t_eq24_gain", "observer_poles_real", -1),
                              unit=" s⁻¹"),
                    Published("largest gain entry, T eq. 24 / ours (all six outputs placed)",
-                             "T eq. 24", "1.3e3", ("t_eq24_gain", "gain_max_abs"),
+                             "T eq. 24", "1.3e3 (not judged: a gain's size depends on the body "
+                             "and poles it was placed for, both T's own)",
+                             ("t_eq24_gain", "gain_max_abs"),
                              ratio_to=("t_eq24_gain", "ours_gain_max_abs")),),
         pages=("linear-tahboub.md",),
     ),
@@ -508,15 +511,17 @@ CLAIMS: dict[str, Claim] = {
                              ("max_error_rad_noisy", "kalman", "ref0"), "at_most", 1.0,
                              ratio_to=("max_error_rad_noisy", "luenberger", "ref0")),
                    Published("platform swing about the reference, Luenberger, ref 1 rad",
-                             "F §4.4.3", "≈ 0.15 rad (oscillation magnitude)",
+                             "F §4.4.3", "≈ 0.15 rad (not judged: F's is the oscillation's "
+                             "magnitude read off Fig. 4.10; ours the largest deviation, offset "
+                             "and oscillation together)",
                              ("max_tilt_deviation_rad", "nominal", "luenberger", "ref1"),
                              unit=" rad"),
                    Published("platform swing about the reference, Luenberger, ref 0",
-                             "F §4.4.3", "≈ 0.03 rad (oscillation magnitude)",
+                             "F §4.4.3", "≈ 0.03 rad (not judged: as the row above)",
                              ("max_tilt_deviation_rad", "nominal", "luenberger", "ref0"),
                              unit=" rad"),
                    Published("platform swing about the reference, Kalman, ref 1 rad",
-                             "F §4.4.3", "no oscillation",
+                             "F §4.4.3", "no oscillation (not judged: as the row above)",
                              ("max_tilt_deviation_rad", "nominal", "kalman", "ref1"),
                              unit=" rad"),
                    Published("lateral model (F 2.18), Luenberger max error, ref 0, pivots on the "
@@ -529,7 +534,10 @@ CLAIMS: dict[str, Claim] = {
                              ("lateral", "largest_stable_r_mm", "f219"), unit=" mm"),
                    Published("observability rank at upright with a steady unknown acceleration, "
                              "lateral [rank, n]", "F Table 3.2 (nonlinear: observable)",
-                             "observable", ("lateral", "unknown_acceleration_observability_rank",
+                             "observable (not judged: F's is the nonlinear test; ours the rank "
+                             "of the linearization at upright, which drops the ω² terms F's "
+                             "observability rests on)",
+                             ("lateral", "unknown_acceleration_observability_rank",
                                             "lateral")),),
         note="Our swing is the largest deviation from the reference after 1 s (offset and "
              "oscillation together); F reads the oscillation's magnitude off Fig. 4.10, so the "
@@ -726,7 +734,9 @@ CLAIMS: dict[str, Claim] = {
                               "pd_10_rad_s", "continuous", "max_real_1_s"), unit=" s⁻¹",
                              setting="alt"),
                    Published("largest initial tilt that converges, EKF with Gauss–Markov "
-                             "acceleration", "F Fig. 4.15 (Luenberger)", "12°",
+                             "acceleration", "F Fig. 4.15 (Luenberger)",
+                             "12° (not judged: F's figure is the Luenberger observer's; this EKF "
+                             "is ours, a different estimator on the same loop)",
                              ("ekf_gauss_markov", "largest_converging_initial_tilt_deg"),
                              "context", 12.0, unit="°", none_text="none converges",
                              setting="ours")),
@@ -757,7 +767,9 @@ CLAIMS: dict[str, Claim] = {
                              ("luenberger", "smallest_failing_desired_tilt_deg"), "at_most", 6.0,
                              unit="°", none_text="none fails", setting="alt"),
                    Published("largest desired tilt that converges, EKF with Gauss–Markov "
-                             "acceleration", "F Fig. 4.16 (Luenberger)", "0°",
+                             "acceleration", "F Fig. 4.16 (Luenberger)",
+                             "0° (not judged: F's figure is the Luenberger observer's; this EKF "
+                             "is ours, a different estimator on the same loop)",
                              ("ekf_gauss_markov", "largest_converging_desired_tilt_deg"),
                              "context", 0.0, unit="°", none_text="none converges",
                              setting="ours")),
@@ -983,7 +995,8 @@ CLAIMS: dict[str, Claim] = {
                              "equals", True),
                    Published("max |left − right| / max |pendula angle|, lateral tilt and "
                              "Fig. 2.5, 10 rad/s", "F §2.2",
-                             "“negligibly small”",
+                             "“negligibly small” (not judged: F gives no number; ours is the "
+                             "ratio shown)",
                              ("left_minus_right_over_motion_by_loop_rad_s", "10"), "context",
                              headline=True),
                    Published("otolith natural frequency", "F §2.2", "≈ 300 Hz",

@@ -3,7 +3,9 @@
 Verdicts (:data:`STATUSES`): ``better`` (ours beats the published figure, under the seed's own
 reading of its setting), ``meets`` (ours is at or within it), ``differs`` (ours is outside it),
 ``our setting`` (a magnitude measured under our improved setting, shown beside the published one
-and not judged: it is another experiment), ``no published number`` (nothing to judge against),
+and not judged: it is another experiment), ``not judged`` (a published figure shown beside ours
+whose row says why it is not judged: another measure or another estimator), ``no published
+number`` (nothing to judge against),
 ``not measured`` (the results have no such metric), ``not run`` (the experiment is not in the
 results).
 
@@ -24,7 +26,8 @@ from verticality.report.claims import Claim, MetricPath, Published
 
 BETTER, MEETS, DIFFERS, OUR_SETTING = "better", "meets", "differs", "our setting"
 NO_NUMBER, NOT_MEASURED, NOT_RUN = "no published number", "not measured", "not run"
-STATUSES = (BETTER, MEETS, DIFFERS, OUR_SETTING, NO_NUMBER, NOT_MEASURED, NOT_RUN)
+NOT_JUDGED = "not judged"
+STATUSES = (BETTER, MEETS, DIFFERS, OUR_SETTING, NOT_JUDGED, NO_NUMBER, NOT_MEASURED, NOT_RUN)
 JUDGED = (BETTER, MEETS, DIFFERS)
 _MISSING = object()
 
@@ -109,6 +112,8 @@ def _within(value: Any, target: Any, rel: float) -> bool | None:
 
 def verdict(value: Any, pub: Published) -> str:
     """The status of ``value`` (ours) against one published figure."""
+    if pub.kind == "context" and pub.value is not None:
+        return NOT_JUDGED  # a number shown beside ours; its text says why it is not judged
     if pub.kind == "context" or pub.value is None and pub.kind != "equals":
         return NO_NUMBER  # nothing to judge, whether or not this run measured it
     if pub.metric is None or is_missing(value):
@@ -169,7 +174,7 @@ def overall(statuses: list[str], ran: bool = True, settings: list[str] | None = 
         seed = [s for s, where in zip(statuses, settings, strict=True) if where == "seed"]
         if any(s in JUDGED for s in seed):
             statuses = seed
-    for status in (DIFFERS, BETTER, MEETS, NOT_MEASURED, OUR_SETTING):
+    for status in (DIFFERS, BETTER, MEETS, NOT_MEASURED, OUR_SETTING, NOT_JUDGED):
         if status in statuses:
             return status
     return NO_NUMBER

@@ -58,7 +58,7 @@ table.summary tr td { background: #fff; }
 .s-meets { background: #e1f2e1; color: #1f5d26; }
 .s-differs { background: #fde2c8; color: #8a3b00; }
 .s-our-setting { background: #e3ecf8; color: #1b3f6b; }
-.s-no-published-number { background: #eceff1; color: #455a64; }
+.s-no-published-number, .s-not-judged { background: #eceff1; color: #455a64; }
 .setting { font-size: 0.8rem; color: var(--muted); white-space: nowrap; }
 .setting-ours, .setting-alt { color: #1b3f6b; font-weight: 600; }
 .s-not-measured { background: #fff3c4; color: #6b5500; }
