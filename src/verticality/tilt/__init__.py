@@ -30,6 +30,7 @@ from verticality.tilt.flags import (
     GYR_MISSING,
     HELD,
     INIT,
+    LOG_BREAK,
     OUT_OF_RANGE,
     REACQUIRED,
     REACQUIRING,
@@ -42,4 +43,4 @@ __all__ = ["estimate", "smooth", "Stream", "TiltEstimate", "TiltFilter", "TiltPa
            "DEFAULT_PARAMS", "block_samples", "tilt_sigma_rad", "flags", "ACC_MISSING",
            "GYR_MISSING", "BAD_DT",
            "ACC_DISTURBED", "INIT", "DT_GAP", "REACQUIRED", "REACQUIRING", "OUT_OF_RANGE",
-           "CLIPPED", "HELD", "FLAG_NAMES"]
+           "CLIPPED", "HELD", "LOG_BREAK", "FLAG_NAMES"]
