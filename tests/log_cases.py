@@ -32,11 +32,16 @@ def motion(n: int = 1200, seed: int = 0, pitch0_deg: float = 8.0, amp_deg: float
     tau = np.where(moving, t - still_s, 0.0)
     roll = np.radians(amp_deg) * np.sin(np.pi * tau) * moving
     rate = np.radians(amp_deg) * np.pi * np.cos(np.pi * tau) * moving
-    R = np.einsum("ij,njk->nik", np.asarray(so3.rot_y(np.radians(pitch0_deg))),
-                  np.asarray(so3.exp(roll[:, None] * np.array([1.0, 0.0, 0.0]))))
-    acc = G_M_S2 * R[:, 2, :] + rng.normal(0, 0.03, (n, 3))
+    # R_E_S = Ry(pitch0) Rx(roll) in NumPy (a new length compiles nothing): its third row is
+    # the up vector in the sensor frame, (−sin p, cos p sin r, cos p cos r)
+    p0 = np.radians(pitch0_deg)
+    up = np.column_stack([np.full(n, -np.sin(p0)), np.cos(p0) * np.sin(roll),
+                          np.cos(p0) * np.cos(roll)])
+    acc = G_M_S2 * up + rng.normal(0, 0.03, (n, 3))
     gyr = np.column_stack([rate, np.zeros(n), np.zeros(n)]) + rng.normal(0, 2e-3, (n, 3))
-    quat = np.asarray(so3.quat_from_matrix(R))
+    qy = (np.full(n, np.cos(p0 / 2)), 0.0, np.full(n, np.sin(p0 / 2)), 0.0)
+    qx = (np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0)
+    quat = np.column_stack(np.broadcast_arrays(*so3.quat_multiply_components(qy, qx)))
     return t, gyr, acc, quat
 
 
@@ -97,10 +102,10 @@ def imu_messages(store, t_s, gyr, acc, quat, frame_id="imu_link", orientation="e
         cov = np.zeros(9) if orientation in ("zeros", "identity") else np.diag([1e-4] * 3).ravel()
         if orientation == "none":
             cov = -np.ones(9)
-        header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
-            sec=s // 10**9, nanosec=s % 10**9), frame_id=frame_id)
-        if "seq" in T["std_msgs/msg/Header"].__dataclass_fields__:
-            header = T["std_msgs/msg/Header"](seq=k, stamp=header.stamp, frame_id=frame_id)
+        stamp = T["builtin_interfaces/msg/Time"](sec=s // 10**9, nanosec=s % 10**9)
+        ros1 = "seq" in T["std_msgs/msg/Header"].__dataclass_fields__
+        header = T["std_msgs/msg/Header"](**({"seq": k} if ros1 else {}), stamp=stamp,
+                                          frame_id=frame_id)
         msgs.append((s, T["sensor_msgs/msg/Imu"](
             header=header,
             orientation=T["geometry_msgs/msg/Quaternion"](x=q[1], y=q[2], z=q[3], w=q[0]),
@@ -137,12 +142,13 @@ def write_bag(path, fmt: str, topics: dict, *, receive_offset_ns: int = 25_000_0
         for topic, msgs in topics.items():
             conn = writer.add_connection(topic, msgs[0][1].__msgtype__, typestore=store)
             seq = msgs if order is None else [msgs[i] for i in order]
-            for stamp, msg in seq:
+            for k, (stamp, msg) in enumerate(seq):
                 raw = (store.serialize_ros1 if ros1 else store.serialize_cdr)(msg,
                                                                             msg.__msgtype__)
-                items.append((stamp + receive_offset_ns, conn, raw))
-        for receive, conn, raw in items if order is not None else sorted(items,
-                                                                          key=lambda x: x[0]):
+                # received in the order written (out of stamp order when ``order`` says so)
+                receive = (stamp if order is None else msgs[0][0] + k * 10**7) + receive_offset_ns
+                items.append((receive, conn, raw))
+        for receive, conn, raw in sorted(items, key=lambda x: x[0]):
             writer.write(conn, receive, raw)
     if fmt == "bare-mcap":
         inner = next(target.glob("*.mcap"))

@@ -30,22 +30,27 @@ def flu_from_frd(v) -> np.ndarray:
 def quat_nwu_flu(q_ned_frd) -> np.ndarray:
     """(M, 4) PX4 attitudes ``q`` (FRD → NED, wxyz) as ``q_NWU_FLU`` (FLU → NWU, z up), our
     convention for samples turned by :func:`flu_from_frd`."""
-    q = np.asarray(q_ned_frd, dtype=np.float64)
-    return np.asarray(so3.quat_multiply(so3.quat_multiply(TURN_X_PI, q),
-                                        so3.quat_conjugate(TURN_X_PI)))
+    q = tuple(np.asarray(q_ned_frd, dtype=np.float64).T)
+    r, r_conj = tuple(TURN_X_PI), tuple(TURN_X_PI * np.array([1.0, -1.0, -1.0, -1.0]))
+    return np.stack(so3.quat_multiply_components(so3.quat_multiply_components(r, q), r_conj),
+                    axis=-1)
 
 
 def up_in_sensor(quat_E_S) -> np.ndarray:
-    """(M, 3) the unit up vector (E's z) in the sensor frame: ``R_E_S^T e_z``."""
-    return np.asarray(so3.up_in_frame(so3.matrix_from_quat(np.asarray(quat_E_S))))
+    """(M, 3) the unit up vector (E's z) in the sensor frame: ``R_E_S^T e_z``, the conjugate's
+    rotation of e_z (NumPy: no compilation per shape)."""
+    q = np.asarray(quat_E_S, dtype=np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    conj = (q[..., 0], -q[..., 1], -q[..., 2], -q[..., 3])
+    zero, one = np.zeros(q.shape[:-1]), np.ones(q.shape[:-1])
+    return np.stack(so3.quat_rotate_components(conj, (zero, zero, one)), axis=-1)
 
 
 def roll_pitch_of_up(up_S) -> tuple[np.ndarray, np.ndarray]:
     """ZYX roll and pitch (rad) of the sensor given its up vector (as ours)."""
-    roll, pitch = so3.roll_pitch_from_up(np.asarray(up_S))
-    return np.asarray(roll), np.asarray(pitch)
+    return so3.roll_pitch_from_up(np.asarray(up_S), xp=np)
 
 
 def angle_between(a, b) -> np.ndarray:
     """(…,) the angle (rad) between unit vectors ``a`` and ``b`` (NaN where either is)."""
-    return np.asarray(so3.angle_between_unit_vectors(np.asarray(a), np.asarray(b)))
+    return so3.angle_between_unit_vectors(a, b, xp=np)

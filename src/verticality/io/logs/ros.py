@@ -134,16 +134,19 @@ def decode_fast(raws: list[bytes], ros1: bool) -> tuple[np.ndarray, set] | None:
     checked per message); None when some message is not of that layout (the caller decodes one
     by one)."""
     out, frame_ids = np.empty((len(raws), 2 + FLOATS)), set()
-    lengths = np.fromiter((len(r) for r in raws), dtype=np.int64, count=len(raws))
-    for size in np.unique(lengths):
-        rows = np.flatnonzero(lengths == size)
-        layout = _fixed_layout(raws[rows[0]], ros1)
+    # a group: one length and one frame_id length (CDR pads two names to one length)
+    keys = np.fromiter(((len(r) << 32) | int.from_bytes(r[12:16], "little") if len(r) >= 16
+                        else -1 for r in raws), dtype=np.int64, count=len(raws))
+    for key in np.unique(keys):
+        rows = np.flatnonzero(keys == key)
+        size = int(key) >> 32
+        layout = _fixed_layout(raws[rows[0]], ros1) if key >= 0 else None
         if layout is None or layout[1] + 8 * FLOATS != size:
             return None
         name_len, floats_at = layout
         block = np.frombuffer(b"".join(raws[i] for i in rows), dtype=np.uint8).reshape(-1, size)
-        if not np.all(block[:, 12:16] == block[0, 12:16]):
-            return None
+        if not ros1 and not np.all(block[:, :2] == block[0, :2]):
+            return None  # a big-endian message among little-endian ones
         sec = block[:, 4:8].copy().view("<u4" if ros1 else "<i4")[:, 0]
         nsec = block[:, 8:12].copy().view("<u4")[:, 0]
         out[rows, 0], out[rows, 1] = sec, nsec
