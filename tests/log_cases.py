@@ -75,7 +75,7 @@ def px4_topics(t_s, gyr_flu, acc_flu, quat_flu, *, layout=None, t0_us: int = 5_0
     topics = [uw.Topic("sensor_combined", layout, rows),
               uw.Topic("vehicle_attitude", att_layout, att)]
     if truth:
-        topics.append(uw.Topic("vehicle_attitude_groundtruth", uw.VEHICLE_ATTITUDE_V1_8,
+        topics.append(uw.Topic("vehicle_attitude_groundtruth", uw.VEHICLE_ATTITUDE_RATES,
                                {"timestamp": stamps, "q": q_ned}))
     return topics
 

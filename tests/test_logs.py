@@ -56,7 +56,7 @@ def test_our_ulog_writer_writes_what_pyulog_reads(tmp_path):
 
     gyr = np.arange(30.0).reshape(10, 3)
     att_q = np.tile([1.0, 0.0, 0.0, 0.0], (10, 1))
-    topics = [uw.Topic("sensor_combined", uw.SENSOR_COMBINED_V1_11,
+    topics = [uw.Topic("sensor_combined", uw.SENSOR_COMBINED_ACC_CLIP,
                        {"timestamp": 1000 + 10 * np.arange(10), "gyro_rad": gyr,
                         "accelerometer_clipping": np.arange(10) % 8}),
               uw.Topic("vehicle_attitude", uw.VEHICLE_ATTITUDE,  # trailing padding: not logged
@@ -91,6 +91,8 @@ def test_formats_are_told_by_their_signature_not_their_suffix(bags, px4, tmp_pat
     assert read_log(renamed["ros1"]).format == formats.ROS1
     assert read_log(renamed["mcap"]).t_s.size == N
     assert read_log(renamed["ulog"]).topic == "sensor_combined"
+    db3 = bags["sqlite3"] / "run_db3.db3"  # a ROS 2 bag's storage file on its own
+    assert formats.log_format(db3) == formats.SQLITE and read_log(db3).t_s.size == N
     csv = tmp_path / "flight.ulg"
     csv.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n0,0,0,0,0,0,9.8\n")
     assert formats.log_format(csv) is None
@@ -233,8 +235,8 @@ def test_clip_counters_flag_their_interval_when_the_samples_carry_no_bits(tmp_pa
     t, gyr, acc, quat = lc.motion()
     status_t = 5_000_000 + np.array([0, 2, 4, 6, 8, 10]) * 1_000_000
     counts = np.array([[0, 0, 0], [0, 0, 0], [0, 3, 0], [0, 3, 0], [0, 3, 0], [0, 3, 0]])
-    topics = lc.px4_topics(t, gyr, acc, quat, layout=uw.SENSOR_COMBINED_V1_8,
-                           attitude_layout=uw.VEHICLE_ATTITUDE_V1_8)
+    topics = lc.px4_topics(t, gyr, acc, quat, layout=uw.SENSOR_COMBINED_MAG_BARO,
+                           attitude_layout=uw.VEHICLE_ATTITUDE_RATES)
     topics.append(uw.Topic("vehicle_imu_status", uw.VEHICLE_IMU_STATUS,
                            {"timestamp": status_t, "accel_clipping": counts,
                             "accel_device_id": 7}))
@@ -349,3 +351,16 @@ def test_a_missing_extra_is_one_line_naming_it(monkeypatch, px4, bags):
             read_log(path)
         assert str(info.value) == (f"reading robotics logs needs the optional package {module}: "
                                    "pip install 'verticality[logs]'")
+
+
+def test_the_docs_example_runs_as_written(tmp_path, monkeypatch):
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "logs.md").read_text(encoding="utf-8")
+    (code,) = re.findall(r"```python\n(.*?)```", text, re.S)
+    lc.px4_log(tmp_path / "flight.ulg", truth=True)
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    exec(compile(code, "docs/logs.md", "exec"), namespace)  # noqa: S102
+    assert namespace["est"].t_s.size == N and len(namespace["comp"].lines) == 4

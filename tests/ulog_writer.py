@@ -21,26 +21,26 @@ TYPES = {"uint64_t": "<u8", "int64_t": "<i8", "uint32_t": "<u4", "int32_t": "<i4
          "double": "<f8", "bool": "u1", "char": "S1"}
 
 # PX4's layouts as its logs define them ("type[n] name", in the logged order)
-SENSOR_COMBINED = [  # PX4 v1.14 on: per-axis clip bits of both sensors
+SENSOR_COMBINED = [  # recent PX4: per-axis clip bits of both sensors
     "uint64_t timestamp", "float[3] gyro_rad", "uint32_t gyro_integral_dt",
     "int32_t accelerometer_timestamp_relative", "float[3] accelerometer_m_s2",
     "uint32_t accelerometer_integral_dt", "uint8_t accelerometer_clipping",
     "uint8_t gyro_clipping", "uint8_t accel_calibration_count", "uint8_t gyro_calibration_count"]
-SENSOR_COMBINED_V1_11 = [  # the accelerometer's clip bits only (pyulog's sample_log_small)
+SENSOR_COMBINED_ACC_CLIP = [  # the accelerometer's clip bits only (pyulog's sample_log_small)
     "uint64_t timestamp", "float[3] gyro_rad", "uint32_t gyro_integral_dt",
     "int32_t accelerometer_timestamp_relative", "float[3] accelerometer_m_s2",
     "uint32_t accelerometer_integral_dt", "uint8_t accelerometer_clipping",
     "uint8_t[3] _padding0"]
-SENSOR_COMBINED_V1_8 = [  # magnetometer and barometer inside, no clip bits (a 2018 SITL log)
+SENSOR_COMBINED_MAG_BARO = [  # magnetometer and barometer inside, no clip bits (an older SITL)
     "uint64_t timestamp", "float[3] gyro_rad", "uint32_t gyro_integral_dt",
     "int32_t accelerometer_timestamp_relative", "float[3] accelerometer_m_s2",
     "uint32_t accelerometer_integral_dt", "int32_t magnetometer_timestamp_relative",
     "float[3] magnetometer_ga", "int32_t baro_timestamp_relative", "float baro_alt_meter",
     "float baro_temp_celcius"]
-VEHICLE_ATTITUDE = [  # v1.14 on: the estimate's sample time
+VEHICLE_ATTITUDE = [  # recent PX4: the estimate's sample time
     "uint64_t timestamp", "uint64_t timestamp_sample", "float[4] q", "float[4] delta_q_reset",
     "uint8_t quat_reset_counter", "uint8_t[7] _padding0"]
-VEHICLE_ATTITUDE_V1_8 = [  # also the layout of vehicle_attitude_groundtruth in a 2018 SITL log
+VEHICLE_ATTITUDE_RATES = [  # older: with rates; also vehicle_attitude_groundtruth's there
     "uint64_t timestamp", "float rollspeed", "float pitchspeed", "float yawspeed", "float[4] q",
     "float[4] delta_q_reset", "uint8_t quat_reset_counter", "uint8_t[3] _padding0"]
 VEHICLE_IMU = [

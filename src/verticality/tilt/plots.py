@@ -103,7 +103,7 @@ def plot_log_comparison(path: Path, comp, out, name: str) -> Path:
         ax[i].set_ylabel(f"{angle} (deg)")
         shade_rest(ax[i], t, c["at_rest"])
         ax[i].legend(loc="upper right", fontsize="small")
-    ax[0].set_title(f"{name} beside the log's own estimate (our frame: z up, sensor FLU)")
+    ax[0].set_title(f"{name} beside the log's own estimate (our convention: Earth z up)")
     for r, label in refs:
         ax[2].plot(t, np.degrees(c[f"{r}_angle_rad"]), label=f"{name} vs {label}",
                    color="0.2" if r == "truth" else "C1", linewidth=0.8)

@@ -186,8 +186,10 @@ def read_messages(path, fmt: str, topic: str | None):
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 (rosbags and its storage raise many kinds)
+        hint = ("; a ROS 1 bag cut short is repaired by rosbag reindex"
+                if fmt == formats.ROS1 and "index" in str(exc).lower() else "")
         raise InputError(f"{path}: not a readable {formats.FORMAT_NAMES[fmt]} "
-                         f"({_reason(exc)})") from None
+                         f"({_reason(exc)}){hint}") from None
     stamps = table[:, 0].astype(np.int64) * 1_000_000_000 + table[:, 1].astype(np.int64)
     f = table[:, 2:]
     quat = f[:, [3, 0, 1, 2]]  # ROS writes x, y, z, w

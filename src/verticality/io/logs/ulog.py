@@ -103,7 +103,7 @@ def choose(path, topics: dict, topic: str | None):
             return next(iter(topics.items()))
         if not topics:
             raise InputError(f"{path}: no IMU topic in this ULog (sensor_combined or "
-                             "vehicle_imu); it cannot be estimated")
+                             "vehicle_imu): not logged, or the file ends before its data")
         raise InputError(f"{path}: several IMU topics ({names}) and no sensor_combined; choose "
                          "one with --topic")
     for label in (topic, f"{topic}.0"):

@@ -1,6 +1,6 @@
 """The tilt written back for robotics tools (``rosbags``' writers): a bare MCAP file or a ROS 2
-bag folder (sqlite3 storage, readable by every ROS 2 release's ``ros2 bag``), one message per
-sample on a topic of its own, stamped with the sample's own time stamp (ns):
+bag folder (sqlite3 storage, metadata version 8), one message per sample on a topic of its own,
+stamped with the sample's own time stamp (ns):
 
 * ``sensor_msgs/msg/Imu`` (default): the orientation (sensor → a z-up Earth frame, REP-145; the
   heading is the gyro's integral, not a measured one), its covariance ``diag(var_x, var_y, π²/3)``
