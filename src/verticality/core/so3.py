@@ -280,12 +280,14 @@ def up_in_frame(R_I_B):
     return jnp.asarray(R_I_B)[..., 2, :]
 
 
-def angle_between_unit_vectors(a, b):
-    """Angle (rad) between two unit vectors, accurate near 0 and pi (atan2 of |a x b| and a.b)."""
-    a = jnp.asarray(a)
-    b = jnp.asarray(b)
-    c = jnp.cross(a, b)
-    return jnp.arctan2(_safe_norm(c), jnp.sum(a * b, axis=-1))
+def angle_between_unit_vectors(a, b, xp=jnp):
+    """Angle (rad) between two unit vectors, accurate near 0 and pi (atan2 of |a x b| and a.b).
+    ``xp=numpy``: the same formula on NumPy arrays (no compilation per shape)."""
+    a = xp.asarray(a)
+    b = xp.asarray(b)
+    c = xp.cross(a, b)
+    norm = _safe_norm(c) if xp is jnp else xp.sqrt(xp.sum(c * c, axis=-1))
+    return xp.arctan2(norm, xp.sum(a * b, axis=-1))
 
 
 def tilt_error_rad(R_I_H_true, R_I_H_est):
@@ -308,14 +310,15 @@ def quat_from_rpy_radians(roll, pitch, yaw):
     return quat_multiply(qz, quat_multiply(qy, qx))
 
 
-def roll_pitch_from_up(up_B):
-    """Roll and pitch (ZYX convention, rad) of a frame B from the world up axis expressed in B.
+def roll_pitch_from_up(up_B, xp=jnp):
+    """Roll and pitch (ZYX convention, rad) of a frame B from the world up axis expressed in B
+    (``xp=numpy``: on NumPy arrays).
 
     For R_IB = Rz(yaw) Ry(pitch) Rx(roll): up_B = (-sin p, sin r cos p, cos r cos p).
     """
-    u = jnp.asarray(up_B)
-    roll = jnp.arctan2(u[..., 1], u[..., 2])
-    pitch = jnp.arctan2(-u[..., 0], jnp.sqrt(u[..., 1] ** 2 + u[..., 2] ** 2))
+    u = xp.asarray(up_B)
+    roll = xp.arctan2(u[..., 1], u[..., 2])
+    pitch = xp.arctan2(-u[..., 0], xp.sqrt(u[..., 1] ** 2 + u[..., 2] ** 2))
     return roll, pitch
 
 

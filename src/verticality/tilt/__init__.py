@@ -13,11 +13,19 @@ flags)::
     one = s.step(gyr_rad_s[0], acc_m_s2[0])                   # one sample of a TiltEstimate
     est.flags & tilt.REACQUIRING                              # the flag bits (tilt.flags)
 
+Robotics logs (PX4 ULog, ROS 1 and ROS 2 bags, MCAP; the ``logs`` extra; docs/logs.md)::
+
+    rec = tilt.read_log("flight.ulg")         # samples, clip bits, breaks, the log's estimate
+    est = tilt.estimate_log(rec)              # or tilt.estimate(**rec.estimate_args())
+    tilt.compare_log(rec, est).lines          # ours beside the log's own estimate
+
 Options are keyword-only: ``params=tilt.TiltParams(...)``, ``gyr_range_rad_s=``,
-``acc_range_m_s2=``, ``detect_clipping=``. :class:`TiltFilter` is the filter under the project's
-estimator interface (``init``/``step``/``run``, raw per-sample outputs).
+``acc_range_m_s2=``, ``detect_clipping=``, ``gyr_clipped=``, ``acc_clipped=``.
+:class:`TiltFilter` is the filter under the project's estimator interface (``init``/``step``/
+``run``, raw per-sample outputs).
 """
 
+from verticality.io.logs import LogRecording, read_log
 from verticality.tilt import flags
 from verticality.tilt.estimator import TiltFilter, estimate, smooth
 from verticality.tilt.flags import (
@@ -30,16 +38,19 @@ from verticality.tilt.flags import (
     GYR_MISSING,
     HELD,
     INIT,
+    LOG_BREAK,
     OUT_OF_RANGE,
     REACQUIRED,
     REACQUIRING,
 )
+from verticality.tilt.logs import compare_log, estimate_log
 from verticality.tilt.output import TiltEstimate, tilt_sigma_rad
 from verticality.tilt.params import DEFAULT_PARAMS, TiltParams, block_samples
 from verticality.tilt.realtime import Stream
 
-__all__ = ["estimate", "smooth", "Stream", "TiltEstimate", "TiltFilter", "TiltParams",
+__all__ = ["estimate", "smooth", "Stream", "read_log", "estimate_log", "compare_log",
+           "LogRecording", "TiltEstimate", "TiltFilter", "TiltParams",
            "DEFAULT_PARAMS", "block_samples", "tilt_sigma_rad", "flags", "ACC_MISSING",
            "GYR_MISSING", "BAD_DT",
            "ACC_DISTURBED", "INIT", "DT_GAP", "REACQUIRED", "REACQUIRING", "OUT_OF_RANGE",
-           "CLIPPED", "HELD", "FLAG_NAMES"]
+           "CLIPPED", "HELD", "LOG_BREAK", "FLAG_NAMES"]

@@ -140,24 +140,28 @@ _EMPTY_SUMS = np.asarray(tilt_core.empty_sums(xp=np))
 
 
 def recording_limits(gyr, acc, dt, gyr_range_rad_s=None, acc_range_m_s2=None,
-                     detect_clipping: bool = True, prev=None):
+                     detect_clipping: bool = True, prev=None, gyr_clipped=None,
+                     acc_clipped=None):
     """The clipped and held samples of a recording (:func:`verticality.tilt.limits.find_limits`;
     ``prev`` the row before the first when it is read in pieces), or None when its shapes are wrong
-    (the filter's own checks then say so). ``detect_clipping=False``: no clipping at all, given
-    ranges or not (held rows are still flagged)."""
+    (the filter's own checks then say so). ``detect_clipping=False``: no clipping found from the
+    readings, given ranges or not (held rows are still flagged; ``gyr_clipped``, ``acc_clipped``,
+    the components a log says clipped, still count)."""
     n = gyr.shape[0] if gyr.ndim == 2 and gyr.shape[1:] == (3,) else -1
     if n < 0 or acc.shape != gyr.shape or dt.ndim > 1 or (dt.ndim == 1 and dt.shape[0] != n):
         return None
     if not detect_clipping:
         gyr_range_rad_s = acc_range_m_s2 = None
     lim = tilt_limits.find_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2,
-                                  infer=detect_clipping, prev=prev)
+                                  infer=detect_clipping, prev=prev, gyr_clipped=gyr_clipped,
+                                  acc_clipped=acc_clipped)
     return lim
 
 
 def estimate(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
              params: TiltParams = DEFAULT_PARAMS, block: int | None = None, gyr_range_rad_s=None,
-             acc_range_m_s2=None, detect_clipping: bool = True) -> TiltEstimate:
+             acc_range_m_s2=None, detect_clipping: bool = True, gyr_clipped=None,
+             acc_clipped=None) -> TiltEstimate:
     """Filter a whole recording from the start (no prior state): gyro (N, 3) rad/s,
     accelerometer (N, 3) m/s², and its time: the time stamps ``t_s`` (N,) s, or a fixed sampling
     period ``period_s`` (s) (:func:`~verticality.tilt.output.time_axis`). Returns a
@@ -168,8 +172,10 @@ def estimate(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
     or beyond them is clipped (flag ``CLIPPED``): a clipped gyro axis widens the tilt variance for
     its unknown excess, a clipped accelerometer axis the velocity variance. Without them the clip
     levels are inferred from the recording's flat tops; ``detect_clipping=False`` turns clipping
-    off. Rows that repeat the previous row bit for bit are flagged ``HELD``. ``block``: samples
-    per Kalman update; default ``params.update_s`` at the recording's sampling period.
+    off. ``gyr_clipped``, ``acc_clipped`` ((N, 3) bool): components known to have clipped (a
+    log's clip bits, :func:`verticality.tilt.read_log`), treated as clipped whatever their value.
+    Rows that repeat the previous row bit for bit are flagged ``HELD``. ``block``: samples per
+    Kalman update; default ``params.update_s`` at the recording's sampling period.
 
     Example::
 
@@ -180,13 +186,14 @@ def estimate(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
     gyr, acc = _arrays(gyr_rad_s, acc_m_s2)
     t, dt = time_axis(gyr.shape[0], t_s, period_s)
     out = estimate_steps(gyr, acc, dt, params, block, gyr_range_rad_s, acc_range_m_s2,
-                         detect_clipping)
+                         detect_clipping, gyr_clipped, acc_clipped)
     return estimate_of(out, t, params)
 
 
 def smooth(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
            params: TiltParams = DEFAULT_PARAMS, block: int | None = None, gyr_range_rad_s=None,
-           acc_range_m_s2=None, detect_clipping: bool = True) -> TiltEstimate:
+           acc_range_m_s2=None, detect_clipping: bool = True, gyr_clipped=None,
+           acc_clipped=None) -> TiltEstimate:
     """The offline estimate of a whole recording: the filter (:func:`estimate`, the same
     arguments, the sensors' limits included) followed by a Rauch–Tung–Striebel backward pass over
     its error state (:mod:`~verticality.tilt.smoother`), so that every sample's tilt uses the
@@ -204,7 +211,7 @@ def smooth(gyr_rad_s, acc_m_s2, t_s=None, *, period_s=None,
     gyr, acc = _arrays(gyr_rad_s, acc_m_s2)
     t, dt = time_axis(gyr.shape[0], t_s, period_s)
     out = smooth_steps(gyr, acc, dt, params, block, gyr_range_rad_s, acc_range_m_s2,
-                       detect_clipping)
+                       detect_clipping, gyr_clipped, acc_clipped)
     return estimate_of(out, t, params)
 
 
@@ -220,7 +227,8 @@ def _arrays(gyr_rad_s, acc_m_s2):
 
 
 def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int | None = None,
-                   gyr_range_rad_s=None, acc_range_m_s2=None, detect_clipping: bool = True):
+                   gyr_range_rad_s=None, acc_range_m_s2=None, detect_clipping: bool = True,
+                   gyr_clipped=None, acc_clipped=None):
     """:func:`estimate` given the steps ``dt_s`` (a scalar, or (N,): ``dt_s[k]`` the time from
     sample k−1 to k, non-finite where a reader found no usable time stamp: that sample is skipped
     and flagged ``BAD_DT``), for readers of files that judge the time stamps themselves
@@ -233,7 +241,8 @@ def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: i
     dt = np.asarray(dt_s, dtype=np.float64)
     block = block_samples(params, dt) if block is None else block
     filt = TiltFilter(params, block)
-    lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping)
+    lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping,
+                           gyr_clipped=gyr_clipped, acc_clipped=acc_clipped)
     if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
     if n <= tilt_batch.PIECE_SAMPLES:
@@ -243,7 +252,8 @@ def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: i
 
 
 def smooth_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int | None = None,
-                 gyr_range_rad_s=None, acc_range_m_s2=None, detect_clipping: bool = True):
+                 gyr_range_rad_s=None, acc_range_m_s2=None, detect_clipping: bool = True,
+                 gyr_clipped=None, acc_clipped=None):
     """:func:`smooth` given the steps ``dt_s`` (as :func:`estimate_steps`); the core's raw
     ``TiltOutput`` with the smoothed variances."""
     gyr = np.asarray(gyr, dtype=np.float64)
@@ -252,7 +262,8 @@ def smooth_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int
     filt = TiltFilter(params, block)
     acc = np.asarray(acc, dtype=np.float64)
     lim = recording_limits(gyr, acc, np.asarray(dt_s, dtype=np.float64), gyr_range_rad_s,
-                           acc_range_m_s2, detect_clipping)
+                           acc_range_m_s2, detect_clipping, gyr_clipped=gyr_clipped,
+                           acc_clipped=acc_clipped)
     extra = {} if lim is None else lim.run_args()
     final, out, trans = tilt_batch.run(params, block, filt.init(), gyr, acc, dt_s,
                                        transitions=True, **extra)

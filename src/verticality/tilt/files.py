@@ -52,18 +52,21 @@ def check_ranges(filter_name: str, ranges: dict | None) -> dict:
 
 
 def estimate_imu(gyr_rad_s, acc_m_s2, t_s, dt_s, filter_name: str = OURS,
-                 offline: bool = False, ranges: dict | None = None) -> ImuEstimate:
+                 offline: bool = False, ranges: dict | None = None,
+                 clipped: dict | None = None) -> ImuEstimate:
     """Roll, pitch, gravity direction, bias and flags of a recording at times ``t_s`` with steps
     ``dt_s`` as a reader found them (non-finite where a time stamp is missing: that sample is
     skipped and flagged) by ``filter_name`` (ours: ``tilt.estimate`` with its σ, or with
     ``offline`` the smoother ``tilt.smooth``, given the sensor's ``ranges`` if known
     (``gyr_range_rad_s``, ``acc_range_m_s2``); a peer: :func:`peer_output` of its quaternions and
-    bias)."""
+    bias). ``clipped``: the components a log says clipped (``gyr_clipped``, ``acc_clipped``,
+    (N, 3) bool or None; our filter only, the peers have no clipped treatment)."""
     check_offline(filter_name, offline)
     ranges = check_ranges(filter_name, ranges)
     if filter_name == OURS:
         run = estimator.smooth_steps if offline else estimator.estimate_steps
-        out = estimate_of(run(gyr_rad_s, acc_m_s2, dt_s, **ranges), t_s, DEFAULT_PARAMS)
+        out = estimate_of(run(gyr_rad_s, acc_m_s2, dt_s, **ranges, **(clipped or {})), t_s,
+                          DEFAULT_PARAMS)
         return ImuEstimate(out, out.sigma_rad)
     quat, bias = run_filter(filter_name, gyr_rad_s, acc_m_s2, dt_s)
     return ImuEstimate(peer_output(np.asarray(quat), np.asarray(bias), t_s, dt_s), None)

@@ -22,18 +22,20 @@ CLIPPED = 512  # a gyro or accelerometer component at the sensor's clip level (t
 # the velocity variance (both readings are kept)
 HELD = 1024  # the row repeats the previous row's six channels bit for bit (tilt_limits): a logger
 # faster than its sensor; filtered as any row (a zero-order hold over its true Δt)
+LOG_BREAK = 2048  # a robotics log marks a break before this sample (verticality.io.logs): samples
+# lost (a logger drop-out), or the selected IMU changed (the filter starts afresh here)
 
 FLAG_NAMES = {ACC_MISSING: "accelerometer missing", GYR_MISSING: "gyro missing",
               BAD_DT: "bad time step", ACC_DISTURBED: "accelerometer disturbed",
               INIT: "initialization", DT_GAP: "gap in the time stamps",
               REACQUIRED: "tilt re-acquired", REACQUIRING: "re-acquiring",
               OUT_OF_RANGE: "beyond the sensor's range", CLIPPED: "clipped",
-              HELD: "held (repeated row)"}
+              HELD: "held (repeated row)", LOG_BREAK: "break in the log"}
 # short identifiers of the bits (table columns such as a folder summary's ``n_<key>``)
 FLAG_KEYS = {ACC_MISSING: "acc_missing", GYR_MISSING: "gyr_missing", BAD_DT: "bad_dt",
              ACC_DISTURBED: "acc_disturbed", INIT: "init", DT_GAP: "dt_gap",
              REACQUIRED: "reacquired", REACQUIRING: "reacquiring", OUT_OF_RANGE: "out_of_range",
-             CLIPPED: "clipped", HELD: "held"}
+             CLIPPED: "clipped", HELD: "held", LOG_BREAK: "log_break"}
 
 
 def accelerometer_used(flags):

@@ -28,7 +28,7 @@ import numpy as np
 from verticality.core.errors import InputError
 from verticality.tilt.flags import FLAG_KEYS
 
-RECORDING_SUFFIXES = (".csv", ".hdf5", ".h5")
+RECORDING_SUFFIXES = (".csv", ".hdf5", ".h5", ".ulg", ".bag", ".mcap")  # (logs: docs/logs.md)
 SUMMARY_NAMES = ("summary.csv", "summary.json", "folder.json")  # in OUT beside the outputs
 # suffixes of files, not folders: a new --out with one is a file name given by mistake
 FILE_SUFFIXES = (".csv", ".json", ".parquet", ".h5", ".hdf5", ".txt", ".png")
@@ -57,15 +57,17 @@ class FolderSummary:
 
 
 def is_folder_input(arg) -> bool:
-    """Whether a command's INPUT means many recordings: a folder, or a glob pattern that is not
-    an existing file."""
+    """Whether a command's INPUT means many recordings: a folder (not a ROS 2 bag's: one
+    recording), or a glob pattern that is not an existing file."""
     path = Path(arg)
-    return path.is_dir() or (not path.exists() and glob.has_magic(str(arg)))
+    if path.is_dir():
+        return not (path / "metadata.yaml").is_file()
+    return not path.exists() and glob.has_magic(str(arg))
 
 
 def find_recordings(inputs) -> list[Path]:
     """The recordings named by ``inputs`` (a path or a list of paths): a folder gives its
-    ``*.csv``, ``*.hdf5`` and ``*.h5`` files (not its subfolders, not hidden files), sorted by
+    files of :data:`RECORDING_SUFFIXES` (not its subfolders, not hidden files), sorted by
     name; a glob pattern its matches, sorted; a file itself. Refuses an empty result."""
     items = [inputs] if isinstance(inputs, (str, Path)) else list(inputs)
     found: list[Path] = []
@@ -82,7 +84,8 @@ def find_recordings(inputs) -> list[Path]:
         else:
             raise InputError(f"{path}: no such file or folder")
     if not found:
-        raise InputError(f"{', '.join(map(str, items))}: no recordings found (.csv, .hdf5, .h5)")
+        raise InputError(f"{', '.join(map(str, items))}: no recordings found "
+                         f"({', '.join(RECORDING_SUFFIXES)})")
     return found
 
 
@@ -155,9 +158,19 @@ def estimate_one(path: str, out_path: str, row_path: str, options: dict,
     manifest = {}
     try:
         source = fingerprint(path)  # before the read: a file changed meanwhile is redone later
-        run = estimate_file(path, out_path, options["units"], options["columns"],
-                            options["time_unit"], options["filter_name"], sigma=options["sigma"],
-                            offline=options["offline"], ranges=options["ranges"])
+        from verticality.io.logs import is_log
+
+        if is_log(path):
+            from verticality.tilt.logs import estimate_log_file
+
+            run = estimate_log_file(path, out_path, units=options["units"],
+                                    filter_name=options["filter_name"], sigma=options["sigma"],
+                                    offline=options["offline"], ranges=options["ranges"]).run
+        else:
+            run = estimate_file(path, out_path, options["units"], options["columns"],
+                                options["time_unit"], options["filter_name"],
+                                sigma=options["sigma"], offline=options["offline"],
+                                ranges=options["ranges"])
         row |= run_summary(run)
         manifest = {MANIFEST: {"input": source, "output": fingerprint(out_path)}}
     except Exception as exc:  # a bad recording is a row with its error, never the run's end

@@ -180,6 +180,18 @@ def _levels(x, held, given, name, floor, infer):
     return np.full(3, -np.inf), np.full(3, np.inf)
 
 
+def _excess_level(x, top, lo, hi, floor):
+    """(N, 3) the clip level that sets the σ of a clipped component's excess: the level on the
+    side it clipped (``top``: the high one; a clip a log reported: the side of the reading's
+    sign); where that level is unknown, the reading's size, at least ``floor``."""
+    with np.errstate(invalid="ignore"):
+        high = top | ((x >= 0) & ~(x <= lo))
+    level = np.where(high, hi, -lo)
+    with np.errstate(invalid="ignore"):
+        own = np.maximum(np.abs(np.nan_to_num(x)), floor)
+    return np.where(np.isfinite(level), level, own)
+
+
 def clip_variance(clipped, sigma_rad_s, dts) -> np.ndarray:
     """(N,) the tilt variance (rad²) each sample adds for the unknown excess of its clipped gyro
     axes: per axis, an unknown constant rate of standard deviation ``sigma_rad_s`` (N, 3) over each
@@ -199,18 +211,36 @@ def clip_variance(clipped, sigma_rad_s, dts) -> np.ndarray:
     return out
 
 
+def known_mask(mask, n: int, name: str) -> np.ndarray | None:
+    """A per-sample, per-axis clip mask given by the caller as (N, 3) bool (None: none given),
+    else a one-line ``InputError``."""
+    if mask is None:
+        return None
+    m = np.asarray(mask)
+    if m.shape != (n, 3) or m.dtype.kind not in "bui":
+        raise InputError(f"{name} must be (N, 3) booleans, one per sample and axis, N = {n}; got "
+                         f"shape {m.shape} of {m.dtype}")
+    return m.astype(bool)
+
+
 def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=None,
-                infer: bool = True, prev=None) -> Limits:
+                infer: bool = True, prev=None, gyr_clipped=None, acc_clipped=None) -> Limits:
     """The clipped and held samples of a recording (module doc): gyro (N, 3) rad/s, accelerometer
     (N, 3) m/s², ``dt_s`` scalar or (N,). ``gyr_range_rad_s``, ``acc_range_m_s2``: the sensor's
     full-scale readings (scalar or (3,)); a component at or beyond them is clipped. Without them
     the levels are inferred from flat tops when ``infer`` (else nothing is clipped on that
     sensor). ``prev``: the row before the first, for a recording read in pieces
     (:func:`held_rows`; the levels are then inferred per piece, and a clipped run that spans two
-    pieces restarts its unknown excess at the second)."""
+    pieces restarts its unknown excess at the second). ``gyr_clipped``, ``acc_clipped``: (N, 3)
+    bool, the components a log says clipped (a flight controller's per-sample clip bits: its
+    samples are averages that never sit at full scale), clipped in addition to those found here,
+    with the range as the level of their excess where it is known, else the reading's size (at
+    least the smallest common range)."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     n = gyr.shape[0]
+    g_known = known_mask(gyr_clipped, n, "gyr_clipped")
+    a_known = known_mask(acc_clipped, n, "acc_clipped")
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,))
     held = held_rows(gyr, acc, prev)
     g_lo, g_hi = _levels(gyr, held, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S, infer)
@@ -222,20 +252,26 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
         finite = np.isfinite(gyr)
         g_top = (gyr >= g_hi) & finite
         gyr_clipped = g_top | ((gyr <= g_lo) & finite)
+    if g_known is not None:
+        gyr_clipped = gyr_clipped | g_known
     acc_clipped = np.zeros(n, dtype=bool)
     vel_var = np.zeros(n)
+    a_top = a_axes = np.zeros(acc.shape, dtype=bool)
     if np.isfinite(a_lo).any() or np.isfinite(a_hi).any():
         finite = np.isfinite(acc)
         a_top = (acc >= a_hi) & finite
         a_axes = a_top | ((acc <= a_lo) & finite)
         acc_clipped = np.any(a_axes, axis=1)
-        if acc_clipped.any():
-            sigma = EXCESS_FRACTION * np.where(a_top, a_hi, -a_lo)
-            vel_var = clip_variance(a_axes, np.where(a_axes, sigma, 0.0), dts)
+    if a_known is not None:
+        a_axes = a_axes | a_known
+        acc_clipped = np.any(a_axes, axis=1)
+    if acc_clipped.any():
+        sigma = EXCESS_FRACTION * _excess_level(acc, a_top, a_lo, a_hi, ACC_FLOOR_M_S2)
+        vel_var = clip_variance(a_axes, np.where(a_axes, sigma, 0.0), dts)
     flags = np.where(held, np.int32(HELD), np.int32(0))
     var = np.zeros(n)
     if gyr_clipped.any():
-        sigma = EXCESS_FRACTION * np.where(g_top, g_hi, -g_lo)
+        sigma = EXCESS_FRACTION * _excess_level(gyr, g_top, g_lo, g_hi, GYR_FLOOR_RAD_S)
         var = clip_variance(gyr_clipped, np.where(gyr_clipped, sigma, 0.0), dts)
         flags |= np.where(gyr_clipped.any(axis=1), np.int32(CLIPPED), np.int32(0))
     if acc_clipped.any():

@@ -75,3 +75,44 @@ def plot_estimate(path: Path, t, out, name: str, sigma_rad=None) -> Path:
     plot_flags(ax[-1], t, flags)
     ax[-1].set_xlabel("t (s)")
     return save(fig, path)
+
+
+def shade_rest(ax, t, at_rest) -> None:
+    """Shade the spans where the IMU is still (a comparison's ``at_rest``)."""
+    starts, lasts = flag_runs(np.asarray(at_rest).astype(int), 1)
+    for j, (a, b) in enumerate(zip(starts, lasts, strict=True)):
+        ax.axvspan(t[a], t[b], color="#dde8f3", zorder=0, label="at rest" if j == 0 else None)
+
+
+def plot_log_comparison(path: Path, comp, out, name: str) -> Path:
+    """Our estimate beside a log's own (``comp``, :class:`verticality.tilt.logs.LogComparison`):
+    roll and pitch of each, the angle between the up vectors, and our flags. Returns the path
+    written."""
+    from verticality.core.plots import new_figure, save
+
+    c = comp.columns
+    t = np.asarray(c["t"])
+    refs = [(r, comp.summary[r]["name"]) for r in ("log", "truth") if r in comp.summary]
+    fig, axes = new_figure(4, 1, height_per_row=2.2)
+    ax = axes[:, 0]
+    for i, angle in enumerate(("roll", "pitch")):
+        for r, label in refs:
+            ax[i].plot(t, np.degrees(c[f"{r}_{angle}_rad"]), label=label,
+                       color="0.2" if r == "truth" else "C1", linewidth=1.0)
+        ax[i].plot(t, np.degrees(c[f"{angle}_rad"]), label=name, color="C0", linewidth=0.8)
+        ax[i].set_ylabel(f"{angle} (deg)")
+        shade_rest(ax[i], t, c["at_rest"])
+        ax[i].legend(loc="upper right", fontsize="small")
+    ax[0].set_title(f"{name} beside the log's own estimate (our convention: Earth z up)")
+    for r, label in refs:
+        ax[2].plot(t, np.degrees(c[f"{r}_angle_rad"]), label=f"{name} vs {label}",
+                   color="0.2" if r == "truth" else "C1", linewidth=0.8)
+    if "log_truth_angle_rad" in c:
+        ax[2].plot(t, np.degrees(c["log_truth_angle_rad"]), label=f"{refs[0][1]} vs "
+                   f"{refs[1][1]}", color="C2", linewidth=0.8)
+    ax[2].set_ylabel("angle between\nup vectors (deg)")
+    shade_rest(ax[2], t, c["at_rest"])
+    ax[2].legend(loc="upper right", fontsize="small")
+    plot_flags(ax[3], t, np.asarray(out.flags))
+    ax[3].set_xlabel("t (s)")
+    return save(fig, path)

@@ -6,7 +6,9 @@ recording of FOLDER (or of a quoted glob pattern) into ``DIR/NAME.csv``, one Das
 the summary table ``DIR/summary.csv`` / ``.json`` (docs/sweep.md, Folders of recordings).
 
 INPUT is an IMU CSV (``t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z``, SI units; an EuRoC / TUM-VI IMU
-file; or any header mapped with ``--columns``) or a BROAD-layout HDF5 file. Writes
+file; or any header mapped with ``--columns``), a BROAD-layout HDF5 file, or a robotics log (PX4
+ULog, ROS 1 bag, ROS 2 bag folder, MCAP; docs/logs.md: ``--topic``, ``--compare OUT.csv``,
+``--out OUT.mcap``, ``--ros2-bag DIR``). Writes
 ``t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags``; with ``--sigma`` (our filter) a last
 column ``tilt_sigma_rad``, the tilt's standard deviation. ``--offline``: our smoother
 (``tilt.smooth``) over the whole recording instead of the causal filter.
@@ -25,14 +27,17 @@ def register(sub):
     from verticality.tilt.evaluation.broad import FILTERS, OURS
 
     p = sub.add_parser("estimate", help="estimate roll, pitch and the gravity direction from an "
-                                        "IMU recording (CSV or BROAD HDF5)")
+                                        "IMU recording (CSV, BROAD HDF5, PX4 ULog, ROS bag, "
+                                        "MCAP)")
     p.add_argument("input", type=Path, metavar="INPUT",
                    help="CSV t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z (s, rad/s, m/s²), EuRoC/TUM-VI "
-                        "IMU CSV, CSV with --columns, or BROAD .hdf5; or a folder (or a quoted "
+                        "IMU CSV, CSV with --columns, BROAD .hdf5, PX4 .ulg, ROS 1 .bag, ROS 2 bag "
+                        "folder or .mcap (logs need the logs extra); or a folder (or a quoted "
                         "glob) of them: one output each in --out DIR and a summary table")
     p.add_argument("--out", type=Path, required=True, metavar="OUT.csv",
                    help="output CSV t,roll_rad,pitch_rad,gx,gy,gz,bias_x,bias_y,bias_z,flags "
-                        "(a folder when INPUT is one)")
+                        "(a folder when INPUT is one); for a log, a name ending in .mcap writes "
+                        "the tilt as MCAP (sensor_msgs/Imu on --tilt-topic)")
     add_engine_arguments(p, "folder only: one task per recording",
                          "the recordings one after the other in this process")
     p.add_argument("--resume", action="store_true",
@@ -57,7 +62,27 @@ def register(sub):
     p.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                    help="also draw roll, pitch, bias, the tilt's σ and the flags over time")
     add_layout_options(p)
+    add_log_options(p)
     p.set_defaults(func=run)
+
+
+def add_log_options(p) -> None:
+    """The options of a robotics log input (docs/logs.md)."""
+    p.add_argument("--topic", default=None, metavar="NAME",
+                   help="log only: the IMU topic to read (default: sensor_combined in a ULog, "
+                        "the only sensor_msgs/Imu topic in a bag)")
+    p.add_argument("--compare", type=Path, default=None, metavar="OUT.csv",
+                   help="log only: write the log's own attitude estimate (PX4's vehicle_attitude, "
+                        "the Imu orientation; a simulation's ground truth) beside ours, per "
+                        "sample, and print the angles between them while moving and at rest")
+    p.add_argument("--ros2-bag", type=Path, default=None, metavar="DIR",
+                   help="log only: also write the tilt as a new ROS 2 bag folder (sqlite3 "
+                        "storage)")
+    p.add_argument("--tilt-topic", default=None, metavar="/NAME",
+                   help="the topic of the tilt in an .mcap --out or --ros2-bag (default /tilt)")
+    p.add_argument("--tilt-message", default="imu", choices=("imu", "quaternion"),
+                   help="the message of the tilt there: sensor_msgs/Imu (orientation and its "
+                        "covariance) or geometry_msgs/QuaternionStamped (default imu)")
 
 
 def add_layout_options(p) -> None:
@@ -76,11 +101,22 @@ def add_layout_options(p) -> None:
 def run(args) -> int:
     from rich.console import Console
 
+    from verticality.io.logs import is_log
     from verticality.io.paths import check_input_file, check_paths, check_written
     from verticality.tilt.files import check_sigma, estimate_file
     from verticality.tilt.folder import is_folder_input
     from verticality.tilt.limits import datasheet_ranges
 
+    if is_log(args.input):
+        return run_log(args)
+    given = [o for o, v in (("--topic", args.topic), ("--compare", args.compare),
+                            ("--ros2-bag", args.ros2_bag), ("--tilt-topic", args.tilt_topic))
+             if v is not None]
+    if args.out.suffix.lower() == ".mcap" and not is_folder_input(args.input):
+        given.append("--out .mcap")
+    if given:
+        raise InputError(f"{', '.join(given)}: for a robotics log (PX4 ULog, ROS bag, MCAP); "
+                         f"{args.input} is none")
     if is_folder_input(args.input):
         return run_folder(args)
     given = [o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler),
@@ -111,6 +147,55 @@ def run(args) -> int:
 
         print("wrote "
               f"{plot_estimate(args.plot, run.t_s, run.out, args.filter, run.tilt_sigma_rad)}")
+    return 0
+
+
+def run_log(args) -> int:
+    """``estimate LOG``: the tilt of a robotics log (:func:`verticality.tilt.logs.
+    estimate_log_file`), its notes on stderr, the comparison's lines on stdout."""
+    from verticality.io.paths import check_paths, check_written
+    from verticality.tilt.limits import datasheet_ranges
+    from verticality.tilt.logs import check_log_outputs, estimate_log_file
+
+    given = [o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler),
+                            ("--resume", args.resume), ("--columns", args.columns),
+                            ("--time-unit", args.time_unit)) if v not in (None, False)]
+    if given:
+        raise InputError(f"{', '.join(given)}: not for a robotics log ({args.input})")
+    inputs = check_log_outputs(args.input, args.ros2_bag, [args.out, args.compare, args.plot])
+    check_paths({"--out": args.out, "--plot": args.plot, "--compare": args.compare}, inputs,
+                figures=["--plot"])
+    lr = estimate_log_file(args.input, args.out, topic=args.topic, units=args.units,
+                           filter_name=args.filter, sigma=args.sigma, offline=args.offline,
+                           ranges=datasheet_ranges(args.gyr_range, args.acc_range),
+                           compare_path=args.compare, ros2_bag=args.ros2_bag,
+                           tilt_topic=args.tilt_topic, message=args.tilt_message,
+                           keep_comparison=args.plot is not None)
+    for path in lr.written:
+        if Path(path).is_file():
+            check_written(path)
+    run, rec = lr.run, lr.recording
+    how = ", offline (smoothed)" if args.offline else ""
+    print(f"wrote {', '.join(map(str, lr.written))} ({run.n} samples of {rec.topic}, filter "
+          f"{args.filter}{how})")
+    for note in rec.notes:
+        print(f"note: {note}", file=sys.stderr)
+    if run.sigma_line is not None:
+        print(run.sigma_line)
+    if run.gap_line is not None:
+        print(run.gap_line, file=sys.stderr)
+    print(f"t is in seconds from the log's first time stamp, {run.t_origin}")
+    if lr.comparison is not None:
+        for line in lr.comparison.lines:
+            print(line)
+    if args.plot is not None:
+        from verticality.tilt.plots import plot_estimate, plot_log_comparison
+
+        if lr.comparison is not None:
+            drawn = plot_log_comparison(args.plot, lr.comparison, run.out, args.filter)
+        else:
+            drawn = plot_estimate(args.plot, run.t_s, run.out, args.filter, run.tilt_sigma_rad)
+        print(f"wrote {drawn}")
     return 0
 
 

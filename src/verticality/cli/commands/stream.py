@@ -13,6 +13,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from verticality.core.errors import InputError
+
 
 def register(sub):
     from verticality.cli.commands.estimate import add_layout_options
@@ -36,6 +38,11 @@ def run(args) -> int:
     gyr_u, acc_u = parse_units(args.units)
     mapping = imu_layout.parse_columns_spec(args.columns) if args.columns is not None else None
     if args.input is not None:
+        from verticality.io.logs import is_log
+
+        if is_log(args.input):  # a recorded log is read whole: it is no stream of rows
+            raise InputError(f"{args.input}: a robotics log (PX4 ULog, ROS bag, MCAP); stream "
+                             "reads IMU CSV rows: use verticality estimate LOG --out OUT.csv")
         check_input_file(args.input)
     source = "stdin" if args.input is None else str(args.input)
     fh = sys.stdin if args.input is None else open(args.input, encoding="utf-8-sig")  # noqa: SIM115
