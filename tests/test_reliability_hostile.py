@@ -394,6 +394,19 @@ def test_two_writers_of_one_output_never_mix(tmp_path):
     assert len(out.read_text().splitlines()) == 301 and not (tmp_path / "o.csv.part").exists()
 
 
+def test_a_link_or_a_pipe_planted_as_the_temporary_file_is_refused(tmp_path):
+    v = victim(tmp_path)
+    out = tmp_path / "o.csv"
+    (tmp_path / "o.csv.part").symlink_to("victim.txt")
+    with pytest.raises(InputError, match="not a file this program wrote"):
+        write_atomic(out, lambda tmp: tmp.write_text("x"))
+    (tmp_path / "o.csv.part").unlink()
+    os.mkfifo(tmp_path / "o.csv.part")
+    with pytest.raises(InputError, match="not a file this program wrote"):
+        write_atomic(out, lambda tmp: tmp.write_text("x"))
+    assert v.read_bytes() == b"VICTIM" and not out.exists()
+
+
 def test_two_runs_into_one_output_folder_never_mix(tmp_path, monkeypatch):
     """reproduce, sweep and a folder's estimate hold their output folder: a second run into it
     is refused in one line before it starts."""

@@ -254,6 +254,11 @@ def _lock(fd: int) -> bool:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
         return False
+    except OSError as exc:  # a file system without locks (some network ones): write unlocked
+        import errno
+
+        if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
+            raise
     return True
 
 
@@ -277,6 +282,8 @@ def check_not_busy(final, option: str = "--out") -> None:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
         except BlockingIOError:
             raise _busy(option, final) from None
+        except OSError:
+            pass  # not a file that can be locked: the writer refuses it
     except ImportError:  # pragma: no cover (not POSIX)
         pass
     finally:
