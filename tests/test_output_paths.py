@@ -62,7 +62,8 @@ def test_a_binary_file_is_one_line_not_a_traceback(tmp_path, capsys, command):
     f.write_bytes(b"\xff\xfe\x00\x01 not text")
     assert cli.main([a.format(f=f, d=tmp_path) for a in command]) == 2
     err = capsys.readouterr().err.strip()
-    assert "the input is not UTF-8 text" in err and len(err.splitlines()) == 1
+    # the line is named: "FILE: line 1: not UTF-8 text (byte 0xff at character 1)"
+    assert "line 1: not UTF-8 text" in err and len(err.splitlines()) == 1
 
 
 IMU_ROWS = "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n" + "".join(

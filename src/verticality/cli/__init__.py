@@ -64,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     """The command: its status (0 done, 1 done with failed checks or recordings, 2 refused, 130
     interrupted). Ctrl-C anywhere, also while a cluster is being closed, is one line."""
     command = "verticality"
+    restore = _escape_unprintable()
     try:
         _enable_compile_cache()
         args = build_parser().parse_args(argv)
@@ -71,6 +72,32 @@ def main(argv: list[str] | None = None) -> int:
         return _run(args)
     except KeyboardInterrupt:
         return _interrupted(command)
+    finally:
+        restore()
+
+
+def _escape_unprintable():
+    """Print what the output's encoding cannot hold (a file name that is not valid in the locale,
+    whose undecodable bytes Python keeps as escapes) with backslash escapes instead of failing
+    after the work is done; returns the function that restores the streams' setting."""
+    old = []
+    for stream in (sys.stdout, sys.stderr):
+        errors = getattr(stream, "errors", None)
+        if errors in (None, "backslashreplace") or not hasattr(stream, "reconfigure"):
+            continue
+        try:
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError, OSError):
+            continue
+        old.append((stream, errors))
+
+    def restore():
+        for stream, errors in old:
+            try:
+                stream.reconfigure(errors=errors)
+            except (AttributeError, ValueError, OSError):
+                pass
+    return restore
 
 
 def _interrupted(command: str) -> int:

@@ -20,12 +20,16 @@ def new_figure(nrows: int = 1, ncols: int = 1, *, width: float = 8.0, height_per
     return fig, axes
 
 
-def save(fig, path: Path) -> Path:
+def save(fig, path: Path, option: str = "--plot", root=None) -> Path:
+    """Draw ``fig`` into ``path`` (its format from the extension) through
+    :func:`verticality.io.paths.write_atomic`: complete or not there, never through a link, its
+    permissions kept; ``root``, the folder the user named, must hold it (links followed)."""
+    from verticality.io.paths import write_atomic
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return path
+    ext = path.suffix.lower().removeprefix(".") or None  # the temporary name has another one
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120, format=ext), option, root)
 
 
 def published_line(ax, value: float, label: str = "published", **kw):

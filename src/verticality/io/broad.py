@@ -79,11 +79,9 @@ def _read_trial(f, path: Path) -> BroadTrial:
     missing = [k for k in ("imu_gyr", "imu_acc") if k not in f]
     if missing:
         raise InputError(f"{path}: missing dataset(s) {', '.join(missing)} (BROAD layout expected)")
+    check_declared_sizes(f, path)  # from the file's metadata, before anything is read
     gyr = _dataset(f, "imu_gyr", path)
     acc = _dataset(f, "imu_acc", path)
-    if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
-        raise InputError(f"{path}: imu_gyr and imu_acc must both have shape (N, 3), "
-                         f"got {gyr.shape} and {acc.shape}")
     n = gyr.shape[0]
     mag = _dataset(f, "imu_mag", path) if "imu_mag" in f else None
     quat = (_dataset(f, "opt_quat", path) if "opt_quat" in f
@@ -93,9 +91,45 @@ def _read_trial(f, path: Path) -> BroadTrial:
     if "sampling_rate" not in f.attrs:
         raise InputError(f"{path}: attribute sampling_rate is missing (BROAD layout expected)")
     rate = sampling_rate_hz(f.attrs["sampling_rate"], path)
-    if quat.shape != (n, 4) or movement.shape != (n,):
-        raise InputError(f"{path}: opt_quat must be (N, 4) and movement (N,) with N = {n}")
     return BroadTrial(path.stem, gyr, acc, mag, quat, movement, rate)
+
+
+# the datasets of a trial, their columns, and the bytes each row of them takes once read
+SHAPES = {"imu_gyr": 3, "imu_acc": 3, "imu_mag": 3, "opt_quat": 4, "movement": None}
+
+
+def check_declared_sizes(f, path) -> int:
+    """The number of samples N of the open HDF5 file ``f``, every dataset's shape checked as the
+    file declares it, before any is read: ``imu_gyr`` and ``imu_acc`` (N, 3), ``imu_mag``
+    (N, 3), ``opt_quat`` (N, 4), ``movement`` (N,); and the trial, read whole as float64 (and the
+    filter's output beside it), within :data:`verticality.core.sizing.MAX_WORK_BYTES`: a file that
+    declares 10¹² rows is refused in one line, not read into a MemoryError."""
+    from verticality.core.sizing import check_work_size
+
+    shapes = {}
+    for name in SHAPES:
+        if name not in f:
+            continue
+        obj = f[name]
+        shape = getattr(obj, "shape", None)
+        if shape is None:  # a group, a link to nothing
+            raise InputError(f"{path}: {name} is not a dataset")
+        shapes[name] = tuple(int(v) for v in shape)
+    n = shapes["imu_gyr"][0] if shapes["imu_gyr"] else 0
+    for name, cols in SHAPES.items():
+        want = (n,) if cols is None else (n, cols)
+        if name in shapes and shapes[name] != want:
+            raise InputError(f"{path}: dataset {name} has shape {shapes[name]}; a trial of "
+                             f"{n} samples needs {want} (imu_gyr and imu_acc (N, 3), imu_mag "
+                             "(N, 3), opt_quat (N, 4), movement (N,))")
+    # per sample: the datasets as float64 (the quaternions filled in when absent) and the
+    # filter's output and variances beside them
+    check_work_size(n, 8 * (3 + 3 + 3 + 4 + 1) + BYTES_OUT_PER_SAMPLE,
+                    f"samples declared by {path}", "this recording is too large to read at once")
+    return n
+
+
+BYTES_OUT_PER_SAMPLE = 8 * (1 + 2 + 3 + 4 + 3 + 1 + 10) + 8  # t, angles, up, q, bias, σ, var, …
 
 
 def _dataset(f, name: str, path, dtype=np.float64) -> np.ndarray:

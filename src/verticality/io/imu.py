@@ -27,6 +27,7 @@ from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.io import imu_layout as layout
 from verticality.io import imu_rows
+from verticality.io import lines as text_lines
 from verticality.io.paths import check_input_file
 
 IMU_COLUMNS = layout.IMU_COLUMNS
@@ -212,7 +213,8 @@ def looks_like_ms(gyr, acc, dt_s, window_s: float = 0.3) -> bool:
     return e is not None and e[0] < 0.5 * min(e[1], e[2])
 
 
-PIECE_ROWS = 2**18  # rows read and checked at a time
+PIECE_ROWS = 2**18  # rows read and checked at a time ...
+PIECE_CHARS = 2**26  # ... and at most this much of their text (rows of many columns)
 
 
 class ImuPiece(NamedTuple):
@@ -257,22 +259,26 @@ def iter_imu_csv(path, *, gyr_units: str | None = None, acc_units: str | None = 
                  piece_rows: int = PIECE_ROWS):
     """The rows of an IMU CSV (as :func:`read_imu_csv` reads them) as :class:`ImuPiece` values of
     at most ``piece_rows`` rows, each read and checked before it is given (time steps across the
-    pieces too), so that a long file never sits in memory whole. A refusal names its line."""
+    pieces too), so that a long file never sits in memory whole: a piece also ends at
+    :data:`PIECE_CHARS` characters of text, and no line is read beyond
+    :data:`verticality.io.lines.MAX_LINE_CHARS`. A refusal names its line (a line too long or
+    not UTF-8 text among them; a ``#`` comment line is skipped whatever it holds)."""
     path = check_input_file(path)
     source = str(path)
-    with open(path, encoding="utf-8-sig") as fh:
-        header = fh.readline().rstrip("\r\n")
+    with text_lines.open_text(path) as fh:
+        header = text_lines.header_line(fh, source).rstrip("\r\n")
         lay = layout.locate(header, columns, time_unit, source)
         line_no, prev = 1, None
         while True:
-            rows, numbers = [], []
-            for line in fh:
+            rows, numbers, chars = [], [], 0
+            while (line := text_lines.read_line(fh)) is not None:
                 line_no += 1
-                text = line.strip()
-                if text and not text.startswith("#"):
-                    rows.append(line.rstrip("\r\n"))
+                text = line.text.strip()
+                if text and not text.startswith("#"):  # (a comment may be in any encoding)
+                    rows.append(text_lines.check_line(line, source, line_no))
                     numbers.append(line_no)
-                    if len(rows) >= piece_rows:
+                    chars += len(line.text)
+                    if len(rows) >= piece_rows or chars >= PIECE_CHARS:
                         break
             if not rows:
                 if prev is None:
@@ -396,8 +402,8 @@ def read_estimate_csv(path) -> EstimateTable:
     column)."""
     path = Path(path)
     check_input_file(path)
-    with open(path, encoding="utf-8-sig") as fh:
-        header = tuple(fh.readline().strip().split(","))
+    with text_lines.open_text(path) as fh:
+        header = tuple(text_lines.header_line(fh, str(path)).strip().split(","))
     if header not in (ESTIMATE_COLUMNS, ESTIMATE_COLUMNS + (SIGMA_COLUMN,)):
         raise InputError(f"{path}: expected header {','.join(ESTIMATE_COLUMNS)}"
                          f"[,{SIGMA_COLUMN}]")

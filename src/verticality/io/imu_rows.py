@@ -15,9 +15,12 @@ import numpy as np
 
 from verticality.core.errors import InputError
 from verticality.io import imu_layout as layout
+from verticality.io import lines as text_lines
+from verticality.io.lines import Line
 
 HEAD_S = 1.0  # a stream's first second is held back and checked as a file is
-HEAD_ROWS = 500  # ... at most this many rows
+HEAD_ROWS = 500  # ... at most this many rows ...
+HEAD_CHARS = 2**22  # ... and this much of their text
 WARN_ROWS = 5  # unreadable rows named one by one, then counted
 
 
@@ -98,7 +101,7 @@ class RowReader:
         self._use(lay)
         self.bad = 0
         self.line_no = 1  # the header
-        self.pending: tuple[str, int] | None = None  # a line read, to be given again
+        self.pending: tuple[Line, int] | None = None  # a line read, to be given again
         self.origin, self.gyr_scale, self.acc_scale = None, 1.0, 1.0
 
     def _use(self, lay: layout.Layout) -> None:
@@ -131,40 +134,46 @@ class RowReader:
                   f"are read in its column order ({order})", file=self.warn_to)
         self._use(lay)
 
-    def lines(self, fh) -> Iterator[str]:
+    def lines(self, fh) -> Iterator[Line]:
         """The data lines of ``fh`` from where it stands (blank and ``#`` lines skipped, as files
-        are read), counting ``line_no``."""
+        are read), counting ``line_no``, each read with a bound
+        (:func:`verticality.io.lines.read_line`): a line too long or not UTF-8 text comes with its
+        problem."""
         if self.pending is not None:
             line, self.line_no = self.pending
             self.pending = None
             yield line
-        for line in fh:
+        while (line := text_lines.read_line(fh, skip_rest=True)) is not None:
             self.line_no += 1
-            text = line.strip()
+            text = line.text.strip()
             if text and not text.startswith("#"):
-                yield line.rstrip("\r\n")
+                yield line
 
     def read_head(self, fh, head_s: float = HEAD_S, head_rows: int = HEAD_ROWS
                   ) -> tuple[list[str], list[int]]:
-        """The rows of the first ``head_s`` seconds (at most ``head_rows``) and their line
-        numbers, to be read and checked as a file (:func:`verticality.io.imu.recording_from_rows`)
-        before the first output row."""
-        rows, numbers, first_t = [], [], None
+        """The rows of the first ``head_s`` seconds (at most ``head_rows``, at most
+        :data:`HEAD_CHARS` characters) and their line numbers, to be read and checked as a file
+        (:func:`verticality.io.imu.recording_from_rows`) before the first output row; a line that
+        cannot be read there is refused, as in a file."""
+        rows, numbers, first_t, chars = [], [], None, 0
         for line in self.lines(fh):
-            lay = self.header(line.strip())
+            text = text_lines.check_line(line, self.source, self.line_no)
+            lay = self.header(text.strip())
             if lay is not None:
                 if rows:  # the head ends before it: the rows after it are read in its order
                     self.pending = (line, self.line_no)
                     break
                 self.switch(lay)  # a header again before any data row: it replaces the first
                 continue
-            rows.append(line)
+            rows.append(text)
             numbers.append(self.line_no)
-            t_cell = self._time_cell(line)
+            chars += len(text)
+            t_cell = self._time_cell(text)
             if first_t is None:
                 first_t = t_cell
-            if len(rows) >= head_rows or (t_cell is not None and first_t is not None
-                                          and self._seconds(t_cell, first_t) >= head_s):
+            if len(rows) >= head_rows or chars >= HEAD_CHARS or (
+                    t_cell is not None and first_t is not None
+                    and self._seconds(t_cell, first_t) >= head_s):
                 break
         if not rows:
             raise InputError(f"{self.source}: no data rows")
@@ -208,6 +217,12 @@ class RowReader:
         if not math.isfinite(t_s):
             self.warn(f"time {t_cell!r} is not a number")
         return t_s, values[:3] * self.gyr_scale, values[3:] * self.acc_scale
+
+    def unreadable(self, problem: str) -> tuple[float, np.ndarray, np.ndarray]:
+        """The sample of a line that cannot be read as text (too long, not UTF-8): all NaN,
+        named (:meth:`warn`)."""
+        self.warn(problem)
+        return math.nan, np.full(3, np.nan), np.full(3, np.nan)
 
     def warn(self, what: str):
         """Name the row just read (the first :data:`WARN_ROWS`), count it."""

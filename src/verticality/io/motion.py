@@ -42,18 +42,31 @@ class MotionRecord(NamedTuple):
     a_I_m_s2: np.ndarray  # (N, 3)
 
 
+CHUNK_ROWS = 65536  # rows parsed into an array at a time
+
+
 def read_motion_csv(path) -> MotionRecord:
     """Read and validate a MOTION.csv. Errors name the data row (from 1) and the file line (the
-    header is line 1) and the column."""
+    header is line 1) and the column. Lines are read with a bound
+    (:mod:`verticality.io.lines`: one too long or not UTF-8 text is refused naming it), the rows
+    kept as arrays a chunk at a time, and a file whose rows would need more memory than
+    :data:`verticality.core.sizing.MAX_WORK_BYTES` is refused as it is read."""
+    from verticality.core.sizing import check_work_size
+    from verticality.io import lines as text_lines
     from verticality.io.paths import check_input_file
 
     path = check_input_file(path)
     try:
-        fh = path.open(newline="", encoding="utf-8-sig")  # a byte-order mark, as IMU files
+        fh = text_lines.open_text(path)
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc.strerror}") from None
+
+    def texts():  # every line, read with a bound and checked
+        for line_no, line in enumerate(text_lines.lines(fh), start=1):
+            yield text_lines.check_line(line, str(path), line_no)
+
     with fh:
-        reader = csv.reader(fh)
+        reader = csv.reader(texts())
         try:
             header = next(reader)
         except StopIteration:
@@ -66,7 +79,7 @@ def read_motion_csv(path) -> MotionRecord:
             raise InputError(f"{path}: missing column(s) {', '.join(missing)} in the header "
                              f"(line 1); expected {','.join(MOTION_COLUMNS)}")
         index = {c: names.index(c) for c in MOTION_COLUMNS}
-        rows = []
+        rows, chunks, line_chunks, n_rows = [], [], [], 0
         try:
             for line_no, row in enumerate(reader, start=2):
                 if not row or all(not cell.strip() for cell in row):
@@ -82,18 +95,29 @@ def read_motion_csv(path) -> MotionRecord:
                     except ValueError:
                         raise InputError(
                             f"{path}: {_where(line_no)}, column {c}: not a number: "
-                            f"{cell!r}") from None
+                            f"{cell[:40]!r}") from None
                     if not math.isfinite(v):
                         raise InputError(f"{path}: {_where(line_no)}, column {c}: "
-                                         f"{cell} is not finite")
+                                         f"{cell[:40]} is not finite")
                     values.append(v)
                 rows.append((line_no, values))
+                if len(rows) == CHUNK_ROWS:
+                    n_rows += len(rows)
+                    # the chunks, and their copy when joined
+                    check_work_size(n_rows, 2 * 8 * (1 + len(MOTION_COLUMNS)),
+                                    f"rows of {path}", "split the recording")
+                    line_chunks.append(np.array([r[0] for r in rows]))
+                    chunks.append(np.array([r[1] for r in rows], dtype=float))
+                    rows = []
         except csv.Error as exc:
             raise InputError(f"{path}: line {reader.line_num}: {exc}") from None
-    if not rows:
+    if rows:
+        line_chunks.append(np.array([r[0] for r in rows]))
+        chunks.append(np.array([r[1] for r in rows], dtype=float))
+    if not chunks:
         raise InputError(f"{path}: no data rows after the header")
-    lines = np.array([r[0] for r in rows])
-    data = np.array([r[1] for r in rows], dtype=float)
+    lines = np.concatenate(line_chunks)
+    data = np.concatenate(chunks)
     t = data[:, 0]
     bad = np.nonzero(np.diff(t) <= 0.0)[0]
     if bad.size:
@@ -277,11 +301,17 @@ def read_otolith_csv(path) -> dict[str, np.ndarray]:
 
 
 def _write(path: Path, header: list[str], data: np.ndarray) -> None:
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", newline="") as fh:
+    """The CSV through :func:`verticality.io.paths.write_atomic` (complete or not there, never
+    through a link, its permissions kept)."""
+    from verticality.io.paths import write_atomic
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", newline="") as fh:
             fh.write(",".join(header) + "\n")
             # repr: the shortest text that reads back to the same float64
             fh.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
+
+    try:
+        write_atomic(path, write)
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror}") from None

@@ -46,10 +46,11 @@ def previous_runtimes(out_dir: Path | None, quick: bool) -> dict[str, float]:
     ``results.json``); empty when there is none or it cannot be read."""
     if out_dir is None:
         return {}
+    from verticality.report import read_results_text
     from verticality.report.entries import RESULTS_NAME
 
     try:
-        saved = json.loads((Path(out_dir) / RESULTS_NAME).read_text(encoding="utf-8"))
+        saved = json.loads(read_results_text(Path(out_dir) / RESULTS_NAME))
         if saved["provenance"]["mode"] != _mode(quick):
             return {}
         return {str(n): float(e["runtime"]["wall_s"]) for n, e in saved["experiments"].items()}

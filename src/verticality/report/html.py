@@ -7,7 +7,7 @@ import base64
 import math
 from html import escape
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from verticality.report import compare
 from verticality.report.claims import (
@@ -144,33 +144,98 @@ def _ours_text(row: compare.Row) -> str:
 # figures
 
 
-def figure_paths(name: str, entry: dict, results_dir: Path) -> list[Path]:
-    """The experiment's figures: each recorded path looked up first beside ``results.json``
-    (``DIR/NAME/file``, so a moved folder still works), then as recorded; without a record, the
-    images in ``DIR/NAME/``."""
+MAX_FIGURE_BYTES = 32 * 2**20  # a figure larger than this is not embedded (ours: < 1 MiB)
+
+
+class Figure(NamedTuple):
+    """A figure of an experiment: the file (as recorded, when it is not shown) and why it is not
+    shown (None: it is embedded)."""
+
+    path: Path
+    problem: str | None = None
+
+
+def figure_paths(name: str, entry: dict, results_dir: Path) -> list[Figure]:
+    """The experiment's figures, read from inside ``results_dir`` only: each recorded path looked
+    up first beside ``results.json`` (``DIR/NAME/file``, so a moved folder still works), then as
+    recorded when that is inside the folder; without a record, the images in ``DIR/NAME/``. A
+    file outside the folder, links followed (an absolute path elsewhere, a ``..`` path, an
+    experiment named ``../x``, a link planted in the folder) is never read: it is listed with its
+    problem, as is a missing file, one that is not a regular file and one too large to embed."""
+    from verticality.io.paths import inside, is_plain_name
+
+    plain = is_plain_name(name)
     recorded = entry.get("figures")
     if not recorded:
         folder = results_dir / name
-        return sorted(p for p in folder.glob("*") if p.suffix.lower() in _MIME) \
-            if folder.is_dir() else []
+        if not plain or not folder.is_dir():
+            return []
+        return [_checked(p, results_dir) for p in sorted(folder.glob("*"))
+                if p.suffix.lower() in _MIME]
     out = []
     for text in recorded:
-        p = Path(text)
-        for candidate in (results_dir / name / p.name, p, results_dir / p):
-            if candidate.is_file():
-                out.append(candidate)
-                break
+        p = Path(str(text))
+        candidates = []
+        if plain and is_plain_name(p.name):
+            candidates.append(results_dir / name / p.name)
+        candidates += [p, results_dir / p]  # as recorded: used only when inside the folder
+        found = [c for c in candidates if c.is_file() and inside(c, results_dir)]
+        if found:
+            out.append(_checked(found[0], results_dir))
+        elif any(c.exists() or c.is_symlink() for c in candidates):
+            out.append(Figure(p, "outside the results folder, not read"))
+        elif not plain:
+            out.append(Figure(p, f"the experiment's name {name!r} is not a folder name, so its "
+                                 "figures are not looked up"))
         else:
-            out.append(p)
+            out.append(Figure(p, "missing"))
     return out
 
 
-def figure_html(path: Path, name: str) -> str:
+def _checked(path: Path, results_dir: Path) -> Figure:
+    """``path`` (under ``results_dir``) as a figure to embed, or with the reason it is not."""
+    from verticality.io.paths import inside
+
+    if not inside(path, results_dir):
+        return Figure(path, "outside the results folder, not read")
+    if not path.is_file():
+        return Figure(path, "missing" if not path.exists() else "not a regular file")
+    size = path.stat().st_size
+    if size > MAX_FIGURE_BYTES:
+        return Figure(path, f"{size / 2**20:.0f} MiB, larger than the {MAX_FIGURE_BYTES // 2**20}"
+                            " MiB a figure may be")
+    return Figure(path)
+
+
+def figure_problems(results: dict, results_dir: Path) -> list[str]:
+    """One line per figure of ``results`` that the page does not show because it lies outside
+    ``results_dir``, is not a regular file or is too large (missing figures are not listed: the
+    page names them)."""
+    lines = []
+    for name, entry in (results.get("experiments") or {}).items():
+        if not isinstance(entry, dict):
+            continue
+        for fig in figure_paths(str(name), entry, Path(results_dir)):
+            if fig.problem is not None and fig.problem != "missing":
+                lines.append(f"{name}: figure {fig.path}: {fig.problem}")
+    return lines
+
+
+def figure_html(fig: Figure, name: str) -> str:
+    path = fig.path
     mime = _MIME.get(path.suffix.lower())
-    if mime is None or not path.is_file():
+    problem = fig.problem or (None if mime is not None else "not an image format")
+    if problem is None:
+        try:
+            data = base64.b64encode(path.read_bytes()).decode("ascii")
+        except OSError as exc:
+            problem = f"cannot be read ({exc.strerror})"
+    if problem == "missing":
         return (f'<div class="missing">figure missing: {escape(str(path))} (rerun '
                 f'<code>verticality reproduce {escape(name)}</code>)</div>')
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    if problem is not None:
+        return (f'<div class="missing">figure not shown: {escape(str(path))}: '
+                f'{escape(problem)}</div>')
     alt = f"{name}: {path.stem.replace('_', ' ')}"
     return (f'<figure><img src="data:{mime};base64,{data}" alt="{escape(alt)}" '
             f'loading="eager"><figcaption>{escape(path.name)}</figcaption></figure>')

@@ -57,12 +57,26 @@ def run_experiments(names: list[str] | None, *, quick: bool = False, out_dir: Pa
     ``jobs=1`` (one after the other in this process).
     An unknown name raises :class:`~verticality.core.errors.InputError` before anything runs."""
     from verticality import experiments
-    from verticality.report import pool as experiment_pool
-    from verticality.report import provenance
 
     registry = experiments.discover()
     chosen = chosen_names(names)
     exps = [experiments.get(n) for n in chosen]
+    if out_dir is None:
+        return _run(exps, chosen, registry, quick, names, None, on_stage, jobs)
+    from verticality.io.paths import check_output_folder, confined_folder, folder_lock
+
+    with folder_lock(check_output_folder(out_dir, "--out")):  # one run at a time in a folder
+        for exp in exps:  # the figures' folders, inside the results folder (no link out)
+            if exp.figures is not None:
+                confined_folder(out_dir, exp.name)
+        return _run(exps, chosen, registry, quick, names, out_dir, on_stage, jobs)
+
+
+def _run(exps, chosen, registry, quick, names, out_dir, on_stage, jobs) -> dict:
+    """:func:`run_experiments` (in its locked results folder when ``out_dir`` is given)."""
+    from verticality.report import pool as experiment_pool
+    from verticality.report import provenance
+
     results: dict = {"experiments": {},
                      "registry": {n: {"title": e.title, "source": e.source}
                                   for n, e in sorted(registry.items())},
@@ -88,13 +102,14 @@ def earlier_results(out_dir: Path, quick: bool) -> dict | None:
     ``quick``: a rerun merges into it, so a damaged file or one of the other mode is refused
     before anything runs."""
     from verticality.core.errors import InputError
+    from verticality.report import read_results_text
     from verticality.report.results_schema import check_results
 
     path = Path(out_dir) / RESULTS_NAME
     if not path.is_file():
         return None
     try:
-        data = check_results(json.loads(path.read_text(encoding="utf-8")), str(path))
+        data = check_results(json.loads(read_results_text(path)), str(path))
     except json.JSONDecodeError as exc:
         raise InputError(f"{path} is not valid JSON ({exc.msg} at line {exc.lineno}); a rerun "
                          "into this folder would merge into it: mend or move it, or give another "
@@ -112,7 +127,7 @@ def write_results(out_dir: Path, results: dict) -> Path:
     this run replaces only its own entry, the others stay (and the report lists them), the
     earlier runs' date, version, commit and experiments are kept under ``provenance.earlier``.
     Written under a temporary name and renamed, so an interrupted write loses nothing."""
-    from verticality.sweep.engine import write_atomic
+    from verticality.io.paths import write_atomic
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -127,7 +142,7 @@ def write_results(out_dir: Path, results: dict) -> Path:
         merged["provenance"] = {**prov, "earlier": [*before.get("earlier", []), kept]}
     text = json.dumps(merged, indent=2)
     return write_atomic(out_dir / RESULTS_NAME,
-                        lambda tmp: tmp.write_text(text, encoding="utf-8"))
+                        lambda tmp: tmp.write_text(text, encoding="utf-8"), root=out_dir)
 
 
 def chosen_names(names: list[str] | None) -> list[str]:

@@ -30,6 +30,7 @@ from verticality.core.errors import InputError
 from verticality.sweep import spec as sweep_spec
 from verticality.sweep.engine import (  # noqa: F401  (INSTALL_HINT: imported from here too)
     INSTALL_HINT,
+    check_scheduler,
     check_workers,
     map_tasks,
     require_engine,
@@ -186,7 +187,7 @@ def check_part_columns(parts: Path, finished: list[int], expected: list[str], ou
 def prepare(spec: sweep_spec.Spec, out_dir: Path, resume: bool,
             limit_bytes: float | None = None) -> Path:
     """Make ``out_dir`` and check it matches ``spec`` (resume) or holds no sweep yet."""
-    from verticality.io.paths import check_output_folder
+    from verticality.io.paths import check_output_folder, confined_folder
 
     out_dir = check_output_folder(out_dir, "--out")
     parts = out_dir / "parts"
@@ -199,8 +200,9 @@ def prepare(spec: sweep_spec.Spec, out_dir: Path, resume: bool,
         if replace(old, text="") != replace(spec, text=""):
             raise InputError(f"{out_dir} holds a sweep of another spec ({old_spec}); "
                              "cannot resume it with this one")
-    parts.mkdir(parents=True, exist_ok=True)
-    old_spec.write_text(spec.text, encoding="utf-8")
+    confined_folder(out_dir, parts.name)  # (a link planted there would take the parts out)
+    write_atomic(old_spec, lambda tmp: tmp.write_text(spec.text, encoding="utf-8"),
+                 root=out_dir)
     return parts
 
 
@@ -213,13 +215,24 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     manifest proves it is this task's of this spec (:func:`part_state`); one of another spec is
     refused, one of this spec that is not what it claims is computed again."""
     require_engine()
+    from verticality.io.paths import check_output_folder, folder_lock
+
+    check_workers(workers)
+    design = sweep_spec.design(spec)
+    if scheduler:  # before anything is written: an address that is wrong or does not answer
+        scheduler = check_scheduler(scheduler)
+    with folder_lock(check_output_folder(out_dir, "--out")):  # one sweep at a time in a folder
+        return _run(spec, design, Path(out_dir), scheduler, workers, resume, progress,
+                    compile_cache, limit_bytes)
+
+
+def _run(spec, design, out_dir, scheduler, workers, resume, progress, compile_cache,
+         limit_bytes) -> Summary:
+    """:func:`run` in its locked output folder."""
     import jax
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    check_workers(workers)
-    out_dir = Path(out_dir)
-    design = sweep_spec.design(spec)
     n_runs, size = design.n_runs, spec.runs_per_task
     n_tasks = sweep_spec.n_tasks(spec, n_runs)
     parts = prepare(spec, out_dir, resume, limit_bytes)
@@ -253,7 +266,8 @@ def run(spec: sweep_spec.Spec, out_dir: Path, *, scheduler: str | None = None,
     wall = time.perf_counter() - start
     table = pa.concat_tables([pq.read_table(part_path(parts, t)).replace_schema_metadata(None)
                               for t in range(n_tasks)])
-    write_atomic(out_dir / "results.parquet", lambda tmp: pq.write_table(table, tmp))
+    write_atomic(out_dir / "results.parquet", lambda tmp: pq.write_table(table, tmp),
+                 root=out_dir)
     n_div = int(np.sum(table.column("diverged").to_numpy()))
     _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_workers, commit)
     return Summary(out_dir, n_runs, n_tasks, tuple(todo), wall, n_div)
@@ -283,4 +297,6 @@ def _write_provenance(out_dir, spec, n_runs, n_tasks, todo, wall, scheduler, n_w
                                                  + ("dask", "distributed", "pyarrow")),
         "jax_backend": provenance.jax_backend(), "machine": provenance.machine(),
     }
-    (out_dir / "provenance.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    write_atomic(out_dir / "provenance.json",
+                 lambda tmp: tmp.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8"),
+                 root=out_dir)

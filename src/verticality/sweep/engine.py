@@ -2,7 +2,7 @@
 argument tuples as one task each, on a ``LocalCluster`` of worker processes (one thread each) or a
 running scheduler, with a progress bar of tasks done and time left on standard error; write a
 result file under a temporary name and rename it when complete, so that a file that exists is
-finished.
+finished (:func:`verticality.io.paths.write_atomic`).
 
 :func:`map_tasks` without a scheduler and without a worker count runs the tasks one after the
 other in this process (no Dask needed): the same function, the same results.
@@ -10,12 +10,11 @@ other in this process (no Dask needed): the same function, the same results.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Mapping
 from contextlib import contextmanager
-from pathlib import Path
 
 from verticality.core.errors import InputError
+from verticality.io.paths import write_atomic  # noqa: F401 (the one atomic writer, used here)
 
 INSTALL_HINT = "pip install 'verticality[sweep]'"
 
@@ -52,19 +51,6 @@ def use_compile_cache(cache: str | None) -> None:
         jax.config.update("jax_compilation_cache_dir", cache)
 
 
-def write_atomic(final: Path, write: Callable[[Path], object]) -> Path:
-    """``write(tmp)`` to a temporary name beside ``final``, then rename it to ``final`` (atomic on
-    one file system): ``final`` exists only complete."""
-    final = Path(final)
-    tmp = final.with_name(final.name + f".tmp-{os.getpid()}")
-    try:
-        write(tmp)
-        os.replace(tmp, final)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return final
-
-
 @contextmanager
 def workers_ignore_interrupt():
     """Start worker processes inside this block with Ctrl-C (SIGINT) ignored: a terminal's Ctrl-C
@@ -85,15 +71,96 @@ def workers_ignore_interrupt():
         signal.signal(signal.SIGINT, old)
 
 
+CONNECT_TIMEOUT_S = 20.0  # a scheduler that does not answer within this is refused
+
+
+def check_scheduler_address(scheduler: str) -> str:
+    """``scheduler`` as Dask's ``PROTOCOL://HOST:PORT`` (``HOST:PORT`` is TCP), checked before
+    anything is written or connected: a missing or non-numeric port, a port outside 1–65535, an
+    empty host and an unknown protocol are refused in one line."""
+    from distributed.comm import registry
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    text = str(scheduler).strip()
+    hint = "give PROTOCOL://HOST:PORT or HOST:PORT, e.g. tcp://127.0.0.1:8786"
+    try:
+        protocol, location = parse_address(text if "://" in text else f"tcp://{text}")
+    except ValueError as exc:
+        raise InputError(f"--scheduler {scheduler!r}: not an address ({exc}); {hint}") from None
+    try:
+        registry.get_backend(protocol)
+    except ValueError:
+        raise InputError(f"--scheduler {scheduler!r}: unknown protocol {protocol!r}; {hint}"
+                         ) from None
+    if protocol in ("tcp", "tls", "ws", "wss"):
+        try:
+            host, port = parse_host_port(location)
+        except ValueError as exc:
+            why = (f"port {location.rsplit(':', 1)[-1]!r} is not a number"
+                   if "invalid literal" in str(exc) else str(exc))
+            raise InputError(f"--scheduler {scheduler!r}: {why}; {hint}") from None
+        if not host:
+            raise InputError(f"--scheduler {scheduler!r}: no host; {hint}")
+        if not 0 < int(port) < 65536:
+            raise InputError(f"--scheduler {scheduler!r}: port {port} is not 1–65535; {hint}")
+    return f"{protocol}://{location}"
+
+
+def check_scheduler(scheduler: str, timeout_s: float | None = None) -> str:
+    """The address of a running Dask scheduler that answers: :func:`check_scheduler_address`,
+    then its identity asked within ``timeout_s`` (default :data:`CONNECT_TIMEOUT_S`); nothing
+    listening there, a server that accepts and never answers and one that is not a scheduler are
+    refused in one line, before any work."""
+    import asyncio
+
+    from distributed.core import rpc
+
+    address = check_scheduler_address(scheduler)
+    timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
+    if address.startswith("tcp://"):  # nothing listening: said at once (Dask would retry)
+        import socket
+
+        from distributed.comm.addressing import parse_host_port
+
+        host, port = parse_host_port(address.removeprefix("tcp://"))
+        try:
+            socket.create_connection((host, port), timeout=timeout_s).close()
+        except OSError as exc:
+            raise InputError(f"--scheduler {scheduler}: cannot connect "
+                             f"({exc.strerror or type(exc).__name__})") from None
+
+    async def identity():
+        r = rpc(address)
+        try:
+            return await r.identity()
+        finally:
+            await r.close_rpc()
+
+    try:
+        ident = asyncio.run(asyncio.wait_for(identity(), timeout_s))
+    except TimeoutError:
+        raise InputError(f"--scheduler {scheduler}: no answer within {timeout_s:g} s (nothing "
+                         "listening there, or not a Dask scheduler)") from None
+    except (OSError, ValueError, TypeError) as exc:
+        raise InputError(f"--scheduler {scheduler}: cannot reach it "
+                         f"({' '.join(str(exc).split())[:120] or type(exc).__name__})") from None
+    if not isinstance(ident, dict) or ident.get("type") != "Scheduler":
+        kind = ident.get("type") if isinstance(ident, dict) else type(ident).__name__
+        raise InputError(f"--scheduler {scheduler}: answers as {kind}, not as a Dask scheduler")
+    return address
+
+
 @contextmanager
 def connect(scheduler: str | None, n_workers: int):
-    """A ``distributed.Client`` of the running scheduler at ``scheduler`` or of a new
+    """A ``distributed.Client`` of the running scheduler at ``scheduler`` (checked first: it
+    must answer within :data:`CONNECT_TIMEOUT_S`, :func:`check_scheduler`) or of a new
     ``LocalCluster`` of ``n_workers`` worker processes (closed on exit)."""
     from distributed import Client, LocalCluster
 
     if scheduler:
+        address = check_scheduler(scheduler)
         try:
-            client = Client(scheduler, timeout="20s")
+            client = Client(address, timeout=f"{CONNECT_TIMEOUT_S:g}s")
         except (OSError, TimeoutError) as exc:
             raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
         cluster = None

@@ -4,13 +4,13 @@ stamps."""
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from verticality.core.errors import InputError
+from verticality.core.sizing import check_work_size
+from verticality.io.paths import atomic_output
 from verticality.tilt import batch as tilt_batch
 from verticality.tilt import estimator
 from verticality.tilt.core import TiltOutput, gaps_in, up_roll_pitch
@@ -135,6 +135,9 @@ def gap_warning(t_s, dt_s, ours: bool = True) -> str | None:
 
 
 WRITE_ROWS = 65536  # estimate rows formatted and written at a time
+# a peer's run holds the recording (t, gyro, accelerometer, the pieces and their join), its
+# quaternions and bias, and the output with its variances: about this much per sample
+PEER_BYTES_PER_SAMPLE = 512
 
 
 class EstimateRun(NamedTuple):
@@ -172,11 +175,14 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                   offline: bool = False, ranges: dict | None = None) -> EstimateRun:
     """``verticality estimate``: filter the recording in ``path`` and write the estimate CSV to
     ``out_path`` (through a temporary file beside it, renamed at the end: a refusal midway leaves
-    no partial file). An IMU CSV through our filter is read, filtered and written piece by piece
-    (:func:`verticality.io.imu.iter_imu_csv`, :func:`verticality.tilt.estimator.run_in_pieces`'s
-    pieces: the numbers of the in-memory run bit for bit), so that memory stays proportional to a
-    piece, not to the file; ``keep`` (a figure) also keeps every output. A BROAD HDF5 file and the
-    peers are read whole. ``offline``: our smoother (``tilt.smooth``), which needs the whole
+    no partial file, a link there is replaced, a second run writing it is refused;
+    :func:`verticality.io.paths.atomic_output`). An IMU CSV through our filter is read, filtered
+    and written piece by piece (:func:`verticality.io.imu.iter_imu_csv`,
+    :func:`verticality.tilt.estimator.run_in_pieces`'s pieces: the numbers of the in-memory run
+    bit for bit), so that memory stays proportional to a piece, not to the file; ``keep`` (a
+    figure) also keeps every output. A BROAD HDF5 file (its declared size checked first) and the
+    peers are read whole (a CSV's rows counted first, and refused beyond what memory allows).
+    ``offline``: our smoother (``tilt.smooth``), which needs the whole
     recording: read whole, after its size is checked (a CSV's rows counted first), and refused
     beyond what memory allows. ``ranges``: the sensor's full-scale readings
     (``gyr_range_rad_s``, ``acc_range_m_s2``, our filter only); without them clipping is inferred
@@ -189,17 +195,20 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
     ranges = check_ranges(filter_name, ranges)
     if offline and not broad.is_broad_file(path):
         tilt_smoother.check_size(count_rows(path))
-    out_path = Path(out_path)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    part = out_path.with_name(out_path.name + ".part")
-    try:
+    elif filter_name != OURS and not broad.is_broad_file(path):
+        check_work_size(count_rows(path), PEER_BYTES_PER_SAMPLE, "samples read at once for a "
+                        "peer filter", f"use our filter (--filter {OURS}), which reads the "
+                        "recording piece by piece, or cut the recording in parts")
+    # written beside out_path and renamed at the end (io.paths.atomic_output): a refusal midway
+    # leaves no partial file, a link there is replaced rather than written through, a second run
+    # writing the same file is refused
+    with atomic_output(out_path) as part:
         if filter_name != OURS or offline or broad.is_broad_file(path):
             rec = load_imu(path, units, columns, time_unit)
             est = estimate_imu(rec.gyr_rad_s, rec.acc_m_s2, rec.t_s, rec.dt_s, filter_name,
                                offline, ranges)
             imu.write_estimate_csv(part, rec.t_s, est.out,
                                    tilt_sigma_rad=est.tilt_sigma_rad if sigma else None)
-            os.replace(part, out_path)
             s_line = (None if est.tilt_sigma_rad is None
                       else sigma_summary(est.tilt_sigma_rad, est.out.flags))
             return EstimateRun(rec.t_s.size, filter_name, s_line,
@@ -269,10 +278,6 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                 raise InputError(f"{path}: one data row; the filter needs at least two (a time "
                                  "step)")
             filter_some(final=True)
-        os.replace(part, out_path)
-    finally:
-        if part.exists():
-            part.unlink()
     flags, sig_all = np.concatenate(kept["flags"]), np.concatenate(kept["sigma"])
     origin = None if first.t0_stamp is None else f"{first.t0_stamp} {first.time_unit}"
     out_all = (estimate_of(estimator.concatenate_outputs(kept["out"]),

@@ -146,7 +146,8 @@ def estimate_one(path: str, out_path: str, row_path: str, options: dict,
     (:func:`~verticality.tilt.files.estimate_file`'s keywords), then its summary row
     into ``row_path`` (atomically). A failure is the row's ``error``; the task never raises for a
     bad recording."""
-    from verticality.sweep.engine import use_compile_cache, write_atomic
+    from verticality.io.paths import write_text
+    from verticality.sweep.engine import use_compile_cache
     from verticality.tilt.files import estimate_file
 
     use_compile_cache(compile_cache)
@@ -176,8 +177,7 @@ def estimate_one(path: str, out_path: str, row_path: str, options: dict,
     except Exception as exc:  # a bad recording is a row with its error, never the run's end
         row |= {"output": "", "status": "error", "error": error_message(exc)}
     row["wall_s"] = time.perf_counter() - start
-    write_atomic(Path(row_path), lambda tmp: tmp.write_text(json.dumps(row | manifest) + "\n",
-                                                             encoding="utf-8"))
+    write_text(Path(row_path), json.dumps(row | manifest) + "\n")
     return row
 
 
@@ -203,15 +203,22 @@ def estimate_options(units=(), columns=None, time_unit=None, filter_name: str | 
             "ranges": check_ranges(filter_name, ranges)}
 
 
-def prepare(out_dir: Path, options: dict, resume: bool, recordings: list[Path]) -> Path:
-    """Make ``out_dir`` (not an input) and check it holds no folder run yet, or (``resume``) one
-    made with the same options."""
+def output_folder(out_dir: Path, recordings: list[Path]) -> Path:
+    """Make ``out_dir``: a folder, not an input."""
     from verticality.io.paths import check_output_folder
 
     if not out_dir.exists() and out_dir.suffix.lower() in FILE_SUFFIXES:
         raise InputError(f"--out {out_dir}: a folder of recordings gives one output per "
                          f"recording, so --out names a folder, not a {out_dir.suffix} file")
-    out_dir = check_output_folder(out_dir, "--out", recordings)
+    return check_output_folder(out_dir, "--out", recordings)
+
+
+def prepare(out_dir: Path, options: dict, resume: bool, recordings: list[Path]) -> Path:
+    """Make ``out_dir`` (:func:`output_folder`) and check it holds no folder run yet, or
+    (``resume``) one made with the same options."""
+    from verticality.io.paths import confined_folder, write_text
+
+    out_dir = output_folder(out_dir, recordings)
     record = out_dir / "folder.json"
     if record.exists():
         if not resume:
@@ -225,8 +232,8 @@ def prepare(out_dir: Path, options: dict, resume: bool, recordings: list[Path]) 
         if not isinstance(old, dict) or old.get("options") != options:
             raise InputError(f"{out_dir} holds estimates made with other options "
                              f"({old.get('options')}); cannot resume them with these")
-    (out_dir / ROWS_DIR).mkdir(exist_ok=True)
-    record.write_text(json.dumps({"options": options}, indent=2) + "\n", encoding="utf-8")
+    confined_folder(out_dir, ROWS_DIR)  # (a link planted there would take the rows out)
+    write_text(record, json.dumps({"options": options}, indent=2) + "\n", root=out_dir)
     return out_dir
 
 
@@ -269,12 +276,14 @@ def estimate_folder(inputs, out_dir, *, units=(), columns=None, time_unit=None,
     :func:`~verticality.tilt.files.estimate_file` (:func:`estimate_options`).
     ``compile_cache``: JAX's persistent compilation cache for the workers (default: this
     process's)."""
-    from verticality.io.paths import resolved
+    from verticality.io.paths import folder_lock, resolved
     from verticality.sweep import engine
 
     engine.check_workers(workers)
     if scheduler or workers is not None:
         engine.require_engine()
+    if scheduler:  # before anything is written: an address that is wrong or does not answer
+        scheduler = engine.check_scheduler(scheduler)
     options = estimate_options(units, columns, time_unit, filter_name, sigma, offline, ranges)
     recordings = find_recordings(inputs)
     names = output_names(recordings)
@@ -284,6 +293,16 @@ def estimate_folder(inputs, out_dir, *, units=(), columns=None, time_unit=None,
         if resolved(out_dir / name) in sources:
             raise InputError(f"--out {out_dir}: {name} there is the input "
                              f"{sources[resolved(out_dir / name)]}; give another folder")
+    with folder_lock(output_folder(out_dir, recordings)):  # one run at a time in a folder
+        return _estimate_into(recordings, names, out_dir, options, scheduler, workers, resume,
+                              progress, compile_cache)
+
+
+def _estimate_into(recordings, names, out_dir, options, scheduler, workers, resume, progress,
+                   compile_cache) -> FolderSummary:
+    """:func:`estimate_folder` in its locked output folder."""
+    from verticality.sweep import engine
+
     out_dir = prepare(out_dir, options, resume, recordings)
     rows_dir = out_dir / ROWS_DIR
     done = {}
@@ -323,15 +342,13 @@ def write_summary(out_dir: Path, rows) -> None:
     import csv
     import io
 
-    from verticality.sweep.engine import write_atomic
+    from verticality.io.paths import write_text
 
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=SUMMARY_COLUMNS, lineterminator="\n")
     writer.writeheader()
     for row in rows:
         writer.writerow({k: ("" if row[k] is None else row[k]) for k in SUMMARY_COLUMNS})
-    write_atomic(out_dir / "summary.csv",
-                 lambda tmp: tmp.write_text(text.getvalue(), encoding="utf-8"))
-    write_atomic(out_dir / "summary.json",
-                 lambda tmp: tmp.write_text(json.dumps(list(rows), indent=1) + "\n",
-                                            encoding="utf-8"))
+    # (a file name that is not valid UTF-8 is written with backslash escapes)
+    write_text(out_dir / "summary.csv", text.getvalue(), root=out_dir)
+    write_text(out_dir / "summary.json", json.dumps(list(rows), indent=1) + "\n", root=out_dir)

@@ -8,8 +8,9 @@ step as this reader judges the time stamps (:func:`next_step`). The rows are rea
 by :class:`~verticality.io.imu_rows.RowReader`: the first second (at most 500 rows) is held back
 and read and checked as ``verticality estimate`` reads a whole file
 (:func:`verticality.io.imu.recording_from_rows`: layout, time unit, units, increasing time); then
-rows pass one by one, and a row that cannot be read is written with its samples flagged and named
-on the warning stream.
+rows pass one by one, and a row that cannot be read (cells that are not numbers, the wrong number
+of cells, a line that is not UTF-8 text or longer than any row) is written with its samples
+flagged and named on the warning stream.
 """
 
 from __future__ import annotations
@@ -20,9 +21,9 @@ from typing import TextIO
 import numpy as np
 
 from verticality.io import imu, imu_layout
+from verticality.io import lines as text_lines
 from verticality.io.imu_rows import RowReader
-from verticality.tilt.params import MAX_DT_S
-from verticality.tilt.realtime import Stream
+from verticality.tilt.realtime import Stream, next_step
 
 
 def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin",
@@ -35,8 +36,9 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
     ``out``, one row per data row, flushed after each. Notes and warnings go to ``err``. A problem
     in the first second raises :class:`~verticality.core.errors.InputError` before any row is
     written."""
-    header = fh.readline().removeprefix("\ufeff")  # a byte-order mark, as files are read
-    lay = imu_layout.locate(header.rstrip("\r\n"), columns, time_unit, source)
+    # (the line bounded and checked; a byte-order mark dropped, as files are read)
+    header = text_lines.header_line(fh, source).removeprefix("\ufeff")
+    lay = imu_layout.locate(header, columns, time_unit, source)
     reader = RowReader(lay, source, warn_to=err, columns=columns, time_unit=time_unit)
     rows, numbers = reader.read_head(fh)  # (a header among them: read in its order)
     head = imu.recording_from_rows(rows, numbers, reader.lay, source, gyr_units, acc_units)
@@ -64,28 +66,11 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
         emit(float(head.t_s[k]), head.gyr_rad_s[k], head.acc_m_s2[k], float(dt_head[k]))
     t_last = t_prev = float(head.t_s[-1])
     behind = 0  # rows in a row whose time did not follow t_last
-    for text in reader.lines(fh):
-        t_s, g, a = reader.sample(text.strip())
-        dt, t_last, behind = next_step(t_s, t_last, t_prev, behind, reader.warn)
+    for line in reader.lines(fh):
+        t_s, g, a = (reader.sample(line.text.strip()) if line.problem is None
+                     else reader.unreadable(line.problem))
+        dt, t_last, behind = next_step(t_s, t_last, t_prev, behind, reader.warn, s.params)
         if math.isfinite(t_s):
             t_prev = t_s
         emit(t_s, g, a, dt)
     reader.summary()
-
-
-def next_step(t_s: float, t_last: float, t_prev: float, behind: int, warn) -> tuple:
-    """``(dt, t_last, behind)`` for a row at ``t_s`` s: the step from ``t_last`` (the last time
-    taken) when it is a step the filter can use (positive, below ``MAX_DT_S``), and ``t_s`` becomes
-    the last time. One absurd stamp (1e300, a stamp far back) is not taken, so it costs its own row
-    only (written flagged, named through ``warn``); when two rows in a row go on from each other
-    but not from ``t_last`` (``t_prev`` the previous row's time; a forward glitch that was taken,
-    or a clock restarted), the stamps are followed again from there (that row is not flagged: its
-    step from the row before is known)."""
-    dt = t_s - t_last if math.isfinite(t_s) else math.nan
-    if 0.0 < dt < MAX_DT_S:
-        return dt, t_s, 0
-    if math.isfinite(t_s) and behind >= 1 and 0.0 < t_s - t_prev < MAX_DT_S:
-        return t_s - t_prev, t_s, 0
-    if math.isfinite(t_s):
-        warn(f"time {t_s:.9g} s does not follow {t_last:.9g} s by a usable step")
-    return math.nan, t_last, behind + 1

@@ -217,21 +217,16 @@ def compare_log(rec: LogRecording, est: TiltEstimate, name: str = OURS) -> LogCo
 
 
 def write_comparison_csv(path, comp: LogComparison) -> None:
-    """The comparison's columns as a CSV (``t`` s, angles rad, ``at_rest`` 0/1), written under a
-    temporary name and renamed."""
-    import os
-    from pathlib import Path
+    """The comparison's columns as a CSV (``t`` s, angles rad, ``at_rest`` 0/1), written whole or
+    not at all (:func:`verticality.io.paths.write_atomic`: never through a link, one writer at a
+    time, an existing file's permissions kept)."""
+    from verticality.io.paths import write_atomic
 
-    path = Path(path)
     names = list(comp.columns)
     data = np.column_stack([np.asarray(comp.columns[k], dtype=np.float64) for k in names])
     fmt = ["%d" if k == "at_rest" else "%.17g" for k in names]
-    part = path.with_name(path.name + ".part")
-    try:
-        np.savetxt(part, data, delimiter=",", header=",".join(names), comments="", fmt=fmt)
-        os.replace(part, path)
-    finally:
-        part.unlink(missing_ok=True)
+    write_atomic(path, lambda tmp: np.savetxt(tmp, data, delimiter=",", header=",".join(names),
+                                              comments="", fmt=fmt), option="--compare")
 
 
 def write_tilt_log(path, rec: LogRecording, est: TiltEstimate, *, ros2_bag: bool = False,
@@ -294,11 +289,12 @@ def estimate_log_file(path, out_path, *, topic: str | None = None, units=(),
     or, named ``.mcap``, a bare MCAP file of ``message`` on ``tilt_topic``; also a ROS 2 bag
     folder ``ros2_bag`` and the comparison CSV ``compare_path`` (:func:`compare_log`) when
     given; ``keep_comparison``: the comparison also without a CSV (for a figure) when the log
-    holds an estimate. Each output is written under a temporary name and renamed."""
-    import os
+    holds an estimate. Each output is written whole or not at all, never through a link, one
+    writer at a time (:func:`verticality.io.paths.atomic_output`)."""
     from pathlib import Path
 
     from verticality.io import imu
+    from verticality.io.paths import atomic_output
     from verticality.io.recording import parse_units
     from verticality.tilt.files import (
         EstimateRun,
@@ -331,13 +327,9 @@ def estimate_log_file(path, out_path, *, topic: str | None = None, units=(),
     if mcap_out:
         write_tilt_log(out_path, rec, est, topic=tilt_topic, message=message)
     else:
-        part = out_path.with_name(out_path.name + ".part")
-        try:
+        with atomic_output(out_path) as part:
             imu.write_estimate_csv(part, rec.t_s, est,
                                    tilt_sigma_rad=est.sigma_rad if sigma else None)
-            os.replace(part, out_path)
-        finally:
-            part.unlink(missing_ok=True)
     written.append(out_path)
     if ros2_bag is not None:
         written.append(write_tilt_log(ros2_bag, rec, est, ros2_bag=True, topic=tilt_topic,

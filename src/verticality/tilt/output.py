@@ -72,7 +72,8 @@ def estimate_of(out, t_s, params: TiltParams) -> TiltEstimate:
 
 def time_axis(n: int, t_s=None, period_s=None) -> tuple[np.ndarray, np.ndarray | float]:
     """``(t_s, dt_s)`` of a recording of ``n`` samples given either its time stamps ``t_s`` (N,)
-    (s, finite) or a fixed sampling period ``period_s`` (s, positive): the time of every sample and
+    (s, finite; or date-times, :mod:`verticality.tilt.stamps`: seconds since 1970-01-01 UTC, the
+    steps exact) or a fixed sampling period ``period_s`` (s, positive): the time of every sample and
     the step from the previous sample that the filter integrates. With time stamps the first
     sample's step is the median step (:func:`verticality.io.imu.dt_from_t`, as the file readers
     take it; the first sample only initializes the tilt, so its step enters no integration), a
@@ -87,7 +88,9 @@ def time_axis(n: int, t_s=None, period_s=None) -> tuple[np.ndarray, np.ndarray |
             raise InputError(f"period_s must be one positive, finite number of seconds; got "
                              f"{period_s!r}")
         return np.arange(n) * float(p), float(p)
-    t = np.asarray(t_s, dtype=np.float64)
+    from verticality.tilt.stamps import stamps_seconds, steps_from_ns
+
+    t, ns = stamps_seconds(t_s)  # date-times as seconds since 1970 (UTC), their steps exact
     if t.shape != (n,):
         raise InputError(f"t_s must have shape ({n},), one time stamp per sample; got {t.shape}")
     if not np.all(np.isfinite(t)):
@@ -97,4 +100,4 @@ def time_axis(n: int, t_s=None, period_s=None) -> tuple[np.ndarray, np.ndarray |
     if n < 2:
         raise InputError("t_s: one time stamp gives no time step; pass period_s for a single "
                          "sample")
-    return t, dt_from_t(t)
+    return t, (dt_from_t(t) if ns is None else steps_from_ns(ns))

@@ -18,7 +18,8 @@ from verticality.core.errors import InputError
 from verticality.tilt import stream
 from verticality.tilt.flags import accelerometer_used
 from verticality.tilt.output import TiltEstimate
-from verticality.tilt.params import DEFAULT_PARAMS, MAX_DT_S, TiltParams
+from verticality.tilt.params import DEFAULT_PARAMS, GAP_TOLERANCE_S, MAX_DT_S, TiltParams
+from verticality.tilt.stamps import stamp_seconds
 
 
 class Stream:
@@ -53,35 +54,42 @@ class Stream:
         self.params = params
         self.filter = stream.Stream(params, block, P0, x0, gyr_range_rad_s, acc_range_m_s2,
                                     period_s=self.period_s)
-        self.t_s = None  # the time of the last sample
+        self.t_s = None  # the time of the last sample taken
+        self.t_prev, self.behind = None, 0  # the last stamp given; stamps skipped in a row
         # a period's clock counts samples from the last time stamp (t0 + k period, as the batch
         # run's k × period_s: no sum of rounded steps)
         self.t0_s, self.k = 0.0, -1
         self.calib_var = (params.acc_calib_m_s2 / params.g_m_s2) ** 2
 
     def step(self, gyr_rad_s, acc_m_s2, t_s=None) -> TiltEstimate:
-        """One sample: gyro (3,) rad/s, accelerometer (3,) m/s² (NaN: missing), at time ``t_s``
-        (s), or a period after the last sample when ``t_s`` is None (``period_s`` needed)."""
+        """One sample: gyro (3,) rad/s, accelerometer (3,) m/s² (any sequence of three numbers:
+        a list, an array, a pandas row; NaN: missing), at time ``t_s`` (s, or a date-time:
+        :mod:`verticality.tilt.stamps`), or a period after the last sample when ``t_s`` is None
+        (``period_s`` needed). The stamps are judged as ``verticality stream`` judges them
+        (:func:`next_step`): one that does not follow the last by a usable step skips its sample
+        (flag ``BAD_DT``) and leaves the clock where it was; when the next one follows it, the
+        clock was set (or restarted), and a jump of more than a gap is a break, re-acquired as
+        after a gap (flag ``DT_GAP``)."""
+        gyr, acc = three(gyr_rad_s, "gyr_rad_s"), three(acc_m_s2, "acc_m_s2")
         if t_s is None:
             if self.period_s is None:
                 raise InputError("Stream.step: give the sample's time t_s, or create the stream "
                                  "with period_s")
             self.k += 1
             t = self.t0_s + self.k * self.period_s
-            dt = self.period_s
+            self.t_s = self.t_prev = t  # (the period's clock goes on from the last stamp)
+            return self.step_dt(gyr, acc, self.period_s, t)
+        t = stamp_seconds(t_s)
+        if self.t_s is None:
+            dt, t_last = (self.params.gap_flag_s if self.period_s is None else self.period_s), t
         else:
-            t = float(t_s)
-            if not math.isfinite(t):
-                raise InputError(f"Stream.step: t_s must be a finite time in seconds; got {t_s!r}")
-            if self.t_s is None:
-                dt = self.params.gap_flag_s if self.period_s is None else self.period_s
-            else:
-                dt = t - self.t_s
-        est = self.step_dt(gyr_rad_s, acc_m_s2, dt, t)
-        if self.t_s is None or 0.0 < dt < MAX_DT_S:  # a skipped stamp does not move the clock
-            self.t_s = t
-            if t_s is not None:
-                self.t0_s, self.k = t, 0
+            dt, t_last, self.behind = next_step(t, self.t_s, self.t_prev, self.behind,
+                                                params=self.params)
+        est = self.step_dt(gyr, acc, dt, t)
+        self.t_prev = t
+        if t_last != self.t_s:  # a skipped stamp does not move the clock
+            self.t_s = self.t0_s = t_last
+            self.k = 0
         return est
 
     def step_dt(self, gyr_rad_s, acc_m_s2, dt_s, t_s=math.nan) -> TiltEstimate:
@@ -100,3 +108,54 @@ class Stream:
         sigma = math.sqrt(var[0] + var[1] + self.calib_var)
         return TiltEstimate(t_s, roll, pitch, np.array(up), np.array(q), np.array(bias), sigma,
                             var, flags, accelerometer_used(flags))
+
+
+def three(values, name: str) -> tuple[float, float, float]:
+    """``values`` (any sequence of three numbers, by position: a list, an array of shape (3,) or
+    (1, 3), a pandas row) as three floats, else a one-line :class:`InputError`."""
+    if (type(values) in (list, tuple) and len(values) == 3) or (
+            type(values) is np.ndarray and values.shape == (3,)):  # the common cases, quickly
+        try:
+            return float(values[0]), float(values[1]), float(values[2])
+        except (TypeError, ValueError):
+            pass
+    try:
+        arr = np.asarray(values, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.size != 3:
+        shown = type(values).__name__ if arr is None else f"{arr.size} numbers"
+        raise InputError(f"Stream.step: {name} must be three numbers (x, y, z); got {shown}")
+    return float(arr[0]), float(arr[1]), float(arr[2])
+
+
+def next_step(t_s: float, t_last: float, t_prev: float, behind: int, warn=None,
+              params: TiltParams = DEFAULT_PARAMS) -> tuple[float, float, int]:
+    """``(dt, t_last, behind)`` for a sample stamped ``t_s`` s: the step from ``t_last`` (the last
+    time taken) when it is one the filter can use (positive, below ``MAX_DT_S``), and ``t_s``
+    becomes the last time. One absurd stamp (1e300, a stamp far back) is not taken, so it costs
+    its own sample only (skipped: ``dt`` NaN; named through ``warn``); when two in a row go on
+    from each other but not from ``t_last`` (``t_prev`` the previous sample's stamp, ``behind``
+    the stamps skipped since ``t_last``), the clock was set or restarted and is followed from
+    there. A jump of more than a gap (``params.gap_flag_s``, forward or back) is then a break:
+    the step is given as a gap (at least :func:`break_step_s`), so that the filter re-acquires
+    the tilt as after a gap (flags ``DT_GAP``, ``REACQUIRED``); the rotation across the jump is
+    unknown. Shared by :meth:`Stream.step` and ``verticality stream``."""
+    dt = t_s - t_last if math.isfinite(t_s) else math.nan
+    if 0.0 < dt < MAX_DT_S:
+        return dt, t_s, 0
+    if math.isfinite(t_s) and behind >= 1 and t_prev is not None and 0.0 < t_s - t_prev < MAX_DT_S:
+        step = t_s - t_prev
+        if dt >= MAX_DT_S or -dt > params.gap_flag_s:  # far ahead, or back by more than a gap
+            step = max(step, break_step_s(params))
+        return step, t_s, 0
+    if math.isfinite(t_s) and warn is not None:
+        warn(f"time {t_s:.9g} s does not follow {t_last:.9g} s by a usable step")
+    return math.nan, t_last, behind + 1
+
+
+def break_step_s(params: TiltParams = DEFAULT_PARAMS) -> float:
+    """The step given across a break in the clock: the shortest that the filter takes as a gap
+    (``gap_flag_s`` and its rounding tolerance), so that what it integrates over the unknown
+    time stays the least a gap allows."""
+    return params.gap_flag_s + 2 * GAP_TOLERANCE_S

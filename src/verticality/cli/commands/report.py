@@ -21,8 +21,12 @@ def register(sub):
 
 
 def run(args) -> int:
+    import sys
+
     from verticality import report
     from verticality.io.paths import check_written
 
-    print(check_written(report.build(args.results_dir, args.out)))
+    page = report.build(args.results_dir, args.out,
+                        warn=lambda line: print(f"warning: {line}", file=sys.stderr))
+    print(check_written(page))
     return 0

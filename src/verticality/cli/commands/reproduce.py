@@ -95,7 +95,8 @@ def run(args) -> int:
                                   on_stage=on_stage, jobs=jobs)
     page = None
     if out_dir is not None and not args.no_report:
-        page = report.build(out_dir)
+        page = report.build(out_dir, warn=lambda line: print(f"warning: {line}",
+                                                              file=sys.stderr))
     if args.json:
         json.dump(results, sys.stdout, indent=2)
         sys.stdout.write("\n")

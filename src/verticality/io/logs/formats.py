@@ -36,6 +36,8 @@ def log_format(path) -> str | None:
         return ROS2 if (path / "metadata.yaml").is_file() else None
     if path.name == "metadata.yaml" and path.is_file():
         return ROS2
+    if not path.is_file():  # a pipe or a device: reading its first bytes would consume them
+        return None
     try:
         with open(path, "rb") as fh:
             head = fh.read(16)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -88,46 +89,46 @@ def write_mcap(path, stamps_ns, quat_wxyz, tilt_var, frame_id: str, topic: str =
                message: str = "imu") -> Path:
     """Write the tilt (module doc) as the bare MCAP file ``path`` (ROS 2 profile, CDR): one
     message per sample at ``stamps_ns``, ``quat_wxyz`` (N, 4) sensor → Earth (z up),
-    ``tilt_var`` (N, 2) the tilt's variances (rad²) about Earth's x and y."""
+    ``tilt_var`` (N, 2) the tilt's variances (rad²) about Earth's x and y. The file appears whole
+    or not at all (:func:`verticality.io.paths.atomic_output`: never written through a link, one
+    writer at a time)."""
+    from verticality.io.paths import atomic_output
+
     path = Path(path)
     stamps = _checked_stamps(stamps_ns)
-    part = path.with_name(path.name + ".part")
-    shutil.rmtree(part, ignore_errors=True)
-    try:
-        _write_bag(part, "mcap", topic, message, stamps, quat_wxyz, tilt_var, frame_id)
-        inner = [p for p in part.iterdir() if p.suffix == ".mcap"]
-        os.replace(inner[0], path)
-    finally:
-        shutil.rmtree(part, ignore_errors=True)
+    with atomic_output(path) as tmp:
+        # rosbags writes a bag folder; it is built in a fresh folder of its own beside the output
+        work = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+        try:
+            _write_bag(work / "bag", "mcap", topic, message, stamps, quat_wxyz, tilt_var,
+                       frame_id)
+            inner = [p for p in (work / "bag").iterdir() if p.suffix == ".mcap"]
+            shutil.copyfile(inner[0], tmp)  # into the locked temporary file, by content
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
     return path
 
 
 def write_ros2_bag(folder, stamps_ns, quat_wxyz, tilt_var, frame_id: str,
                    topic: str = DEFAULT_TOPIC, message: str = "imu") -> Path:
     """Write the tilt (as :func:`write_mcap`) as a new ROS 2 bag ``folder`` (metadata.yaml and
-    sqlite3 storage); an existing ``folder`` is refused."""
+    sqlite3 storage); an existing ``folder`` (or one that another run creates meanwhile) is
+    refused. It is built in a fresh folder beside it and renamed: it appears whole or not at
+    all."""
     folder = Path(folder)
-    if folder.exists():
+    if folder.exists() or folder.is_symlink():
         raise InputError(f"--ros2-bag {folder}: exists; a ROS 2 bag is written as a new folder")
     stamps = _checked_stamps(stamps_ns)
-    part = folder.with_name(folder.name + ".part")
-    shutil.rmtree(part, ignore_errors=True)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
     try:
+        part = work / folder.name
         _write_bag(part, "sqlite3", topic, message, stamps, quat_wxyz, tilt_var, frame_id)
-        for p in part.iterdir():  # the storage file is named after its folder
-            if p.name.startswith(part.name):
-                p.rename(part / (folder.name + p.name[len(part.name):]))
-        _rename_in_metadata(part / "metadata.yaml", part.name, folder.name)
-        os.replace(part, folder)
+        try:
+            os.rename(part, folder)  # fails on a folder that is not empty: never a mix
+        except OSError as exc:
+            raise InputError(f"--ros2-bag {folder}: cannot be written ({exc.strerror}; another "
+                             "run may have written it)") from None
     finally:
-        shutil.rmtree(part, ignore_errors=True)
+        shutil.rmtree(work, ignore_errors=True)
     return folder
-
-
-def _rename_in_metadata(meta: Path, old: str, new: str) -> None:
-    """The storage file's name as the metadata lists it (``relative_file_paths``, ``path`` of
-    ``files``), after the folder's rename."""
-    text = meta.read_text(encoding="utf-8")
-    meta.write_text(text.replace(f"{old}.db3", f"{new}.db3").replace(f"{old}.mcap",
-                                                                      f"{new}.mcap"),
-                    encoding="utf-8")
