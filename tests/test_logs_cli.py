@@ -227,3 +227,21 @@ def test_a_damaged_log_is_estimated_or_refused_in_one_line(logs, tmp_path_factor
     if code == 0:
         table = read_estimate_csv(d / "out.csv")
         assert table.t_s.size >= 2 and np.all(np.isfinite(table.t_s))
+
+
+def test_log_outputs_never_write_through_a_link_planted_where_they_go(logs, tmp_path):
+    """The estimate CSV, the comparison CSV and the MCAP written back replace a link planted at
+    their names (the link's own path), never the file it points to."""
+    victims = {}
+    outs = {"--out": tmp_path / "tilt.mcap", "--compare": tmp_path / "cmp.csv"}
+    for opt, out in outs.items():
+        victim = tmp_path / f"victim{opt}.txt"
+        victim.write_text("private")
+        out.symlink_to(victim)
+        victims[opt] = victim
+    code, _, err = run_cli(["estimate", str(logs["ulog"]), "--out", str(outs["--out"]),
+                            "--compare", str(outs["--compare"])])
+    assert code == 0, err
+    for opt, out in outs.items():
+        assert victims[opt].read_text() == "private", opt
+        assert not out.is_symlink() and out.stat().st_size > 0, opt
