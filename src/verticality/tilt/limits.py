@@ -68,6 +68,11 @@ MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make 
 GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s
 ACC_FLOOR_M_S2 = 1.5 * G_M_S2  # the smallest common accelerometer range is ±2 g
 EXCESS_FRACTION = 0.5  # σ of a clipped gyro axis's unknown excess, as a fraction of the clip level
+PLANE_TOL = 1.0 / 16.0  # a plateau's spread along its raw axis, as a fraction of the noise σ
+PLANE_BAND = 0.05  # the share of the extreme within which a calibrated plateau wanders
+PLANE_TILT_RAD = 0.1  # the largest angle between a raw axis and its calibrated axis
+PLANE_TRIALS = 128  # pairs of plateau steps tried per axis and side
+PLANE_KEEP = 4  # raw axis directions evaluated per axis and side
 
 
 class Limits(NamedTuple):
@@ -156,6 +161,136 @@ def inferred_levels(x, held, floor: float, min_run: int = MIN_RUN):
     return lo, hi
 
 
+def noise_std(x) -> np.ndarray:
+    """(3,) the white noise of each axis of ``x`` (N, 3), from the recording alone: the median
+    absolute second difference (white noise of σ gives differences of σ√6; a motion sampled well
+    above its own frequencies adds little to them, and the median ignores the samples where it
+    does) over 0.6745√6. NaN samples are left out; 0 for an axis whose second differences are
+    mostly exactly 0 (a quantized reading of a quiet sensor)."""
+    d2 = np.abs(x[2:] - 2.0 * x[1:-1] + x[:-2])
+    out = np.zeros(3)
+    for i in range(3):
+        col = d2[:, i][np.isfinite(d2[:, i])]
+        if col.size:
+            out[i] = np.median(col) / (0.6745 * math.sqrt(6.0))
+    return out
+
+
+def _resolution(col) -> float:
+    """The step at which the values of ``col`` are stored (the smallest gap between distinct
+    values, read on a sample of them): a file written with few digits or in float32 rounds a
+    calibrated plateau by that much."""
+    u = np.unique(col[np.isfinite(col)][:: max(1, col.size // 20000)])
+    gaps = np.diff(u)
+    return float(gaps.min()) if gaps.size else 0.0
+
+
+def _runs_at(p, level, tol, sign, ok, min_run):
+    """(samples at the level: ``sign·p ≥ sign·level − tol`` on rows ``ok``, whether a run of
+    ``min_run`` consecutive such samples exists)."""
+    at = (sign * p >= sign * level - tol) & ok
+    return at, np.count_nonzero(at) >= min_run and _longest_run(at) >= min_run
+
+
+def _raw_axis_candidates(x, i, sign, band, tol, rng, trials=PLANE_TRIALS):
+    """Directions ``a`` (unit, within :data:`PLANE_TILT_RAD` of axis ``i``) along which the
+    samples of ``x`` near axis ``i``'s extreme on side ``sign`` may be flat: each spanned by
+    the steps between two pairs of consecutive samples in the band (``band`` (N,) bool), then
+    refitted to every step it leaves within ``tol`` (the smallest singular direction of those
+    steps). A raw axis clipped under a calibration holds ``a · x`` constant, so every step along
+    its plateau is orthogonal to ``a``; ordered by how many steps each explains."""
+    k = np.flatnonzero(band[:-1] & band[1:])
+    if k.size < 2:
+        return []
+    steps = x[k + 1] - x[k]
+    size = np.linalg.norm(steps, axis=1)
+    # a step along a plateau is orthogonal to a raw axis within PLANE_TILT_RAD of axis i: its
+    # component along i is at most tan(PLANE_TILT_RAD) of the rest (plus the tolerance)
+    other = np.sqrt(np.maximum(size**2 - steps[:, i] ** 2, 0.0))
+    flat = (size > 0) & (np.abs(steps[:, i]) <= math.tan(PLANE_TILT_RAD) * other + tol)
+    k, steps = k[flat], steps[flat]
+    if k.size < 2:
+        return []
+    run = np.cumsum(np.concatenate([[0], np.diff(k) > 1]))  # the band run each step is in
+    found = []
+    for _ in range(trials):
+        j1 = rng.integers(k.size)
+        # the second step from another run where there is one: two steps of one run at a high
+        # rate are nearly parallel, and their cross product is mostly noise
+        others = np.flatnonzero(run != run[j1])
+        j2 = rng.choice(others) if others.size else rng.integers(k.size)
+        if j2 == j1:
+            continue
+        a = np.cross(steps[j1], steps[j2])
+        norm = np.linalg.norm(a)
+        if norm == 0:
+            continue
+        a = a / norm * np.sign(a[i])
+        if a[i] < math.cos(PLANE_TILT_RAD):
+            continue
+        inl = np.abs(steps @ a) <= tol
+        if np.count_nonzero(inl) >= 3:
+            a = np.linalg.svd(steps[inl], full_matrices=False)[2][-1]
+            a = a * np.sign(a[i])
+            inl = np.abs(steps @ a) <= tol
+        found.append((int(np.count_nonzero(inl)), a))
+    found.sort(key=lambda f: -f[0])
+    out = []
+    for _, a in found:  # distinct directions only
+        if all(np.linalg.norm(a - b) > 1e-9 for b in out):
+            out.append(a)
+        if len(out) == PLANE_KEEP:
+            break
+    return out
+
+
+def inferred_clipping(x, held, floor: float):
+    """Clipped samples of ``x`` (N, 3) inferred from the recording alone: ``(clipped (N, 3)
+    bool, level (N, 3) the clip level's size where clipped, else 0)`` (module doc, "A plateau
+    after calibration"). On each axis and side, the extreme of the projection ``a · x`` read by a
+    run of at least :data:`MIN_RUN` consecutive samples within a tolerance the recording's noise
+    sets (:data:`PLANE_TOL` × its σ along ``a``, :func:`noise_std`, plus the storage's rounding),
+    ``a`` the axis itself (a flat top) or a raw axis direction recovered from the plateau
+    (:func:`_raw_axis_candidates`); beyond ``floor`` in size. Rows where ``held`` do not count
+    towards a run."""
+    n = x.shape[0]
+    clipped = np.zeros((n, 3), dtype=bool)
+    level = np.zeros((n, 3))
+    if n < MIN_RUN:
+        return clipped, level
+    finite = np.all(np.isfinite(x), axis=1)
+    ok = finite & ~held
+    if not ok.any():
+        return clipped, level
+    sd = noise_std(x)
+    res = max(_resolution(x[:, j]) for j in range(3))
+    xo = np.where(ok[:, None], x, 0.0)
+    for i in range(3):
+        col = x[:, i]
+        top = np.max(col, where=ok, initial=-np.inf)
+        bottom = np.min(col, where=ok, initial=np.inf)
+        for ext, sign in ((top, 1.0), (bottom, -1.0)):
+            if not sign * ext > floor:
+                continue
+            rng = np.random.default_rng(i * 2 + (sign > 0))  # the same answer on every run
+            e_i = np.eye(3)[i]
+            base_tol = PLANE_TOL * sd[i] + res
+            band = ok & (sign * col >= sign * ext - PLANE_BAND * abs(ext) - base_tol)
+            plane_tol = PLANE_TOL * float(np.sqrt(np.sum(sd**2))) + 2.0 * res
+            best = None
+            for a in [e_i] + _raw_axis_candidates(xo, i, sign, band, plane_tol, rng):
+                p = xo @ a
+                lvl = np.max(sign * p, where=ok, initial=-np.inf) * sign
+                tol = PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + 2.0 * res
+                at, found = _runs_at(p, lvl, tol, sign, ok, MIN_RUN)
+                if found and (best is None or np.count_nonzero(at) > np.count_nonzero(best[0])):
+                    best = (at | ((sign * p >= sign * lvl - tol) & finite), abs(lvl))
+            if best is not None and best[1] > floor:
+                clipped[:, i] |= best[0]
+                level[:, i] = np.where(best[0], best[1], level[:, i])
+    return clipped, level
+
+
 def _range(value, name: str) -> np.ndarray:
     try:
         r = np.asarray(value, dtype=np.float64)
@@ -171,13 +306,20 @@ def _range(value, name: str) -> np.ndarray:
     return r.copy()
 
 
-def _levels(x, held, given, name, floor, infer):
+def _clipped(x, held, given, name, floor, infer):
+    """``(clipped (N, 3) bool, level (N, 3))``: the components at or beyond the given range, or
+    inferred from the recording (:func:`inferred_clipping`), or none; the clip level's size where
+    clipped, else 0."""
+    none = np.zeros(x.shape, dtype=bool), np.zeros(x.shape)
     if given is not None:
         r = _range(given, name)
-        return -r, r
-    if infer:
-        return inferred_levels(x, held, floor)
-    return np.full(3, -np.inf), np.full(3, np.inf)
+        finite = np.isfinite(x)
+        top = (x >= r) & finite
+        clipped = top | ((x <= -r) & finite)
+        return clipped, np.where(clipped, np.broadcast_to(r, x.shape), 0.0)
+    if infer and x.ndim == 2 and x.shape[0]:
+        return inferred_clipping(x, held, floor)
+    return none
 
 
 def clip_variance(clipped, sigma_rad_s, dts) -> np.ndarray:
@@ -213,30 +355,17 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     n = gyr.shape[0]
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,))
     held = held_rows(gyr, acc, prev)
-    g_lo, g_hi = _levels(gyr, held, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S, infer)
-    a_lo, a_hi = _levels(acc, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2, infer)
-    # (±inf levels, the usual case, clip nothing: the comparisons are skipped)
-    g_top = np.zeros(gyr.shape, dtype=bool)
-    gyr_clipped = g_top
-    if np.isfinite(g_lo).any() or np.isfinite(g_hi).any():
-        finite = np.isfinite(gyr)
-        g_top = (gyr >= g_hi) & finite
-        gyr_clipped = g_top | ((gyr <= g_lo) & finite)
-    acc_clipped = np.zeros(n, dtype=bool)
+    gyr_clipped, g_level = _clipped(gyr, held, gyr_range_rad_s, "gyr_range_rad_s",
+                                    GYR_FLOOR_RAD_S, infer)
+    a_axes, a_level = _clipped(acc, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2, infer)
+    acc_clipped = np.any(a_axes, axis=1)
     vel_var = np.zeros(n)
-    if np.isfinite(a_lo).any() or np.isfinite(a_hi).any():
-        finite = np.isfinite(acc)
-        a_top = (acc >= a_hi) & finite
-        a_axes = a_top | ((acc <= a_lo) & finite)
-        acc_clipped = np.any(a_axes, axis=1)
-        if acc_clipped.any():
-            sigma = EXCESS_FRACTION * np.where(a_top, a_hi, -a_lo)
-            vel_var = clip_variance(a_axes, np.where(a_axes, sigma, 0.0), dts)
+    if acc_clipped.any():
+        vel_var = clip_variance(a_axes, EXCESS_FRACTION * a_level, dts)
     flags = np.where(held, np.int32(HELD), np.int32(0))
     var = np.zeros(n)
     if gyr_clipped.any():
-        sigma = EXCESS_FRACTION * np.where(g_top, g_hi, -g_lo)
-        var = clip_variance(gyr_clipped, np.where(gyr_clipped, sigma, 0.0), dts)
+        var = clip_variance(gyr_clipped, EXCESS_FRACTION * g_level, dts)
         flags |= np.where(gyr_clipped.any(axis=1), np.int32(CLIPPED), np.int32(0))
     if acc_clipped.any():
         flags |= np.where(acc_clipped, np.int32(CLIPPED), np.int32(0))
