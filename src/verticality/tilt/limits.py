@@ -73,6 +73,7 @@ PLANE_BAND = 0.05  # the share of the extreme within which a calibrated plateau 
 PLANE_TILT_RAD = 0.1  # the largest angle between a raw axis and its calibrated axis
 PLANE_TRIALS = 128  # pairs of plateau steps tried per axis and side
 PLANE_KEEP = 4  # raw axis directions evaluated per axis and side
+PLANE_SPREAD = 3.0  # a lone plateau run's spread across a line, in noise σ, that fixes its plane
 
 
 class Limits(NamedTuple):
@@ -185,11 +186,37 @@ def _resolution(col) -> float:
     return float(gaps.min()) if gaps.size else 0.0
 
 
-def _runs_at(p, level, tol, sign, ok, min_run):
-    """(samples at the level: ``sign·p ≥ sign·level − tol`` on rows ``ok``, whether a run of
-    ``min_run`` consecutive such samples exists)."""
+def _long_runs(at, min_run):
+    """The True entries of ``at`` that lie in runs of at least ``min_run``, and how many such
+    runs there are."""
+    k = np.flatnonzero(at)
+    out = np.zeros(at.shape, dtype=bool)
+    if k.size < min_run:
+        return out, 0
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(k) != 1) + 1])
+    ends = np.concatenate([starts[1:], [k.size]])
+    long = (ends - starts) >= min_run
+    for a, b in zip(starts[long], ends[long], strict=True):
+        out[k[a]:k[b - 1] + 1] = True
+    return out, int(np.count_nonzero(long))
+
+
+def _plateau_found(x, p, level, tol, sign, ok, sd, axis_itself):
+    """``(at, found)``: the samples at the level (``sign·p ≥ sign·level − tol``, rows ``ok``) and
+    whether they make a plateau: a run of :data:`MIN_RUN` of them; for a recovered raw axis
+    (``axis_itself`` False) the runs must also fix the plane, which samples on one line cannot
+    (a recording upsampled by linear interpolation holds runs of collinear samples, and every
+    plane through their line holds them "flat"): two runs or more, or one whose samples spread
+    across the line by more than :data:`PLANE_SPREAD` times the noise."""
     at = (sign * p >= sign * level - tol) & ok
-    return at, np.count_nonzero(at) >= min_run and _longest_run(at) >= min_run
+    runs, count = _long_runs(at, MIN_RUN)
+    if count == 0:
+        return at, False
+    if axis_itself or count >= 2:
+        return at, True
+    pts = x[runs] - x[runs].mean(axis=0)
+    across = np.linalg.svd(pts, compute_uv=False)[1] / math.sqrt(pts.shape[0])
+    return at, bool(across > PLANE_SPREAD * math.sqrt(float(np.sum(sd**2))))
 
 
 def _raw_axis_candidates(x, i, sign, band, tol, rng, trials=PLANE_TRIALS):
@@ -278,11 +305,12 @@ def inferred_clipping(x, held, floor: float):
             band = ok & (sign * col >= sign * ext - PLANE_BAND * abs(ext) - base_tol)
             plane_tol = PLANE_TOL * float(np.sqrt(np.sum(sd**2))) + 2.0 * res
             best = None
-            for a in [e_i] + _raw_axis_candidates(xo, i, sign, band, plane_tol, rng):
+            for j, a in enumerate([e_i] + _raw_axis_candidates(xo, i, sign, band, plane_tol,
+                                                                  rng)):
                 p = xo @ a
                 lvl = np.max(sign * p, where=ok, initial=-np.inf) * sign
                 tol = PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + 2.0 * res
-                at, found = _runs_at(p, lvl, tol, sign, ok, MIN_RUN)
+                at, found = _plateau_found(xo, p, lvl, tol, sign, ok, sd, j == 0)
                 if found and (best is None or np.count_nonzero(at) > np.count_nonzero(best[0])):
                     best = (at | ((sign * p >= sign * lvl - tol) & finite), abs(lvl))
             if best is not None and best[1] > floor:
