@@ -93,10 +93,10 @@ def draw_raw_sensor(rng, offset, noise_std, full_scale, noise_after_clip=False) 
 
 
 def read_raw_then_calibrated(true_B, s: RawSensor, rng):
-    """``(file (N, 3), clipped (N,) bool: a raw axis read at its limit)``: ``true_B`` read in the sensor's raw axes
-    (:func:`~verticality.sensors.readings.raw_axes_reading`: 16-bit codes over ± full scale,
-    −32768 … +32767), clipped there, then calibrated with the estimated model
-    (:func:`~verticality.sensors.readings.calibrated`)."""
+    """``(file (N, 3), clipped (N,) bool: a raw axis read at its limit)``: ``true_B`` read in
+    the sensor's raw axes (:func:`~verticality.sensors.readings.raw_axes_reading`: 16-bit
+    codes over ± full scale, −32768 … +32767), clipped there, then calibrated with the estimated
+    model (:func:`~verticality.sensors.readings.calibrated`)."""
     lsb = s.full_scale / _LSB_CODES
     lo, hi = -s.full_scale, s.full_scale - lsb
     noise = rng.normal(0.0, s.noise_std, true_B.shape)

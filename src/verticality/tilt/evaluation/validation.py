@@ -266,14 +266,14 @@ def leave_one_class_out(cases: Iterable[Case], variants: dict, offline: bool = F
     within = {v: {k: g["2s"][v] for k, g in sums.items()} for v in variants}
     classes = sorted({k[0] for k in sums})
 
-    def score(v, keep):
-        r = [np.log(x) for k, x in ratios[v].items() if keep(k[0])]
+    def score(v, cls, held_out):
+        r = [np.log(x) for k, x in ratios[v].items() if (k[0] != cls) == held_out]
         return float(np.mean(r)) if r else 0.0
 
     chosen = {}
     for c in classes:
-        pick = min(variants, key=lambda v: score(v, lambda d: d != c))
-        here = min(variants, key=lambda v: score(v, lambda d: d == c))
+        pick = min(variants, key=lambda v, c=c: score(v, c, True))
+        here = min(variants, key=lambda v, c=c: score(v, c, False))
         chosen[c] = {"variant": pick, "best_here": here,
                      "ratios": {k[1]: x for k, x in ratios[pick].items() if k[0] == c}}
     return {"ratios": ratios, "within_2sigma": within, "chosen": chosen}
