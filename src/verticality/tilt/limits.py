@@ -74,6 +74,7 @@ PLANE_TILT_RAD = 0.1  # the largest angle between a raw axis and its calibrated 
 PLANE_TRIALS = 128  # pairs of plateau steps tried per axis and side
 PLANE_KEEP = 4  # raw axis directions evaluated per axis and side
 PLANE_SPREAD = 3.0  # a lone plateau run's spread across a line, in noise σ, that fixes its plane
+PLANE_LONE_RUN = 2 * MIN_RUN  # the samples a lone plateau run needs to fix its plane
 
 
 class Limits(NamedTuple):
@@ -166,24 +167,32 @@ def noise_std(x) -> np.ndarray:
     """(3,) the white noise of each axis of ``x`` (N, 3), from the recording alone: the median
     absolute second difference (white noise of σ gives differences of σ√6; a motion sampled well
     above its own frequencies adds little to them, and the median ignores the samples where it
-    does) over 0.6745√6. NaN samples are left out; 0 for an axis whose second differences are
-    mostly exactly 0 (a quantized reading of a quiet sensor)."""
+    does) over 0.6745√6. NaN samples and second differences of 0 (to rounding) are left out: a
+    recording upsampled by linear interpolation has second differences only at its knots, where
+    they are its noise's, and a quantized quiet sensor only where it steps by a code; 0 for an
+    axis with no second difference at all."""
     d2 = np.abs(x[2:] - 2.0 * x[1:-1] + x[:-2])
     out = np.zeros(3)
     for i in range(3):
-        col = d2[:, i][np.isfinite(d2[:, i])]
+        # (0 to the rounding of the values: 1e-10 of the largest)
+        eps = 1e-10 * np.max(np.abs(x[:, i]), where=np.isfinite(x[:, i]), initial=0.0)
+        col = d2[:, i][np.isfinite(d2[:, i]) & (d2[:, i] > eps)]
         if col.size:
             out[i] = np.median(col) / (0.6745 * math.sqrt(6.0))
     return out
 
 
 def _resolution(col) -> float:
-    """The step at which the values of ``col`` are stored (the smallest gap between distinct
-    values, read on a sample of them): a file written with few digits or in float32 rounds a
-    calibrated plateau by that much."""
+    """The step at which the values of ``col`` are stored, or 0 when they are on no grid: the
+    smallest gap between distinct values (read on a sample of them) when nearly every gap is a
+    whole multiple of it (a file written with few digits, or quantized codes); a calibrated
+    plateau is then rounded by that much."""
     u = np.unique(col[np.isfinite(col)][:: max(1, col.size // 20000)])
     gaps = np.diff(u)
-    return float(gaps.min()) if gaps.size else 0.0
+    if gaps.size < 10 or gaps.min() <= 0:
+        return 0.0
+    m = gaps / gaps.min()
+    return float(gaps.min()) if np.mean(np.abs(m - np.round(m)) < 0.01) > 0.99 else 0.0
 
 
 def _long_runs(at, min_run):
@@ -206,14 +215,18 @@ def _plateau_found(x, p, level, tol, sign, ok, sd, axis_itself):
     whether they make a plateau: a run of :data:`MIN_RUN` of them; for a recovered raw axis
     (``axis_itself`` False) the runs must also fix the plane, which samples on one line cannot
     (a recording upsampled by linear interpolation holds runs of collinear samples, and every
-    plane through their line holds them "flat"): two runs or more, or one whose samples spread
-    across the line by more than :data:`PLANE_SPREAD` times the noise."""
+    plane through their line holds them "flat"; two such segments meet at a knot, and a plane
+    holds them both): two runs or more, or one of at least :data:`PLANE_LONE_RUN` samples (more
+    segments than any plane holds by chance) whose samples spread across a line by more than
+    :data:`PLANE_SPREAD` times the noise."""
     at = (sign * p >= sign * level - tol) & ok
     runs, count = _long_runs(at, MIN_RUN)
     if count == 0:
         return at, False
     if axis_itself or count >= 2:
         return at, True
+    if np.count_nonzero(runs) < PLANE_LONE_RUN:
+        return at, False
     pts = x[runs] - x[runs].mean(axis=0)
     across = np.linalg.svd(pts, compute_uv=False)[1] / math.sqrt(pts.shape[0])
     return at, bool(across > PLANE_SPREAD * math.sqrt(float(np.sum(sd**2))))
@@ -240,14 +253,17 @@ def _raw_axis_candidates(x, i, sign, band, tol, rng, trials=PLANE_TRIALS):
         return []
     run = np.cumsum(np.concatenate([[0], np.diff(k) > 1]))  # the band run each step is in
     found = []
-    for _ in range(trials):
+    while trials > 0:
         j1 = rng.integers(k.size)
-        # the second step from another run where there is one: two steps of one run at a high
-        # rate are nearly parallel, and their cross product is mostly noise
-        others = np.flatnonzero(run != run[j1])
-        j2 = rng.choice(others) if others.size else rng.integers(k.size)
-        if j2 == j1:
+        # the second step from another run, or from the same run at least MIN_RUN steps away
+        # (half the trials each): two neighbouring steps at a high rate are nearly parallel,
+        # and their cross product is mostly noise; a lone plateau needs two of its own steps
+        same = run == run[j1]
+        pool = np.flatnonzero(~same if trials % 2 else same & (np.abs(k - k[j1]) >= MIN_RUN))
+        trials -= 1
+        if pool.size == 0:
             continue
+        j2 = rng.choice(pool)
         a = np.cross(steps[j1], steps[j2])
         norm = np.linalg.norm(a)
         if norm == 0:
@@ -269,6 +285,29 @@ def _raw_axis_candidates(x, i, sign, band, tol, rng, trials=PLANE_TRIALS):
         if len(out) == PLANE_KEEP:
             break
     return out
+
+
+def _refined(x, a, i, sign, ok, tol_of, rounds: int = 3):
+    """``a`` refitted to the samples at its extreme: the normal of the plane through them (the
+    smallest singular direction of the centred samples within ``tol_of(a)`` of the extreme of
+    ``a · x``), while it stays within :data:`PLANE_TILT_RAD` of axis ``i`` and holds more of
+    them. A direction spanned by two steps is as good as those steps; the plateau's samples
+    all together fix it to their rounding."""
+    count = 0
+    for _ in range(rounds):
+        p = x @ a
+        lvl = np.max(sign * p, where=ok, initial=-np.inf) * sign
+        at = (sign * p >= sign * lvl - tol_of(a)) & ok
+        if np.count_nonzero(at) <= count or np.count_nonzero(at) < 3:
+            break
+        count = np.count_nonzero(at)
+        pts = x[at] - x[at].mean(axis=0)
+        b = np.linalg.svd(pts, full_matrices=False)[2][-1]
+        b = b * np.sign(b[i])
+        if b[i] < math.cos(PLANE_TILT_RAD):
+            break
+        a = b
+    return a
 
 
 def inferred_clipping(x, held, floor: float):
@@ -307,9 +346,16 @@ def inferred_clipping(x, held, floor: float):
             best = None
             for j, a in enumerate([e_i] + _raw_axis_candidates(xo, i, sign, band, plane_tol,
                                                                   rng)):
+                # (the axis itself: a flat top is exact in the stored values; a recovered raw
+                # axis mixes three stored values, each rounded)
+                def tol_of(a, j=j):
+                    return PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + (j > 0) * 2 * res
+
+                if j > 0:
+                    a = _refined(xo, a, i, sign, ok, tol_of)
                 p = xo @ a
                 lvl = np.max(sign * p, where=ok, initial=-np.inf) * sign
-                tol = PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + 2.0 * res
+                tol = tol_of(a)
                 at, found = _plateau_found(xo, p, lvl, tol, sign, ok, sd, j == 0)
                 if found and (best is None or np.count_nonzero(at) > np.count_nonzero(best[0])):
                     best = (at | ((sign * p >= sign * lvl - tol) & finite), abs(lvl))
