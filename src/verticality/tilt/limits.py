@@ -17,6 +17,34 @@ range reads its full scale for as long as it lasts (tens of samples at 100 Hz fo
 peaks 50 % above the range); 4 is twice the longest run seen on clean data. The floors keep a dead
 or constant axis (all zeros, a level sensor's steady 1 g) from counting as clipped.
 
+**A plateau after calibration.** A sensor clips in its own raw axes, at its converter's end codes
+(a 16-bit part reads −32768 … +32767: the limits differ by sign, and by the offset the
+calibration removes), and the file often holds the readings *after* a calibration
+``y = C⁻¹ (r − b)`` (scale, cross-axis and offset estimates). While raw axis i sits at its end
+code, ``a · y`` is constant, ``a`` the i-th row of ``C`` (within a few degrees of axis i: cross-axis
+terms are ±1–2 %), while the other raw axes move; so in the file the plateau is a *plane*, not a
+flat top: the calibrated axis wanders by the cross-axis terms times the other axes' motion (1e-3
+of full scale is typical) and no two samples need be equal. When the sensing element's noise is
+added before the converter saturates (digital MEMS parts), the raw plateau is exact, and along
+``a`` the file's plateau is flat to its rounding, far below the noise. :func:`inferred_clipping`
+looks for exactly that, per axis and side: the extreme of ``a · y`` read by :data:`MIN_RUN`
+consecutive samples within :data:`PLANE_TOL` (1/16) of the recording's own noise σ along ``a``
+(:func:`noise_std`, from the second differences) plus the storage step (:func:`_resolution`),
+``a`` either the axis itself (the flat top above, now within that tolerance) or a raw axis
+direction recovered from the plateau: every step between two consecutive plateau samples lies
+in the plane, so two such steps span it (:func:`_raw_axis_candidates`, within
+:data:`PLANE_TILT_RAD` of the axis), refitted to all the samples at its extreme
+(:func:`_refined`). A clean peak reads noise: a sample within σ/16 of the recording's extreme is
+rare, four in a row rarer still. A recovered direction must also be fixed by its plateau (two
+runs, or a lone run of :data:`PLANE_LONE_RUN` samples spread across a line by
+:data:`PLANE_SPREAD` σ): a recording upsampled by linear interpolation holds runs of collinear
+samples, and every plane through their line holds them flat (found on BROAD resampled to
+1000 Hz). What cannot be recovered: a plateau shorter than ``MIN_RUN`` samples on every visit (a
+brief clip at 50 Hz), a plateau whose noise comes after the clipping (an analog front end that
+saturates before the converter: the plateau then reads noise like a peak), and a file whose axes
+were rotated into another frame (the plane is then far from every axis). The given range
+(``gyr_range_rad_s``) covers the first two.
+
 What the filter does with a clipped reading, by physics:
 
 * a clipped gyro axis reads a rate whose true value is at least the clip level, with an unknown
