@@ -12,7 +12,10 @@ batchable (``vmap`` over keys). Two forms are offered for each sensor:
 The error primitives (``random_walk_increments``, ``random_walk``, ``white``, ``white_noise_std``,
 ``axes_reading``: scale, misalignment, offset, noise, range) are the one sensor-error model; the
 gyro and accelerometer above and every experiment's or evaluation's simulated IMU are built
-from them.
+from them. ``raw_axes_reading`` and ``calibrated`` are the same model read in the sensor's raw
+axes, clipped there at limits that differ by sign (noise and quantization before or after the
+clip), then calibrated by the user's estimate of it: what a calibrated file of a saturating
+sensor holds.
 
 Models (T §III.A for the noise levels of docs/reproduction.md `tahboub-*`; P13 §5 for white noise
 on the inclinometer angles and gyro rates):
