@@ -30,7 +30,7 @@ added before the converter saturates (digital MEMS parts), the raw plateau is ex
 looks for exactly that, per axis and side: the extreme of ``a · y`` read by :data:`MIN_RUN`
 consecutive samples within :data:`PLANE_TOL` (1/16) of the recording's own noise σ along ``a``
 (:func:`noise_std`, from the second differences) plus the storage step (:func:`_resolution`),
-``a`` either the axis itself (the flat top above, now within that tolerance) or a raw axis
+``a`` either the axis itself (the flat top above, read exactly as before) or a raw axis
 direction recovered from the plateau: every step between two consecutive plateau samples lies
 in the plane, so two such steps span it (:func:`_raw_axis_candidates`, within
 :data:`PLANE_TILT_RAD` of the axis), refitted to all the samples at its extreme
@@ -344,9 +344,9 @@ def inferred_clipping(x, held, floor: float):
     after calibration"). On each axis and side, the extreme of the projection ``a · x`` read by a
     run of at least :data:`MIN_RUN` consecutive samples within a tolerance the recording's noise
     sets (:data:`PLANE_TOL` × its σ along ``a``, :func:`noise_std`, plus the storage's rounding),
-    ``a`` the axis itself (a flat top) or a raw axis direction recovered from the plateau
-    (:func:`_raw_axis_candidates`); beyond ``floor`` in size. Rows where ``held`` do not count
-    towards a run."""
+    ``a`` the axis itself (a flat top, read exactly: :func:`inferred_levels`'s detector) or a raw
+    axis direction recovered from the plateau (:func:`_raw_axis_candidates`); beyond ``floor`` in
+    size. Rows where ``held`` do not count towards a run."""
     n = x.shape[0]
     clipped = np.zeros((n, 3), dtype=bool)
     level = np.zeros((n, 3))
@@ -374,10 +374,14 @@ def inferred_clipping(x, held, floor: float):
             best = None
             for j, a in enumerate([e_i] + _raw_axis_candidates(xo, i, sign, band, plane_tol,
                                                                   rng)):
-                # (the axis itself: a flat top is exact in the stored values; a recovered raw
-                # axis mixes three stored values, each rounded)
+                # (the axis itself: a flat top is exact in the stored values, so no tolerance:
+                # a recording upsampled by linear interpolation holds near-flat segments at its
+                # peaks, within σ/16 of their top; a recovered raw axis mixes three stored
+                # values, each rounded, and must be fixed by its plateau, _plateau_found)
                 def tol_of(a, j=j):
-                    return PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + (j > 0) * 2 * res
+                    if j == 0:
+                        return 0.0
+                    return PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + 2 * res
 
                 if j > 0:
                     a = _refined(xo, a, i, sign, ok, tol_of)
