@@ -158,3 +158,32 @@ def test_timing_classes_hold_what_they_name():
     j = failures.timing("jitter", 0, 50.0, duration_s=20.0)
     s = np.diff(j.t_s)
     assert np.all(s > 0) and s.min() < 0.014 and s.max() > 0.026
+
+
+def test_leave_one_class_out_reports_the_other_classes_choice():
+    """Three classes; variant "a" is better on two of them, "b" on the third: each class is given
+    the variant the other two prefer, so the third gets "a" (its own best is "b"), with a's ratio
+    there. (A stand-in runner: estimates off by a known angle per class and variant, the class
+    read from the readings, the peer 2° off everywhere.)"""
+    from verticality.core import so3
+
+    n = 50
+    off_deg = [{"a": 1.0, "b": 2.0}, {"a": 1.0, "b": 2.0}, {"a": 2.5, "b": 1.5}]
+
+    def case(i):
+        return tv.Case("ABC"[i], f"{i}/0", 100.0, np.full((n, 3), float(i)), np.zeros((n, 3)),
+                       np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.ones(n, bool))
+
+    def runner(options):
+        def run(name, gyr, acc, dt):
+            deg = off_deg[int(gyr[0, 0])][options["v"]] if options else 2.0
+            q = np.asarray(so3.quat_from_matrix(so3.rot_x(np.radians(deg))))
+            return np.tile(q, (n, 1)), None, np.full(n, 1.0)
+        return run
+
+    out = tv.leave_one_class_out([case(i) for i in range(3)], {"a": {"v": "a"}, "b": {"v": "b"}},
+                                 runner=runner)
+    assert {c: r["variant"] for c, r in out["chosen"].items()} == {"A": "a", "B": "a", "C": "a"}
+    assert out["chosen"]["C"]["best_here"] == "b"
+    np.testing.assert_allclose(out["chosen"]["C"]["ratios"][100.0], 1.25, rtol=1e-6)
+    np.testing.assert_allclose(out["ratios"]["b"][("A", 100.0)], 1.0, rtol=1e-6)

@@ -231,7 +231,8 @@ def variant_runner(options: dict) -> Callable:
 
 
 def leave_one_class_out(cases: Iterable[Case], variants: dict, offline: bool = False,
-                        progress: Callable[[str], None] | None = None) -> dict:
+                        progress: Callable[[str], None] | None = None,
+                        runner: Callable = variant_runner) -> dict:
     """Which estimator variant the other classes would choose, and what it gives on each class.
 
     ``variants`` ``{NAME: options}`` (:func:`variant_runner`'s keyword arguments, e.g.
@@ -243,7 +244,8 @@ def leave_one_class_out(cases: Iterable[Case], variants: dict, offline: bool = F
     {(class, rate): ratio}}, "within_2sigma": {VARIANT: {(class, rate): smallest share}},
     "chosen": {CLASS: {"variant": NAME, "ratios": {rate: ratio}, "best_here": NAME}}}``
     (``best_here``: the variant best on that class itself; a chosen variant that is not the best
-    here is one the class would lose to the others' choice)."""
+    here is one the class would lose to the others' choice). ``runner(options)`` makes a variant's
+    ``run`` (default :func:`variant_runner`; ``runner({})`` runs the peer)."""
     from verticality.tilt.evaluation.broad import OURS_OFFLINE, VQF_OFFLINE
 
     ours, peer = (OURS_OFFLINE, VQF_OFFLINE) if offline else (OURS, "vqf")
@@ -251,13 +253,13 @@ def leave_one_class_out(cases: Iterable[Case], variants: dict, offline: bool = F
     sums: dict = {}
     for case in cases:
         key = (case.dataset, case.rate_hz)
-        peer_rmse = score_case(case, (peer,))["rmse"][peer]
+        peer_rmse = score_case(case, (peer,), runner({}))["rmse"][peer]
         sums.setdefault(key, {"peer": [], **{v: [] for v in variants}, "2s": {}})
         sums[key]["peer"].append(peer_rmse)
         for v, options in variants.items():
             if progress is not None:
                 progress(f"{case.dataset} {case.name} {case.rate_hz:.0f} Hz: {v}")
-            r = score_case(case, (ours,), variant_runner(options))
+            r = score_case(case, (ours,), runner(options))
             sums[key][v].append(r["rmse"][ours])
             s2 = sums[key]["2s"].setdefault(v, 1.0)
             sums[key]["2s"][v] = min(s2, r["within_2sigma"][ours])
