@@ -33,7 +33,7 @@ def calibrated_clip():
     w, acc, up = _turning_fast(1)
     rng = np.random.default_rng(11)
     sensor = failures.draw_raw_sensor(rng, np.radians(3.0), 1.2e-3, 1.0)
-    sensor = sensor._replace(full_scale=failures._full_scale_for_share(w, sensor, 0.05))
+    sensor = sensor._replace(full_scale=failures.full_scale_for_share(w, sensor, 0.05))
     gyr, clipped = failures.read_raw_then_calibrated(w, sensor, np.random.default_rng(12))
     acc = acc + np.random.default_rng(13).normal(0, 0.02, acc.shape)
     return gyr, acc, up, clipped, sensor
@@ -107,7 +107,7 @@ def test_noise_after_the_clip_is_noise_on_the_plateau():
 def test_calibrated_inverts_the_model_it_is_given():
     rng = np.random.default_rng(1)
     x = rng.normal(0, 3, (50, 3))
-    cross, scale = failures._cross(rng, 0.02), rng.uniform(-0.02, 0.02, 3)
+    cross, scale = failures.cross_terms(rng, 0.02), rng.uniform(-0.02, 0.02, 3)
     bias = rng.normal(0, 1, 3)
     raw = readings.axes_reading(x, cross, scale, bias, 0.0, np.inf)
     np.testing.assert_allclose(readings.calibrated(raw, cross, scale, bias), x, atol=1e-12)

@@ -74,7 +74,8 @@ class RawSensor(NamedTuple):
     bias_est: np.ndarray
 
 
-def _cross(rng, size):
+def cross_terms(rng, size):
+    """(3, 3) cross-axis sensitivities uniform in ±``size``, zero diagonal."""
     m = rng.uniform(-size, size, (3, 3))
     np.fill_diagonal(m, 0.0)
     return m
@@ -85,11 +86,11 @@ def draw_raw_sensor(rng, offset, noise_std, full_scale, noise_after_clip=False) 
     error ±2 %, cross-axis ±2 %, the offset uniform in ±``offset``; the user's calibration (a
     six-position or turntable fit) leaves sensitivity and cross-axis errors of ±0.2 % and 5 % of
     the offset."""
-    scale, cross = rng.uniform(-0.02, 0.02, 3), _cross(rng, 0.02)
+    scale, cross = rng.uniform(-0.02, 0.02, 3), cross_terms(rng, 0.02)
     bias = rng.uniform(-offset, offset, 3)
     return RawSensor(scale, cross, bias, float(full_scale), float(noise_std),
                      bool(noise_after_clip), scale + rng.uniform(-0.002, 0.002, 3),
-                     cross + _cross(rng, 0.002), bias + rng.uniform(-0.05, 0.05, 3) * offset)
+                     cross + cross_terms(rng, 0.002), bias + rng.uniform(-0.05, 0.05, 3) * offset)
 
 
 def read_raw_then_calibrated(true_B, s: RawSensor, rng):
@@ -138,7 +139,7 @@ def _truth(kind, rng, t):
     return (np.asarray(m.omega_B_rad_s), f_B, np.asarray(so3.quat_from_matrix(m.R_I_B)))
 
 
-def _full_scale_for_share(true_B, s: RawSensor, share: float) -> float:
+def full_scale_for_share(true_B, s: RawSensor, share: float) -> float:
     """The full scale at which ``share`` of the samples has a raw axis beyond it."""
     raw = readings.axes_reading(true_B, s.cross, s.scale, s.bias, 0.0, np.inf)
     return float(np.quantile(np.max(np.abs(raw), axis=1), 1.0 - share))
@@ -160,14 +161,14 @@ def saturated(sensor: str, share: float, seed: int, rate_hz: float,
     acc_sd = readings.white_noise_std(e.acc_noise_m_s2_sqrt_hz, rate_hz)
     if sensor == "gyr":
         s = draw_raw_sensor(rng, 3.0 * DEG, gyr_sd, 1.0, noise_after_clip)
-        s = s._replace(full_scale=_full_scale_for_share(omega, s, share))
+        s = s._replace(full_scale=full_scale_for_share(omega, s, share))
         noise_rng = np.random.default_rng([seed, 7, 0, int(rate_hz)])
         gyr, clipped = read_raw_then_calibrated(omega, s, noise_rng)
         acc = readings.axes_reading(f_B, e.acc_cross, e.acc_scale, e.acc_bias_m_s2,
                                     noise_rng.normal(0.0, acc_sd, f_B.shape), 16.0 * G_M_S2)
     else:
         s = draw_raw_sensor(rng, 0.04 * G_M_S2, acc_sd, 1.0, noise_after_clip)
-        s = s._replace(full_scale=_full_scale_for_share(f_B, s, share))
+        s = s._replace(full_scale=full_scale_for_share(f_B, s, share))
         noise_rng = np.random.default_rng([seed, 7, 1, int(rate_hz)])
         acc, clipped = read_raw_then_calibrated(f_B, s, noise_rng)
         gyr = readings.axes_reading(omega, e.gyr_cross, e.gyr_scale, e.gyr_bias_rad_s,
