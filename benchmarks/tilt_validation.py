@@ -4,11 +4,16 @@ rates"): per dataset and sampling rate, our filter beside VQF and our smoother b
 within 2σ; then the fault recordings' σ and the clipped rotation. Every filter runs with its
 defaults, one parameter set for every case, in this run.
 
-    python benchmarks/tilt_validation.py [--broad BROAD_DIR] [--seeds 2] [--json FILE]
-        [--per-case]
+    python benchmarks/tilt_validation.py [--broad BROAD_DIR] [--classes broad,sat-gyro,...]
+        [--rates 50,100] [--shares 0.01,0.2] [--seeds 2] [--json FILE] [--per-case]
+        [--no-faults] [--detection] [--loco]
 
 BROAD_DIR: the folder of BROAD's HDF5 files (CC BY 4.0; docs/references.md); without it the
-BROAD rows are left out. Needs the peers extra (vqf).
+BROAD rows are left out. The failure classes (:mod:`verticality.tilt.evaluation.failures`:
+saturated-then-calibrated gyro and accelerometer at each clipped share, shocks, drop-outs, clock
+jumps, jittered rates) are datasets of their own; ``--detection`` prints the clip detector's hit
+and false-alarm rates on the saturation classes instead, ``--loco`` the leave-one-class-out of
+clip detection on and off. Needs the peers extra (vqf).
 """
 
 from __future__ import annotations
@@ -41,20 +46,95 @@ def clipped_rotation_deg() -> tuple[float, float]:
     return errs[0], errs[1]
 
 
+def detection_rates(cases) -> dict:
+    """The clip detector on the saturation classes: ``{(dataset, rate): {"hit": share of the truly
+    clipped samples flagged CLIPPED, "false": share of the unclipped samples flagged}}``, pooled
+    over the cases (no filter runs)."""
+    from verticality.tilt.limits import find_limits
+
+    pooled: dict = {}
+    for case in cases:
+        if case.clipped is None:
+            continue
+        lim = find_limits(case.gyr_rad_s, case.acc_m_s2, tv.case_steps(case))
+        flagged = np.any(lim.gyr_clipped, axis=1) | lim.acc_clipped
+        p = pooled.setdefault((case.dataset, case.rate_hz), np.zeros(4))
+        p += [np.count_nonzero(flagged & case.clipped), np.count_nonzero(case.clipped),
+              np.count_nonzero(flagged & ~case.clipped), np.count_nonzero(~case.clipped)]
+    return {k: {"hit": p[0] / max(p[1], 1), "false": p[2] / max(p[3], 1), "clipped": int(p[1])}
+            for k, p in pooled.items()}
+
+
+def _floats(text):
+    return None if text is None else [float(x) for x in text.split(",")]
+
+
+def select_cases(classes, rates, seeds, shares, broad_dir=None):
+    """The validation cases of ``classes`` (``broad``, ``synthetic`` (the realistic motion
+    classes), ``vigorous``, the failure classes) at ``rates`` (None: each dataset's own)."""
+    from verticality.tilt.evaluation import failures as fl
+
+    cases = []
+    if "broad" in classes and broad_dir:
+        from verticality.io import broad
+
+        b_rates = tv.BROAD_RATES_HZ if rates is None else [None if r in (285.7, 286.0) else r
+                                                            for r in rates]
+        cases += list(tv.broad_cases(broad.list_trials(broad_dir), b_rates))
+    kinds = ((rr.MOTIONS if "synthetic" in classes else ())
+             + ((rr.VIGOROUS,) if "vigorous" in classes else ()))
+    s_rates = tv.SYNTHETIC_RATES_HZ if rates is None else rates
+    cases += list(tv.synthetic_cases(kinds, range(seeds), s_rates))
+    failure = [c for c in fl.CLASSES if c in classes]
+    cases += list(tv.failure_cases(failure, range(seeds), s_rates, shares))
+    return cases
+
+
+ALL_CLASSES = ("broad", "synthetic", "vigorous", "sat-gyro", "sat-acc", "shock", "dropout",
+               "clock-jump", "jitter")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--broad", help="folder of BROAD .hdf5 files")
+    ap.add_argument("--classes", default=",".join(ALL_CLASSES),
+                    help=f"comma-separated, of {','.join(ALL_CLASSES)} (default all)")
+    ap.add_argument("--rates", help="comma-separated sampling rates, Hz (default each dataset's: "
+                    "BROAD native, 1000, 100, 50; synthetic 50, 100, 286, 1000)")
+    ap.add_argument("--shares", help="clipped shares of the saturation classes, e.g. 0.01,0.2")
     ap.add_argument("--seeds", type=int, default=2, help="synthetic recordings per class and rate")
     ap.add_argument("--json", help="write every case's scores and the summary to this file")
     ap.add_argument("--per-case", action="store_true", help="print every case's RMSEs too")
     ap.add_argument("--no-faults", action="store_true", help="leave out the fault recordings")
+    ap.add_argument("--detection", action="store_true",
+                    help="only the clip detector's hit and false-alarm rates (no filters)")
+    ap.add_argument("--loco", action="store_true",
+                    help="leave-one-class-out of clip detection on/off instead of the table")
     args = ap.parse_args(argv)
 
-    cases = list(tv.synthetic_cases(rr.ALL_MOTIONS, range(args.seeds)))
-    if args.broad:
-        from verticality.io import broad
+    classes = set(args.classes.split(","))
+    unknown = classes - set(ALL_CLASSES)
+    if unknown:
+        ap.error(f"unknown classes {', '.join(sorted(unknown))}")
+    cases = select_cases(classes, _floats(args.rates), args.seeds, _floats(args.shares),
+                         args.broad)
+    if args.detection:
+        print(f"{'class':16s} {'Hz':>6s} {'clipped':>8s} {'hit':>7s} {'false':>8s}")
+        for (dataset, rate), d in detection_rates(cases).items():
+            print(f"{dataset:16s} {rate:6.0f} {d['clipped']:8d} {100 * d['hit']:6.1f}% "
+                  f"{100 * d['false']:7.3f}%")
+        return
+    if args.loco:
+        import time
 
-        cases = list(tv.broad_cases(broad.list_trials(args.broad))) + cases
+        t0 = time.perf_counter()
+        res = tv.leave_one_class_out(cases, {"detect": {}, "off": {"detect_clipping": False}})
+        print(f"leave-one-class-out over {len(cases)} cases, 2 variants: "
+              f"{time.perf_counter() - t0:.0f} s")
+        for c, r in res["chosen"].items():
+            print(f"{c:16s} chosen {r['variant']:7s} (best here {r['best_here']:7s}) "
+                  + " ".join(f"{rate:.0f} Hz {x:.3f}" for rate, x in r["ratios"].items()))
+        return
     scored = {}
     for i, case in enumerate(cases):
         print(f"\r{i + 1}/{len(cases)} {case.dataset} {case.name} {case.rate_hz:.0f} Hz   ",
@@ -70,6 +150,11 @@ def main(argv=None) -> None:
               f"{r['causal_ratio']:6.3f} {m['verticality-offline']:8.3f} {m['vqf-offline']:6.3f} "
               f"{r['offline_ratio']:6.3f} {100 * r['min_within_2sigma/verticality']:6.1f}% "
               f"{100 * r['min_within_2sigma/verticality-offline']:6.1f}%")
+        for w, wm in r.get("windows", {}).items():
+            print(f"  {w:16s} {'':>12s} {wm['verticality']:6.3f} {wm['vqf']:6.3f} "
+                  f"{wm['verticality'] / wm['vqf']:6.3f} {wm['verticality-offline']:8.3f} "
+                  f"{wm['vqf-offline']:6.3f} "
+                  f"{wm['verticality-offline'] / wm['vqf-offline']:6.3f}")
     if args.per_case:
         for (dataset, name, rate), r in scored.items():
             e = r["rmse"]

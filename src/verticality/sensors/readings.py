@@ -12,7 +12,10 @@ batchable (``vmap`` over keys). Two forms are offered for each sensor:
 The error primitives (``random_walk_increments``, ``random_walk``, ``white``, ``white_noise_std``,
 ``axes_reading``: scale, misalignment, offset, noise, range) are the one sensor-error model; the
 gyro and accelerometer above and every experiment's or evaluation's simulated IMU are built
-from them.
+from them. ``raw_axes_reading`` and ``calibrated`` are the same model read in the sensor's raw
+axes, clipped there at limits that differ by sign (noise and quantization before or after the
+clip), then calibrated by the user's estimate of it: what a calibrated file of a saturating
+sensor holds.
 
 Models (T §III.A for the noise levels of docs/reproduction.md `tahboub-*`; P13 §5 for white noise
 on the inclinometer angles and gyro rates):
@@ -125,6 +128,42 @@ def axes_reading(true_B, cross, scale, bias, noise, range_):
     m = np.eye(3) + cross
     out = (true_B * (1.0 + scale)) @ m.T + bias + noise
     return out.clip(-range_, range_)
+
+
+def quantized(x, step):
+    """``x`` rounded to multiples of ``step`` (an ADC's least significant bit; 0 or None: not
+    quantized). NumPy; NaN stays NaN."""
+    return x if not step else np.round(np.asarray(x) / step) * step
+
+
+def raw_axes_reading(true_B, cross, scale, bias, noise, lo, hi, step=None,
+                     noise_after_clip: bool = False):
+    """A three-axis sensor's readings in its own (raw) axes, clipped there: the true ``true_B``
+    (N, 3) scaled, mixed and offset as :func:`axes_reading` does, with ``noise`` (N, 3), rounded
+    to ``step`` (the LSB), and clipped at the per-axis limits ``lo`` < 0 < ``hi`` (3,) (which
+    differ by sign: a two's-complement ADC reads −32768 … +32767 codes, and an offset moves
+    both).
+
+    ``noise_after_clip`` False: the sensing element's noise is added before the converter
+    saturates (a digital MEMS part: the clipped reading is exactly the end code, flat); True: the
+    front end saturates and the converter's noise is added after (the clipped reading is the
+    limit plus noise). NumPy in, NumPy out."""
+    lo = np.broadcast_to(np.asarray(lo, dtype=np.float64), (3,))
+    hi = np.broadcast_to(np.asarray(hi, dtype=np.float64), (3,))
+    if noise_after_clip:
+        analog = axes_reading(true_B, cross, scale, bias, 0.0, np.inf).clip(lo, hi)
+        return quantized(analog + noise, step)
+    return quantized(axes_reading(true_B, cross, scale, bias, noise, np.inf), step).clip(lo, hi)
+
+
+def calibrated(raw, cross_est, scale_est, bias_est):
+    """What a user's file holds after calibrating ``raw`` (N, 3) with an *estimated* model of
+    :func:`axes_reading`'s errors: the inverse ``diag(1 + scale)⁻¹ (I + cross)⁻¹ (raw − bias)``.
+    An estimate is never exact, so the result keeps the residual errors, and a raw axis clipped
+    at its limit becomes a plane ``a · y = const`` in the calibrated axes (``a`` the raw axis's
+    row of ``(I + cross) diag(1 + scale)``). NumPy in, NumPy out."""
+    m = np.eye(3) + cross_est
+    return np.linalg.solve(m, (np.asarray(raw) - bias_est).T).T / (1.0 + scale_est)
 
 
 # -------------------------------------------------------------------------------------------

@@ -17,6 +17,34 @@ range reads its full scale for as long as it lasts (tens of samples at 100 Hz fo
 peaks 50 % above the range); 4 is twice the longest run seen on clean data. The floors keep a dead
 or constant axis (all zeros, a level sensor's steady 1 g) from counting as clipped.
 
+**A plateau after calibration.** A sensor clips in its own raw axes, at its converter's end codes
+(a 16-bit part reads −32768 … +32767: the limits differ by sign, and by the offset the
+calibration removes), and the file often holds the readings *after* a calibration
+``y = C⁻¹ (r − b)`` (scale, cross-axis and offset estimates). While raw axis i sits at its end
+code, ``a · y`` is constant, ``a`` the i-th row of ``C`` (within a few degrees of axis i: cross-axis
+terms are ±1–2 %), while the other raw axes move; so in the file the plateau is a *plane*, not a
+flat top: the calibrated axis wanders by the cross-axis terms times the other axes' motion (1e-3
+of full scale is typical) and no two samples need be equal. When the sensing element's noise is
+added before the converter saturates (digital MEMS parts), the raw plateau is exact, and along
+``a`` the file's plateau is flat to its rounding, far below the noise. :func:`inferred_clipping`
+looks for exactly that, per axis and side: the extreme of ``a · y`` read by :data:`MIN_RUN`
+consecutive samples within :data:`PLANE_TOL` (1/16) of the recording's own noise σ along ``a``
+(:func:`noise_std`, from the second differences) plus the storage step (:func:`_resolution`),
+``a`` either the axis itself (the flat top above, read exactly as before) or a raw axis
+direction recovered from the plateau: every step between two consecutive plateau samples lies
+in the plane, so two such steps span it (:func:`_raw_axis_candidates`, within
+:data:`PLANE_TILT_RAD` of the axis), refitted to all the samples at its extreme
+(:func:`_refined`). A clean peak reads noise: a sample within σ/16 of the recording's extreme is
+rare, four in a row rarer still. A recovered direction must also be fixed by its plateau (two
+runs, or a lone run of :data:`PLANE_LONE_RUN` samples spread across a line by
+:data:`PLANE_SPREAD` σ): a recording upsampled by linear interpolation holds runs of collinear
+samples, and every plane through their line holds them flat (found on BROAD resampled to
+1000 Hz). What cannot be recovered: a plateau shorter than ``MIN_RUN`` samples on every visit (a
+brief clip at 50 Hz), a plateau whose noise comes after the clipping (an analog front end that
+saturates before the converter: the plateau then reads noise like a peak), and a file whose axes
+were rotated into another frame (the plane is then far from every axis). The given range
+(``gyr_range_rad_s``) covers the first two.
+
 What the filter does with a clipped reading, by physics:
 
 * a clipped gyro axis reads a rate whose true value is at least the clip level, with an unknown
@@ -68,6 +96,13 @@ MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make 
 GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s
 ACC_FLOOR_M_S2 = 1.5 * G_M_S2  # the smallest common accelerometer range is ±2 g
 EXCESS_FRACTION = 0.5  # σ of a clipped gyro axis's unknown excess, as a fraction of the clip level
+PLANE_TOL = 1.0 / 16.0  # a plateau's spread along its raw axis, as a fraction of the noise σ
+PLANE_BAND = 0.05  # the share of the extreme within which a calibrated plateau wanders
+PLANE_TILT_RAD = 0.1  # the largest angle between a raw axis and its calibrated axis
+PLANE_TRIALS = 128  # pairs of plateau steps tried per axis and side
+PLANE_KEEP = 4  # raw axis directions evaluated per axis and side
+PLANE_SPREAD = 3.0  # a lone plateau run's spread across a line, in noise σ, that fixes its plane
+PLANE_LONE_RUN = 2 * MIN_RUN  # the samples a lone plateau run needs to fix its plane
 
 
 class Limits(NamedTuple):
@@ -156,6 +191,212 @@ def inferred_levels(x, held, floor: float, min_run: int = MIN_RUN):
     return lo, hi
 
 
+def noise_std(x) -> np.ndarray:
+    """(3,) the white noise of each axis of ``x`` (N, 3), from the recording alone: the median
+    absolute second difference (white noise of σ gives differences of σ√6; a motion sampled well
+    above its own frequencies adds little to them, and the median ignores the samples where it
+    does) over 0.6745√6. NaN samples and second differences of 0 (to rounding) are left out: a
+    recording upsampled by linear interpolation has second differences only at its knots, where
+    they are its noise's, and a quantized quiet sensor only where it steps by a code; 0 for an
+    axis with no second difference at all."""
+    d2 = np.abs(x[2:] - 2.0 * x[1:-1] + x[:-2])
+    out = np.zeros(3)
+    for i in range(3):
+        # (0 to the rounding of the values: 1e-10 of the largest)
+        eps = 1e-10 * np.max(np.abs(x[:, i]), where=np.isfinite(x[:, i]), initial=0.0)
+        col = d2[:, i][np.isfinite(d2[:, i]) & (d2[:, i] > eps)]
+        if col.size:
+            out[i] = np.median(col) / (0.6745 * math.sqrt(6.0))
+    return out
+
+
+def _resolution(col) -> float:
+    """The step at which the values of ``col`` are stored, or 0 when they are on no grid: the
+    smallest gap between distinct values (read on a sample of them) when nearly every gap is a
+    whole multiple of it (a file written with few digits, or quantized codes); a calibrated
+    plateau is then rounded by that much."""
+    u = np.unique(col[np.isfinite(col)][:: max(1, col.size // 20000)])
+    gaps = np.diff(u)
+    if gaps.size < 10 or gaps.min() <= 0:
+        return 0.0
+    m = gaps / gaps.min()
+    return float(gaps.min()) if np.mean(np.abs(m - np.round(m)) < 0.01) > 0.99 else 0.0
+
+
+def _long_runs(at, min_run):
+    """The True entries of ``at`` that lie in runs of at least ``min_run``, and how many such
+    runs there are."""
+    k = np.flatnonzero(at)
+    out = np.zeros(at.shape, dtype=bool)
+    if k.size < min_run:
+        return out, 0
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(k) != 1) + 1])
+    ends = np.concatenate([starts[1:], [k.size]])
+    long = (ends - starts) >= min_run
+    for a, b in zip(starts[long], ends[long], strict=True):
+        out[k[a]:k[b - 1] + 1] = True
+    return out, int(np.count_nonzero(long))
+
+
+def _plateau_found(x, p, level, tol, sign, ok, sd, axis_itself):
+    """``(at, found)``: the samples at the level (``sign·p ≥ sign·level − tol``, rows ``ok``) and
+    whether they make a plateau: a run of :data:`MIN_RUN` of them; for a recovered raw axis
+    (``axis_itself`` False) the runs must also fix the plane, which samples on one line cannot
+    (a recording upsampled by linear interpolation holds runs of collinear samples, and every
+    plane through their line holds them "flat"; two such segments meet at a knot, and a plane
+    holds them both): two runs or more, or one of at least :data:`PLANE_LONE_RUN` samples (more
+    segments than any plane holds by chance) whose samples spread across a line by more than
+    :data:`PLANE_SPREAD` times the noise."""
+    at = (sign * p >= sign * level - tol) & ok
+    runs, count = _long_runs(at, MIN_RUN)
+    if count == 0:
+        return at, False
+    if axis_itself or count >= 2:
+        return at, True
+    if np.count_nonzero(runs) < PLANE_LONE_RUN:
+        return at, False
+    pts = x[runs] - x[runs].mean(axis=0)
+    across = np.linalg.svd(pts, compute_uv=False)[1] / math.sqrt(pts.shape[0])
+    return at, bool(across > PLANE_SPREAD * math.sqrt(float(np.sum(sd**2))))
+
+
+def _raw_axis_candidates(x, i, sign, band, tol, rng, trials=PLANE_TRIALS):
+    """Directions ``a`` (unit, within :data:`PLANE_TILT_RAD` of axis ``i``) along which the
+    samples of ``x`` near axis ``i``'s extreme on side ``sign`` may be flat: each spanned by
+    the steps between two pairs of consecutive samples in the band (``band`` (N,) bool), then
+    refitted to every step it leaves within ``tol`` (the smallest singular direction of those
+    steps). A raw axis clipped under a calibration holds ``a · x`` constant, so every step along
+    its plateau is orthogonal to ``a``; ordered by how many steps each explains."""
+    k = np.flatnonzero(band[:-1] & band[1:])
+    if k.size < 2:
+        return []
+    steps = x[k + 1] - x[k]
+    size = np.linalg.norm(steps, axis=1)
+    # a step along a plateau is orthogonal to a raw axis within PLANE_TILT_RAD of axis i: its
+    # component along i is at most tan(PLANE_TILT_RAD) of the rest (plus the tolerance)
+    other = np.sqrt(np.maximum(size**2 - steps[:, i] ** 2, 0.0))
+    flat = (size > 0) & (np.abs(steps[:, i]) <= math.tan(PLANE_TILT_RAD) * other + tol)
+    k, steps = k[flat], steps[flat]
+    if k.size < 2:
+        return []
+    run = np.cumsum(np.concatenate([[0], np.diff(k) > 1]))  # the band run each step is in
+    found = []
+    while trials > 0:
+        j1 = rng.integers(k.size)
+        # the second step from another run, or from the same run at least MIN_RUN steps away
+        # (half the trials each): two neighbouring steps at a high rate are nearly parallel,
+        # and their cross product is mostly noise; a lone plateau needs two of its own steps
+        same = run == run[j1]
+        pool = np.flatnonzero(~same if trials % 2 else same & (np.abs(k - k[j1]) >= MIN_RUN))
+        trials -= 1
+        if pool.size == 0:
+            continue
+        j2 = rng.choice(pool)
+        a = np.cross(steps[j1], steps[j2])
+        norm = np.linalg.norm(a)
+        if norm == 0:
+            continue
+        a = a / norm * np.sign(a[i])
+        if a[i] < math.cos(PLANE_TILT_RAD):
+            continue
+        inl = np.abs(steps @ a) <= tol
+        if np.count_nonzero(inl) >= 3:
+            a = np.linalg.svd(steps[inl], full_matrices=False)[2][-1]
+            a = a * np.sign(a[i])
+            inl = np.abs(steps @ a) <= tol
+        found.append((int(np.count_nonzero(inl)), a))
+    found.sort(key=lambda f: -f[0])
+    out = []
+    for _, a in found:  # distinct directions only
+        if all(np.linalg.norm(a - b) > 1e-9 for b in out):
+            out.append(a)
+        if len(out) == PLANE_KEEP:
+            break
+    return out
+
+
+def _refined(x, a, i, sign, ok, tol_of, rounds: int = 3):
+    """``a`` refitted to the samples at its extreme: the normal of the plane through them (the
+    smallest singular direction of the centred samples within ``tol_of(a)`` of the extreme of
+    ``a · x``), while it stays within :data:`PLANE_TILT_RAD` of axis ``i`` and holds more of
+    them. A direction spanned by two steps is as good as those steps; the plateau's samples
+    all together fix it to their rounding."""
+    count = 0
+    for _ in range(rounds):
+        p = x @ a
+        lvl = np.max(sign * p, where=ok, initial=-np.inf) * sign
+        at = (sign * p >= sign * lvl - tol_of(a)) & ok
+        if np.count_nonzero(at) <= count or np.count_nonzero(at) < 3:
+            break
+        count = np.count_nonzero(at)
+        pts = x[at] - x[at].mean(axis=0)
+        b = np.linalg.svd(pts, full_matrices=False)[2][-1]
+        b = b * np.sign(b[i])
+        if b[i] < math.cos(PLANE_TILT_RAD):
+            break
+        a = b
+    return a
+
+
+def inferred_clipping(x, held, floor: float):
+    """Clipped samples of ``x`` (N, 3) inferred from the recording alone: ``(clipped (N, 3)
+    bool, level (N, 3) the clip level's size where clipped, else 0)`` (module doc, "A plateau
+    after calibration"). On each axis and side, the extreme of the projection ``a · x`` read by a
+    run of at least :data:`MIN_RUN` consecutive samples within a tolerance the recording's noise
+    sets (:data:`PLANE_TOL` × its σ along ``a``, :func:`noise_std`, plus the storage's rounding),
+    ``a`` the axis itself (a flat top, read exactly: :func:`inferred_levels`'s detector) or a raw
+    axis direction recovered from the plateau (:func:`_raw_axis_candidates`); beyond ``floor`` in
+    size. Rows where ``held`` do not count towards a run."""
+    n = x.shape[0]
+    clipped = np.zeros((n, 3), dtype=bool)
+    level = np.zeros((n, 3))
+    if n < MIN_RUN:
+        return clipped, level
+    finite = np.all(np.isfinite(x), axis=1)
+    ok = finite & ~held
+    if not ok.any():
+        return clipped, level
+    sd = noise_std(x)
+    res = max(_resolution(x[:, j]) for j in range(3))
+    xo = np.where(ok[:, None], x, 0.0)
+    for i in range(3):
+        col = x[:, i]
+        top = np.max(col, where=ok, initial=-np.inf)
+        bottom = np.min(col, where=ok, initial=np.inf)
+        for ext, sign in ((top, 1.0), (bottom, -1.0)):
+            if not sign * ext > floor:
+                continue
+            rng = np.random.default_rng(i * 2 + (sign > 0))  # the same answer on every run
+            e_i = np.eye(3)[i]
+            base_tol = PLANE_TOL * sd[i] + res
+            band = ok & (sign * col >= sign * ext - PLANE_BAND * abs(ext) - base_tol)
+            plane_tol = PLANE_TOL * float(np.sqrt(np.sum(sd**2))) + 2.0 * res
+            best = None
+            for j, a in enumerate([e_i] + _raw_axis_candidates(xo, i, sign, band, plane_tol,
+                                                                  rng)):
+                # (the axis itself: a flat top is exact in the stored values, so no tolerance:
+                # a recording upsampled by linear interpolation holds near-flat segments at its
+                # peaks, within σ/16 of their top; a recovered raw axis mixes three stored
+                # values, each rounded, and must be fixed by its plateau, _plateau_found)
+                def tol_of(a, j=j):
+                    if j == 0:
+                        return 0.0
+                    return PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + 2 * res
+
+                if j > 0:
+                    a = _refined(xo, a, i, sign, ok, tol_of)
+                p = xo @ a
+                lvl = np.max(sign * p, where=ok, initial=-np.inf) * sign
+                tol = tol_of(a)
+                at, found = _plateau_found(xo, p, lvl, tol, sign, ok, sd, j == 0)
+                if found and (best is None or np.count_nonzero(at) > np.count_nonzero(best[0])):
+                    best = (at | ((sign * p >= sign * lvl - tol) & finite), abs(lvl))
+            if best is not None and best[1] > floor:
+                clipped[:, i] |= best[0]
+                level[:, i] = np.where(best[0], best[1], level[:, i])
+    return clipped, level
+
+
 def _range(value, name: str) -> np.ndarray:
     try:
         r = np.asarray(value, dtype=np.float64)
@@ -171,25 +412,30 @@ def _range(value, name: str) -> np.ndarray:
     return r.copy()
 
 
-def _levels(x, held, given, name, floor, infer):
+def _clipped(x, held, given, name, floor, infer):
+    """``(clipped (N, 3) bool, level (N, 3))``: the components at or beyond the given range, or
+    inferred from the recording (:func:`inferred_clipping`), or none; the clip level's size where
+    clipped, else 0."""
+    none = np.zeros(x.shape, dtype=bool), np.zeros(x.shape)
     if given is not None:
         r = _range(given, name)
-        return -r, r
-    if infer:
-        return inferred_levels(x, held, floor)
-    return np.full(3, -np.inf), np.full(3, np.inf)
+        finite = np.isfinite(x)
+        top = (x >= r) & finite
+        clipped = top | ((x <= -r) & finite)
+        return clipped, np.where(clipped, np.broadcast_to(r, x.shape), 0.0)
+    if infer and x.ndim == 2 and x.shape[0]:
+        return inferred_clipping(x, held, floor)
+    return none
 
 
-def _excess_level(x, top, lo, hi, floor):
-    """(N, 3) the clip level that sets the σ of a clipped component's excess: the level on the
-    side it clipped (``top``: the high one; a clip a log reported: the side of the reading's
-    sign); where that level is unknown, the reading's size, at least ``floor``."""
+def _reported_level(x, given, name, floor) -> np.ndarray:
+    """(N, 3) the clip level of a component that a log reports clipped: the range where it is
+    given, else the reading's own size, at least ``floor`` (the true value lies beyond the
+    reading)."""
+    if given is not None:
+        return np.broadcast_to(_range(given, name), x.shape)
     with np.errstate(invalid="ignore"):
-        high = top | ((x >= 0) & ~(x <= lo))
-    level = np.where(high, hi, -lo)
-    with np.errstate(invalid="ignore"):
-        own = np.maximum(np.abs(np.nan_to_num(x)), floor)
-    return np.where(np.isfinite(level), level, own)
+        return np.maximum(np.abs(np.nan_to_num(x)), floor)
 
 
 def clip_variance(clipped, sigma_rad_s, dts) -> np.ndarray:
@@ -243,36 +489,25 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     a_known = known_mask(acc_clipped, n, "acc_clipped")
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,))
     held = held_rows(gyr, acc, prev)
-    g_lo, g_hi = _levels(gyr, held, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S, infer)
-    a_lo, a_hi = _levels(acc, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2, infer)
-    # (±inf levels, the usual case, clip nothing: the comparisons are skipped)
-    g_top = np.zeros(gyr.shape, dtype=bool)
-    gyr_clipped = g_top
-    if np.isfinite(g_lo).any() or np.isfinite(g_hi).any():
-        finite = np.isfinite(gyr)
-        g_top = (gyr >= g_hi) & finite
-        gyr_clipped = g_top | ((gyr <= g_lo) & finite)
-    if g_known is not None:
+    gyr_clipped, g_level = _clipped(gyr, held, gyr_range_rad_s, "gyr_range_rad_s",
+                                    GYR_FLOOR_RAD_S, infer)
+    a_axes, a_level = _clipped(acc, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2, infer)
+    if g_known is not None:  # clips the log reports (module doc)
+        reported = _reported_level(gyr, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S)
+        g_level = np.where(g_known & ~gyr_clipped, reported, g_level)
         gyr_clipped = gyr_clipped | g_known
-    acc_clipped = np.zeros(n, dtype=bool)
-    vel_var = np.zeros(n)
-    a_top = a_axes = np.zeros(acc.shape, dtype=bool)
-    if np.isfinite(a_lo).any() or np.isfinite(a_hi).any():
-        finite = np.isfinite(acc)
-        a_top = (acc >= a_hi) & finite
-        a_axes = a_top | ((acc <= a_lo) & finite)
-        acc_clipped = np.any(a_axes, axis=1)
     if a_known is not None:
+        reported = _reported_level(acc, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2)
+        a_level = np.where(a_known & ~a_axes, reported, a_level)
         a_axes = a_axes | a_known
-        acc_clipped = np.any(a_axes, axis=1)
+    acc_clipped = np.any(a_axes, axis=1)
+    vel_var = np.zeros(n)
     if acc_clipped.any():
-        sigma = EXCESS_FRACTION * _excess_level(acc, a_top, a_lo, a_hi, ACC_FLOOR_M_S2)
-        vel_var = clip_variance(a_axes, np.where(a_axes, sigma, 0.0), dts)
+        vel_var = clip_variance(a_axes, EXCESS_FRACTION * a_level, dts)
     flags = np.where(held, np.int32(HELD), np.int32(0))
     var = np.zeros(n)
     if gyr_clipped.any():
-        sigma = EXCESS_FRACTION * _excess_level(gyr, g_top, g_lo, g_hi, GYR_FLOOR_RAD_S)
-        var = clip_variance(gyr_clipped, np.where(gyr_clipped, sigma, 0.0), dts)
+        var = clip_variance(gyr_clipped, EXCESS_FRACTION * g_level, dts)
         flags |= np.where(gyr_clipped.any(axis=1), np.int32(CLIPPED), np.int32(0))
     if acc_clipped.any():
         flags |= np.where(acc_clipped, np.int32(CLIPPED), np.int32(0))
