@@ -31,8 +31,8 @@ UNITS = {
 COST_S = {
     "ekf-quick-loops": 152.0,
     "test_reliability_commands.py": 149.0,
-    "test_estimator_contract.py": 149.0,
     "test_ekf.py": 87.0,
+    "test_estimator_contract.py": 116.0,
     "test_tilt_smoother.py": 85.0,
     "test_sweep_ambiguity.py": 74.0,
     "test_architecture.py": 68.0,
