@@ -100,11 +100,13 @@ def test_non_finite_measurement_never_makes_nan():
 
 
 def test_all_missing_measurement_is_exactly_predict(medial):
+    """Compiled, as ``run`` uses them: ``step`` with the shapes of test_run_equals_repeated_step
+    (four substeps, a float64 measurement), so that both use one compiled step."""
     filt, x = medial
     s = filt.init(x, 0.01 * jnp.eye(ekf.N_ERR))
-    u = _u_blocks(2)
-    pred = filt.predict(s, u, 0.02)
-    new, out = filt.step(s, u, jnp.full(ekf.N_Y, jnp.nan), 0.02)
+    u = _u_blocks(4)
+    pred = jax.jit(filt.predict)(s, u, 0.02)
+    new, out = jax.jit(filt.step)(s, u, jnp.full(ekf.N_Y, jnp.nan, dtype=float), 0.02)
     for a, b in zip(jax.tree_util.tree_leaves(new), jax.tree_util.tree_leaves(pred), strict=True):
         np.testing.assert_array_equal(a, b)
     assert bool(out.predict_only) and not bool(out.rejected)
@@ -292,7 +294,7 @@ def test_common_initial_covariance_is_one_rotation_of_both(medial):
 def test_run_equals_repeated_step(medial):
     filt, x = medial
     s0 = filt.init(x, 0.01 * jnp.eye(ekf.N_ERR))
-    n = 5
+    n = 30  # test_estimator_contract's length: one compiled run for both
     us = HeadInput(jnp.tile(jnp.array([0.01, -0.02, 0.005]), (n, 4, 1)),
                    jnp.tile(jnp.array([1.0, 0.5, -0.3]), (n, 4, 1)))
     ys = jnp.asarray(np.random.default_rng(4).normal(scale=0.1, size=(n, ekf.N_Y)))
