@@ -83,6 +83,15 @@ class TiltParams(NamedTuple):
     vel_disturbed_hz: float = 1.0
     vel_jump_nis: float = 9.21
     update_s: float = 0.112
+    rest_bias_sigmas: float = 0.0
+    steady_ends_disturbance: float = 0.0
+    rest_raw_gyr: float = 0.0
+    rest_tilt_s: float = 0.0
+    vel_adapt_s: float = 0.0
+    vel_adapt_up_s: float = 1.0
+    vel_adapt_gain: float = 4.0
+    vel_min_m_s: float = 0.2
+    vel_max_m_s: float = 2.0
 
 
 DEFAULT_PARAMS = TiltParams()
