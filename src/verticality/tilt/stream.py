@@ -34,7 +34,6 @@ from verticality.tilt.flags import (
 )
 from verticality.tilt.limits import EXCESS_FRACTION
 from verticality.tilt.params import (
-    BIAS_PRIOR_RAD_S,
     DEFAULT_P0,
     DEFAULT_PARAMS,
     GAP_TOLERANCE_S,
@@ -316,31 +315,22 @@ class Stream:
         steady = (has_gyr and has_acc and g_var < p.rest_gyr_rad_s**2
                   and a_var < p.rest_acc_m_s2**2 and not gap)
         if has_acc:
-            alpha = 1.0 - math.exp(-t_acc / p.acc_tau_s)
+            # a steady block shows the disturbance as it is now: there the low-pass follows it
+            # within acc_tau_steady_s (0: at once), not with the memory of an event that is over
+            tau_d = p.acc_tau_steady_s if steady else p.acc_tau_s
+            alpha = 1.0 - math.exp(-t_acc / tau_d) if tau_d > 0 else 1.0
             self.acc_dev_var += alpha * (dev2 - self.acc_dev_var)
-            if steady and p.steady_ends_disturbance > 0:
-                # a steady block shows that the disturbance is over: its own deviation replaces
-                # the low-pass's memory of the event (which would hold the prior wide for
-                # seconds after a shock)
-                self.acc_dev_var = min(self.acc_dev_var, dev2)
         disturbed = has_acc and self.acc_dev_var > p.acc_disturbed_m_s2**2
         gd = g_mean - b
         collecting = self.reacquire and not gap
-        # the gyro mean at rest is the bias: within rest_gyr of the estimate, or of its
-        # uncertainty (rest_bias_sigmas σ per axis, at most the turn-on bias prior)
-        if p.rest_bias_sigmas > 0:
-            allow = np.minimum(p.rest_bias_sigmas**2 * np.diag(P)[4:7], BIAS_PRIOR_RAD_S**2)
-            quiet = steady and float(np.sum(gd * gd / (p.rest_gyr_rad_s**2 + allow))) < 1.0
-        else:
-            quiet = steady and gd @ gd < p.rest_gyr_rad_s**2
-        if p.rest_raw_gyr > 0:
-            # or the gyro itself reads no rotation: a still sensor whatever the bias estimate
-            # (which a violent event may have corrupted)
-            quiet = quiet or (steady and g_mean @ g_mean < p.rest_gyr_rad_s**2)
+        # the gyro mean at rest is the bias: within rest_gyr of the estimate, or, whatever the
+        # estimate (which a violent event may have corrupted), a gyro that reads no rotation
+        quiet = steady and (gd @ gd < p.rest_gyr_rad_s**2
+                            or g_mean @ g_mean < p.rest_gyr_raw_rad_s**2)
         self.rest_s = self.rest_s + T if quiet else 0.0
         at_rest = self.rest_s >= p.rest_min_s
-        # the velocity's rest prior may start sooner than the bias's rest update
-        still = self.rest_s >= (p.rest_tilt_s if p.rest_tilt_s > 0 else p.rest_min_s)
+        # the velocity's rest prior (the tilt) may start sooner than the bias's rest update
+        still = self.rest_s >= p.rest_tilt_s
         dx = np.zeros(10)
         f_sum = self.reacq_f_E + np.array(f_E) if collecting else np.zeros(3)
         t_sum = self.reacq_t + t_acc if collecting else 0.0
@@ -368,31 +358,6 @@ class Stream:
             persist = not jump and bool(inn @ inn * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
             v_dist = math.sqrt(self.acc_dev_var) / (2.0 * math.pi * p.vel_disturbed_hz)
             widen = max(1.0, (v_dist / p.vel_m_s) ** 2)  # the speed a disturbance makes
-            if p.vel_adapt_s > 0:
-                # the motion's own speed prior: proportional to the density of the velocity
-                # changes it makes (the block's horizontal Δv in Earth over √T, its variance
-                # per axis about its mean), followed up within vel_adapt_up_s and down within
-                # vel_adapt_s while moving (rest says nothing of the motion), bounded to
-                # [vel_min_m_s, vel_max_m_s]
-                if not still:
-                    dvn = dv / math.sqrt(T)
-                    m2 = float(dvn @ dvn) / 2.0
-                    t_f = p.vel_adapt_up_s if m2 > self.sp2 else p.vel_adapt_s
-                    a_f = 1.0 - math.exp(-T / t_f)
-                    self.u += a_f * (dvn - self.u)
-                    self.sp2 += a_f * (m2 - self.sp2)
-                var_dv = max(self.sp2 - float(self.u @ self.u) / 2.0, 0.0)
-                v_m = min(max(p.vel_adapt_gain * math.sqrt(var_dv), p.vel_min_m_s),
-                          p.vel_max_m_s)
-                if not still:
-                    s_vel = v_m**2 * p.vel_corr_s
-                    S = P[2:4, 2:4] + (s_vel / t_acc_s) * np.eye(2)
-                    jump = bool(vel @ np.linalg.solve(S, vel) > p.vel_jump_nis)
-                    inn = lam * self.vel_inn + (1.0 - lam) * np.linalg.solve(
-                        np.linalg.cholesky(S), -vel)
-                    persist = not jump and bool(
-                        inn @ inn * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
-                widen = max(1.0, (v_dist / v_m) ** 2)
             if persist:  # that window's tilt and bias corrections may be wrong: widen by them
                 P = _widen_tilt(P, float(self.vel_fix[:2] @ self.vel_fix[:2]))
                 P[4:7, 4:7] += np.diag(self.vel_fix[2:] ** 2)  # and the bias's

@@ -118,15 +118,16 @@ def shock_recording(seed: int, rate_hz: float = 200.0, duration_s: float = 30.0,
     w[t >= rest_s] = 0.0
     a_W[t >= rest_s] = 0.0
     # integrate the orientation exactly over each fine step
-    steps = np.asarray(so3.quat_exp(w * h))
-    q = np.empty((n_fine + 1, 4))
-    q[0] = [1.0, 0.0, 0.0, 0.0]
-    for k in range(n_fine):  # (sequential: a product of rotations)
-        a, b = q[k], steps[k]
-        q[k + 1] = (a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-                    a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-                    a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-                    a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0])
+    steps = np.asarray(so3.quat_exp(w * h)).tolist()
+    qs = [(1.0, 0.0, 0.0, 0.0)]
+    a0, a1, a2, a3 = qs[0]
+    for b0, b1, b2, b3 in steps:  # (sequential: a product of rotations; plain floats for speed)
+        a0, a1, a2, a3 = (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+                          a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+                          a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
+                          a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
+        qs.append((a0, a1, a2, a3))
+    q = np.array(qs)
     q_mid = 0.5 * (q[:-1] + q[1:])
     q_mid /= np.linalg.norm(q_mid, axis=1, keepdims=True)
     f_B = np.asarray(so3.quat_rotate(so3.quat_conjugate(q_mid), a_W + [0.0, 0.0, G_M_S2]))
