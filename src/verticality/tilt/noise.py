@@ -7,9 +7,10 @@ filter or the smoother with, each level bounded by physics.
   IMU near its wrist makes velocities of centimetres per second, a hand shaking it metres per
   second. It is set from the density of the velocity changes the motion makes: the horizontal
   specific force in Earth (rotated by a first run of the filter), integrated over each update
-  interval T, ``Δv``; its per-axis variance about its mean over the moving blocks, over T, is
-  ``q_v`` (m²/s³, the density of a velocity random walk with those increments; a constant tilt
-  error adds a constant ``g δ T`` to every ``Δv`` and leaves the variance alone), and
+  interval T, ``Δv``; its per-axis variance over the moving blocks, over T, is ``q_v`` (m²/s³,
+  the density of a velocity random walk with those increments), taken robustly (from the median
+  absolute deviation: a kick, a tap or a crash is a few blocks, no statistic of the motion; a
+  constant tilt error adds a constant ``g δ T`` to every ``Δv`` and leaves it alone), and
   ``vel_m_s = VEL_GAIN_S · √q_v`` within ``[VEL_MIN_M_S, VEL_MAX_M_S]`` (m/s: from a hand turning
   a device about the wrist to a hand shaking it). ``VEL_GAIN_S`` (√s) was chosen by leaving each
   class of the validation set out in turn.
@@ -88,7 +89,10 @@ def recording_noise(gyr_rad_s, acc_m_s2, dt_s: float, quat_E_S,
     moving = full & ~still
     if np.count_nonzero(moving) >= 2:
         dvn = dv[moving] / np.sqrt(t_blk[moving])[:, None]
-        q_v = float(np.mean(np.var(dvn, axis=0)))
+        # a robust variance (the median absolute deviation's, 1.4826 MAD for a Gaussian): a kick,
+        # a tap or a crash is a few blocks of the recording and no statistic of its motion
+        mad = np.median(np.abs(dvn - np.median(dvn, axis=0)), axis=0)
+        q_v = float(np.mean((1.4826 * mad) ** 2))
     else:
         q_v = math.nan
     if np.any(still) and n >= 2:
