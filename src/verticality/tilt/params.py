@@ -97,10 +97,6 @@ class TiltParams(NamedTuple):
     acc_tau_steady_s: float = 0.5
     rest_gyr_raw_rad_s: float = 0.0
     rest_tilt_s: float = 1.5
-    vel_adapt_s: float = 0.0
-    vel_adapt_gain: float = 4.0
-    vel_min_m_s: float = 0.2
-    vel_max_m_s: float = 2.0
 
 
 DEFAULT_PARAMS = TiltParams()

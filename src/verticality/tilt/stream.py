@@ -168,9 +168,6 @@ class Stream:
         self.vel_fix = np.zeros(5)  # the tilt and bias corrections the velocity made over it
         self.speed2 = 0.0  # low-passed per-axis mean square of the velocity
         self.dv2 = 0.0  # and of its change over a block
-        self.u = np.zeros(2)
-        self.sp2 = (self.p.vel_m_s / self.p.vel_adapt_gain) ** 2
-        self.v_m = self.p.vel_m_s
         self.u = np.zeros(2)  # the horizontal velocity changes integrated with a leak
         self.sp2 = self.p.vel_m_s**2  # the motion's per-axis mean square speed
         self._zero()
@@ -361,19 +358,6 @@ class Stream:
             persist = not jump and bool(inn @ inn * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
             v_dist = math.sqrt(self.acc_dev_var) / (2.0 * math.pi * p.vel_disturbed_hz)
             widen = max(1.0, (v_dist / p.vel_m_s) ** 2)  # the speed a disturbance makes
-            if p.vel_adapt_s > 0:
-                # (experiment) the speed prior from the density of the motion's velocity changes
-                if not still and not jump and not persist:
-                    dvn = dv / math.sqrt(T)
-                    a_f = 1.0 - math.exp(-T / p.vel_adapt_s)
-                    self.u += a_f * (dvn - self.u)
-                    self.sp2 += a_f * (float(dvn @ dvn) / 2.0 - self.sp2)
-                var_dv = max(self.sp2 - float(self.u @ self.u) / 2.0, 0.0)
-                self.v_m = min(max(p.vel_adapt_gain * math.sqrt(var_dv), p.vel_min_m_s),
-                               p.vel_max_m_s)
-                if not still:
-                    s_vel = self.v_m**2 * p.vel_corr_s
-                widen = max(1.0, (v_dist / self.v_m) ** 2)
             if persist:  # that window's tilt and bias corrections may be wrong: widen by them
                 P = _widen_tilt(P, float(self.vel_fix[:2] @ self.vel_fix[:2]))
                 P[4:7, 4:7] += np.diag(self.vel_fix[2:] ** 2)  # and the bias's
@@ -390,7 +374,7 @@ class Stream:
         if forget:  # the velocity integrated across a gap (or a kick) means nothing
             P[2:4, :] = 0.0
             P[:, 2:4] = 0.0
-            P[2, 2] = P[3, 3] = self.v_m**2
+            P[2, 2] = P[3, 3] = p.vel_m_s**2
         if at_rest:
             r_b = p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2
             dx3, P = _kf(P, 4, 3, g_mean - (b + dx[4:7]), r_b)
