@@ -32,7 +32,7 @@ import numpy as np
 from verticality.io import broad
 from verticality.tilt import limits as tilt_limits
 from verticality.tilt import stream as tilt_stream
-from verticality.tilt.params import DEFAULT_PARAMS, TiltParams, block_samples
+from verticality.tilt.params import DEFAULT_PARAMS, SHOCK_RECOVERY, TiltParams, block_samples
 
 BROAD_KIND = {"01": "rotation", "03": "rotation", "05": "rotation", "06": "rotation",
               "08": "rotation", "10": "translation", "12": "translation", "15": "translation",
@@ -44,6 +44,7 @@ SHOCK_WINDOW_S = 10.0  # a shock case is scored from the impact to this long aft
 
 VARIANTS: dict[str, TiltParams] = {
     "current": DEFAULT_PARAMS,
+    "shock_recovery": DEFAULT_PARAMS._replace(**SHOCK_RECOVERY),
 }
 
 
