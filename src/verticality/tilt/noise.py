@@ -36,13 +36,14 @@ from typing import NamedTuple
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.constants import G_M_S2
 from verticality.tilt.params import DEFAULT_PARAMS, TiltParams, block_samples
 
 VEL_GAIN_S = 4.0  # √s: vel_m_s = VEL_GAIN_S · √(velocity-change density)
 VEL_MIN_M_S = 0.2  # a hand turning a device about the wrist
 VEL_MAX_M_S = 2.0  # a hand shaking it
 GYR_NOISE_RANGE = (math.radians(0.003), math.radians(0.1))  # rad/s/√Hz, data sheets
-ACC_NOISE_RANGE = (50e-6 * 9.80665, 1000e-6 * 9.80665)  # m/s²/√Hz, data sheets
+ACC_NOISE_RANGE = (50e-6 * G_M_S2, 1000e-6 * G_M_S2)  # m/s²/√Hz, data sheets (in g)
 
 
 class RecordingNoise(NamedTuple):
@@ -108,7 +109,7 @@ def recording_noise(gyr_rad_s, acc_m_s2, dt_s: float, quat_E_S,
 
 def params_from_noise(noise: RecordingNoise, params: TiltParams = DEFAULT_PARAMS) -> TiltParams:
     """``params`` with the levels ``noise`` implies (module doc), each within its bounds; a level
-    the recording does not show (no moving or no steady block) is left as it is."""
+    the recording does not show (no moving or no still block) is left as it is."""
     out = {}
     if math.isfinite(noise.vel_change_density_m2_s3):
         out["vel_m_s"] = min(max(VEL_GAIN_S * math.sqrt(noise.vel_change_density_m2_s3),
