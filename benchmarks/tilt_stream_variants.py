@@ -2,15 +2,17 @@
 validation set beside VQF (docs/tilt.md, "Validation across datasets and rates"), class by class
 and rate by rate, with a leave-one-class-out choice among the variants.
 
-    python benchmarks/tilt_stream_variants.py --broad BROAD_DIR [--seeds 2] [--variants a,b]
-        [--cache DIR] [--jobs 2] [--json FILE]
+    python benchmarks/tilt_stream_variants.py --cache DIR --broad BROAD_DIR [--seeds 2]
+        [--variants current,shock_recovery,vel_m_s=1.0] [--engine stream|batch] [--only REGEX]
+        [--jobs 2] [--json FILE]
 
-A variant is a ``TiltParams`` (the prototype's options are parameters whose defaults keep the
-filter as it is). Every case is run through ``Stream`` sample by sample (~40 000 samples/s), so a
-full table over BROAD at four rates and the synthetic classes costs minutes per variant; the
-cases (resampled BROAD trials, synthetic recordings) and the scores are cached in ``--cache``
-(keyed by the variant's parameters and the filter's source), and cases run in ``--jobs``
-processes.
+A variant is a ``TiltParams``: a name of ``VARIANTS`` or ``field=value;field=value`` over the
+defaults (the prototype's options are parameters whose defaults keep the filter as it is). Every
+case is run through ``Stream`` sample by sample (~40 000 samples/s on a quiet core), so a full
+table over BROAD at four rates and the synthetic classes costs minutes per variant; the cases
+(resampled BROAD trials, synthetic recordings) and the scores are kept in ``--cache`` (scores
+keyed by the parameters a variant changes and ``CODE_VERSION``, to be bumped when an edit changes
+what a parameter set computes), and cases run in ``--jobs`` processes.
 
 The classes: BROAD by kind (rotation 01–08, translation 10–18, disturbed 24–32) at 285.7, 1000,
 100 and 50 Hz; the six synthetic motion classes, the vigorous hand-held class and the shock class
@@ -23,7 +25,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -346,7 +347,8 @@ def main(argv=None) -> None:
     ap.add_argument("--variants", default="current")
     ap.add_argument("--only", default="", help="run only the cases whose key matches this "
                     "regular expression")
-    ap.add_argument("--cache", default=os.environ.get("TILT_VARIANTS_CACHE", ".variants-cache"))
+    ap.add_argument("--cache", required=True, help="folder for the cases and the scores (reused "
+                    "across runs; written only there)")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--json")
     ap.add_argument("--engine", choices=("stream", "batch"), default="stream",
