@@ -29,19 +29,22 @@ UNITS = {
     # the tiny newton-lissajous sweep (tests/test_sweep.py's TINY): its kernel compiled once
     "test_sweep.py": "newton-tiny-sweep",
     "test_reliability_commands.py": "newton-tiny-sweep",
+    # the medial EKF (the same value, run of 30 steps, step and predict) and the op-by-op kernels
+    # of the estimators' models (kept in the process's memory, not in the session's cache)
+    "test_ekf.py": "ekf-estimators",
+    "test_estimator_contract.py": "ekf-estimators",
 }
 
 # CPU seconds of each file (or unit) run alone on a cold cache, measured (docs/development.md); the
 # files marked ~ from their tests' times in a loaded full run, scaled to CPU seconds. A unit costs
 # less than the sum of its files: they share what is expensive.
 COST_S = {
+    "ekf-estimators": 163.0,
     "ekf-quick-loops": 152.0,
-    "test_estimator_contract.py": 110.0,
-    "test_ekf.py": 96.0,
     "ambiguity-loops": 86.0,
     "test_tilt_smoother.py": 85.0,
-    "newton-tiny-sweep": 79.0,
-    "test_architecture.py": 68.0,
+    "newton-tiny-sweep": 72.0,
+    "test_architecture.py": 70.0,
     "test_observability_otolith.py": 42.0,  # ~
     "test_reproduce_parallel.py": 39.0,
     "test_broad.py": 34.0,
