@@ -12,7 +12,7 @@ over one step, across a gap of T s the motion's change over T. A step is a clock
 residuals are within :data:`CONTINUITY` times the recent ones (the lower median of the last
 :data:`WINDOW` residuals between regular steps, at least a floor of a few converter steps):
 measured on the validation's hand-held motions at 50–1000 Hz, a regular sample's residual is at
-most 3.7 times that median, a dropout's at least 8 times (the accelerometer's) and 28 times (the
+most 4.2 times that median, a dropout's at least 8 times (the accelerometer's) and 28 times (the
 gyro's). A gap the readings cannot tell from one sample (at rest, or a motion that came back to
 where it was) is one across which the tilt did not change beyond what the test lets through:
 taking it as one sample is then safe too.
@@ -176,13 +176,10 @@ class Clock:
         return SKIP, math.nan, 0.0
 
     def _gap(self, span_s):
-        """``(GAP, step, tilt variance)`` of a gap of ``span_s`` s: the rate after it integrated
-        over the shortest gap (:func:`break_step_s`) at most, the rest of the unknown rotation
-        as variance (``omega_missing_rad_s`` over the whole gap, as the filter adds over its
-        step)."""
-        dt = min(span_s, self.break_s)
-        w = self.params.omega_missing_rad_s
-        return GAP, dt, w * w * (span_s * span_s - dt * dt)
+        """``(GAP, step, tilt variance)`` of a gap of ``span_s`` s: the step as the stamps say
+        (the filter flags it ``DT_GAP``, adds the unknown rotation over it and re-acquires the
+        tilt), nothing added here."""
+        return GAP, span_s, 0.0
 
     # --- sample by sample ---
 
