@@ -43,6 +43,7 @@ COST_S = {
     # pages opened in Chromium: dealt first, or it is the last file of a worker
     "test_report_browser.py": 240.0,  # ~
     "ekf-estimators": 163.0,
+    "test_reliability.py": 153.0,
     "ekf-quick-loops": 152.0,
     "ambiguity-loops": 86.0,
     "test_tilt_smoother.py": 85.0,
@@ -71,6 +72,9 @@ COST_S = {
     "test_logs_cli.py": 13.0,
     "test_logs.py": 10.0,
     "test_tilt_shock_recovery.py": 5.0,
+    "test_newton.py": 28.0,
+    "test_tahboub_experiments.py": 26.0,
+    "test_cli_reproduce.py": 8.0,
     "test_tilt_noise.py": 3.4,
 }
 DEFAULT_COST_S = 8.0
