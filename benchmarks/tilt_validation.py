@@ -65,6 +65,42 @@ def detection_rates(cases) -> dict:
             for k, p in pooled.items()}
 
 
+LIMITS_VARIANTS = {"fitted": {}, "fraction": {"fit_peaks": False}, "off": {"infer": False}}
+
+
+def limits_runner(options: dict):
+    """:func:`~verticality.tilt.evaluation.validation.leave_one_class_out`'s runner for variants
+    of what a clipped sample means (:data:`LIMITS_VARIANTS`: keyword arguments of
+    :func:`verticality.tilt.limits.find_limits`; "fitted" the default, each clipped run's peak
+    fitted and added; "fraction" the earlier model, σ = 0.5 × the clip level and nothing added;
+    "off" no clipping inferred): our filter and smoother run on the limits so found as
+    ``estimate_steps`` and ``smooth_steps`` run them (a recording of one piece); the peers as
+    always."""
+    from verticality.tilt import batch, estimator, smoother
+    from verticality.tilt.evaluation.broad import OURS, OURS_OFFLINE, run_filter_sigma
+    from verticality.tilt.limits import find_limits
+    from verticality.tilt.output import tilt_sigma_rad
+    from verticality.tilt.params import DEFAULT_PARAMS, block_samples
+
+    def run(name, gyr, acc, dt):
+        if name not in (OURS, OURS_OFFLINE):
+            return run_filter_sigma(name, gyr, acc, dt)
+        lim = find_limits(gyr, acc, dt, **options)
+        g, a = lim.readings(gyr, acc)
+        block = block_samples(DEFAULT_PARAMS, dt)
+        init = estimator.TiltFilter(DEFAULT_PARAMS, block).init()
+        if name == OURS:
+            out = batch.run(DEFAULT_PARAMS, block, init, g, a, dt, **lim.run_args())[1]
+        else:
+            final, out, trans = batch.run(DEFAULT_PARAMS, block, init, g, a, dt,
+                                          transitions=True, **lim.run_args())
+            dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), g.shape[:1])
+            out = smoother.smoothed_output(out, trans, final.P, dts, block)
+        return out.quat_E_S, out.bias_S_rad_s, tilt_sigma_rad(out.var, DEFAULT_PARAMS)
+
+    return run
+
+
 def _floats(text):
     return None if text is None else [float(x) for x in text.split(",")]
 
