@@ -6,6 +6,11 @@ vqf in the same run.
   per second, best of several repetitions (the two alternate), compile excluded (one compiled shape
   serves every recording); also the time of the compiled chunks alone, the rest of the run's time
   being the host side;
+- batch at common rates: the same ratio with the recording at 50, 100, 285.7 and 1000 Hz (the
+  Kalman update interval is a time: 6, 11, 32 and 112 samples per block), as a user runs it
+  (``tilt.estimate(gyr, acc, period_s=...)``, host side included, compile excluded): BROAD trial 01
+  resampled to each rate (``validation.resample_trial``) with ``--broad``, and a synthetic
+  recording of the same length (``evaluation.realistic``, slow rotation) at each rate;
 - offline: ``tilt.smooth`` (the filter and its backward pass) vs ``vqf.offlineVQF`` (C++) on
   the same recording repeated to ``--offline-samples`` samples (10⁶ by default), alternating, best
   of ``--offline-reps``;
@@ -66,6 +71,46 @@ def _best_interleaved(fns, reps):
     return best
 
 
+RATES_HZ = (50.0, 100.0, 285.7, 1000.0)
+
+
+def _at_rates(broad_dir: Path | None, duration_s: float):
+    """``(label, rate, gyr, acc)`` of the recordings timed at :data:`RATES_HZ`: BROAD trial 01
+    resampled to each rate (with ``broad_dir``; 285.7 Hz is its own rate) and a synthetic
+    recording of ``duration_s`` at each rate."""
+    from verticality.tilt.evaluation import realistic
+
+    if broad_dir is not None:
+        from verticality.io import broad
+        from verticality.tilt.evaluation.validation import resample_trial
+
+        trial = broad.load_trial(broad_dir / "01_undisturbed_slow_rotation_A.hdf5")
+        for rate in RATES_HZ:
+            if abs(rate - trial.sampling_rate_hz) < 0.5:
+                yield "BROAD 01", trial.sampling_rate_hz, trial.gyr_rad_s, trial.acc_m_s2
+            else:
+                c = resample_trial(trial, rate)
+                yield "BROAD 01", rate, c.gyr_rad_s, c.acc_m_s2
+    for rate in RATES_HZ:
+        rec = realistic.recording(realistic.MOTIONS[0], 0, duration_s, rate_hz=rate)
+        yield "synthetic", rate, rec.gyr_rad_s, rec.acc_m_s2
+
+
+def _ratios_at_rates(broad_dir: Path | None, duration_s: float, reps: int, VQF):
+    """Rows ``(label, rate, n, ours s, vqf s)``: ``tilt.estimate`` and ``VQF.updateBatch``
+    alternated, best of ``reps`` each, after one untimed run (the compilation)."""
+    rows = []
+    for label, rate, gyr, acc in _at_rates(broad_dir, duration_s):
+        gyr, acc = np.ascontiguousarray(gyr), np.ascontiguousarray(acc)
+        dt = 1.0 / rate
+        tilt.estimate(gyr, acc, period_s=dt)  # compile
+        best = _best_interleaved(
+            {"ours": lambda g=gyr, a=acc, d=dt: tilt.estimate(g, a, period_s=d),
+             "vqf": lambda g=gyr, a=acc, d=dt: VQF(d).updateBatch(g, a)}, reps)
+        rows.append((label, rate, gyr.shape[0], best["ours"], best["vqf"]))
+    return rows
+
+
 def _device_time(gyr, acc, dt, reps):
     """Time of the compiled chunks alone (``tilt_kernels.run_chunk`` chained on the device, as
     in the batch run, inputs already packed): the run's time minus this is the host side
@@ -75,7 +120,7 @@ def _device_time(gyr, acc, dt, reps):
     from verticality.tilt import kernels as tilt_kernels
     from verticality.tilt.layout import HEAD
 
-    nb = tilt_batch.CHUNK_BLOCKS
+    nb = tilt_batch.chunk_blocks(BLOCK, False)
     chunk = nb * BLOCK
     n = gyr.shape[0]
     dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
@@ -85,7 +130,7 @@ def _device_time(gyr, acc, dt, reps):
     p = tilt.DEFAULT_PARAMS
     x0 = jax.device_put(tilt_core.initialize(tilt.TiltFilter().init().x, acc[0], p, xp=np))
     head = jax.device_put(HEAD.pack(xp=np, sums0=np.asarray(tilt_core.empty_sums(xp=np)),
-                                    n_update=tilt_batch.CHUNK_BLOCKS))
+                                    n_update=nb))
     p_vec = jax.device_put(np.asarray(p, dtype=np.float64))
 
     def chunks():
@@ -106,6 +151,10 @@ def main() -> int:
     ap.add_argument("--stream-samples", type=int, default=2000)
     ap.add_argument("--offline-samples", type=int, default=1_000_000)
     ap.add_argument("--offline-reps", type=int, default=5)
+    ap.add_argument("--rates-reps", type=int, default=15,
+                    help="repetitions of each run at the common rates (0: skip them)")
+    ap.add_argument("--rates-duration", type=float, default=200.0, metavar="S",
+                    help="length of the synthetic recording at the common rates (s)")
     args = ap.parse_args()
     gyr, acc, dt, name = _data(args.broad)
     gyr = np.ascontiguousarray(gyr)
@@ -183,6 +232,15 @@ def main() -> int:
           f"{1e3 * (t_ours - t_dev):.2f} ms")
     if t_vqf is not None:
         print(f"ratio batch ours/vqf: {t_vqf / t_ours:.2f} (required >= 1)")
+    if VQF is not None and args.rates_reps > 0:
+        print(f"batch at common rates, tilt.estimate vs VQF.updateBatch (best of "
+              f"{args.rates_reps}, alternated; ratio = vqf time / ours, required >= 0.9):")
+        print(f"  {'recording':10s} {'rate Hz':>8s} {'samples':>8s} {'ours ms':>8s} "
+              f"{'vqf ms':>8s} {'ratio':>6s}")
+        for label, rate, n_r, t_o, t_v in _ratios_at_rates(args.broad, args.rates_duration,
+                                                          args.rates_reps, VQF):
+            print(f"  {label:10s} {rate:8.1f} {n_r:8d} {1e3 * t_o:8.2f} {1e3 * t_v:8.2f} "
+                  f"{t_v / t_o:6.2f}")
     if "offlineVQF" in best_off:
         print(f"ratio offline ours/offlineVQF: {best_off['offlineVQF'] / best_off['smooth']:.2f}; "
               f"smoother {m_off / best_off['smooth'] / 1e6:.2f} M samples/s (required >= 1)")

@@ -22,6 +22,16 @@ jax.config.update("jax_compilation_cache_dir", os.environ["VERTICALITY_JAX_CACHE
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
 
 
+def pytest_xdist_make_scheduler(config, log):
+    """Files sharing compiled kernels in one worker, the most expensive dealt first
+    (tests/worker_schedule.py); the other ``--dist`` modes are xdist's own."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from worker_schedule import make_scheduler
+
+    return make_scheduler(config, log)
+
+
 def pytest_unconfigure(config):
     if _OWN_CACHE and not hasattr(config, "workerinput"):
         shutil.rmtree(os.environ["VERTICALITY_TEST_JAX_CACHE"], ignore_errors=True)

@@ -76,9 +76,10 @@ def test_one_medial_value_through_simulator_ekf_newton_linearization_observabili
     x_true = otolith_head.OtolithHeadState(
         (PendulumState(so3.exp(jnp.array([0.05, -0.1, 0.0])), jnp.array([0.2, -0.1, 0.0])),),
         HeadState(so3.exp(jnp.array([0.1, 0.05, 0.3])), jnp.array([0.3, -0.2, 0.1])))
-    ys = newton.observability_map(x_true, us, 0.02)[0].reshape(20, ekf.N_Y)
+    # compiled, as the observer runs (op by op, its autodiff and while loop cost twice the time)
+    ys = jax.jit(newton.observability_map)(x_true, us, 0.02)[0].reshape(20, ekf.N_Y)
     guess = model.retract(x_true, 0.02 * jnp.ones(12))
-    sol = newton.solve(guess, us, ys, jnp.ones_like(ys, dtype=bool), 0.02)
+    sol = jax.jit(newton.solve)(guess, us, ys, jnp.ones_like(ys, dtype=bool), 0.02)
     assert float(jnp.max(jnp.abs(model.difference(sol.xi, x_true)))) < 1e-8
 
     # --- linearization at upright → control.StateSpace: the pendulum's poles at √(mgl/J) (damped)

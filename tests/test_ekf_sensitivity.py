@@ -15,7 +15,7 @@ def test_quick_sweep_runs_each_setting_once(quick_sweeps):
     # one stabilized run shared by both rows, one fixed run per σ; one label per group of runs
     assert len(labels) == 2
     assert simulated_s == pytest.approx((1 + len(sens.HEAD_RATE_SIGMAS_QUICK))
-                                        * (ekf_runs.JUMP_DURATION_S - 2.0))
+                                        * ekf_runs.QUICK_DURATION_S)
     stab = {r["stabilized_rms_deg"] for r in rows.values()}
     assert len(stab) == 1
     for r in rows.values():

@@ -157,7 +157,10 @@ def test_no_measurement_is_predict_and_finite_stays_finite(name):
     est, x0, P0, us, ys, dt = _case(name)
     s0 = est.init(x0, P0)
     jit = (lambda f: f) if name == "tilt" else jax.jit
-    s_nan, out = jit(est.step)(s0, _u(us, 0), jnp.full(np.shape(ys)[1], jnp.nan), dt)
+    # a float64 array like the measurements `run` gets (a weakly typed one would compile `step`
+    # again rather than reuse test_run_is_repeated_step's)
+    s_nan, out = jit(est.step)(s0, _u(us, 0), jnp.full(np.shape(ys)[1], jnp.nan, dtype=float),
+                               dt)
     s_pred = jit(est.predict)(s0, _u(us, 0), dt)
     for a, b in zip(jax.tree_util.tree_leaves(s_nan), jax.tree_util.tree_leaves(s_pred),
                     strict=True):

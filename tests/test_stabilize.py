@@ -110,24 +110,26 @@ def test_rate_mismatch_is_zero_for_a_consistent_file_and_large_for_a_wrong_omega
 
 
 def test_stabilize_flags_a_diverging_plant_and_an_odd_length_recording(tmp_path, capsys):
-    """A file whose ω (60 rad/s oscillation) contradicts its q (still), 2.994 s at 1 kHz: simulated
+    """A file whose ω (60 rad/s oscillation) contradicts its q (still), 6.014 s at 1 kHz: simulated
     to the last whole 20 ms EKF period with a note, the q–ω disagreement warned about, and the
-    stabilized plant, which diverges, reported with the time it did, no metric, exit status 1."""
-    t = np.arange(3995) / 1000.0  # 3.994 s, of which the window takes the last 2.994 s
+    stabilized plant, which diverges, reported with the time it did, no metric, exit status 1.
+    (6 s simulated: the quick ekf-jump's duration, whose compiled closed loops the test above has
+    built in this process.)"""
+    t = np.arange(7015) / 1000.0  # 7.014 s, of which the window takes the last 6.014 s
     w = np.zeros((t.size, 3))
     w[:, 0] = 60.0 * np.sin(2 * np.pi * 3.0 * t)
     rec = io.MotionRecord(t, np.tile([1.0, 0.0, 0.0, 0.0], (t.size, 1)), w, np.zeros((t.size, 3)))
     motion = io.write_motion_csv(tmp_path / "wild.csv", rec)
     capsys.readouterr()
-    assert cli.main(["stabilize", str(motion), "--start", "1", "--duration", "2.994",
+    assert cli.main(["stabilize", str(motion), "--start", "1", "--duration", "6.014",
                      "--settle", "1", "--json"]) == 1
     out = capsys.readouterr()
     err = " ".join(out.err.split())
-    assert "simulating 2.98 s of the 2.994 s recorded" in err
+    assert "simulating 6 s of the 6.014 s recorded" in err
     assert "the file's ω and q disagree" in err
     assert "stabilized head: the simulated plant became non-finite at t =" in err
     report = json.loads(out.out)  # valid JSON: no NaN
-    assert report["duration_s"] == pytest.approx(2.98)
+    assert report["duration_s"] == pytest.approx(6.0)
     assert report["rms_tilt_error_deg"]["stabilized"] is None
     assert report["rms_ratio_stabilized_over_fixed"] is None
     assert report["diverged"]["stabilized"][1] == "plant"

@@ -296,7 +296,7 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     from verticality.tilt import batch as tilt_batch
     from verticality.tilt import kernels as tilt_kernels
 
-    n = 2 * tilt_batch.CHUNK_BLOCKS * BLOCK + 3000
+    n = 2 * tilt_batch.CHUNK_SAMPLES + 3000
     gyr, acc, dt, _ = _tumbling(np.array([0.01, -0.005, 0.002]), n=n)
     acc[100:150] = np.nan
     dts = np.full(n, dt)
@@ -306,17 +306,18 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     real = tilt_kernels.run_chunk
 
     def spy(*args, gaps=True, **kw):
-        used.append((gaps, args[2].shape[2]))  # (CHUNK_SAMPLE, block, nb)
+        used.append((gaps, args[2].shape[0] // args[4]))  # (nb * block, CHUNK_SAMPLE), block
         return real(*args, gaps=gaps, **kw)
 
     monkeypatch.setattr(tilt_kernels, "run_chunk", spy)
     fast = estimator.estimate_steps(gyr, acc, dts, block=BLOCK)  # (the chunks counted in it)
-    short, long = (True, tilt_batch.GAP_CHUNK_BLOCKS), (False, tilt_batch.CHUNK_BLOCKS)
+    short, long = ((True, tilt_batch.chunk_blocks(BLOCK, True)),
+                   (False, tilt_batch.chunk_blocks(BLOCK, False)))
     assert set(used) == {short, long}
     # one short chunk covers the initialization and the first gap; two long chunks follow (the
     # second gap, in block 558, is beyond the reach of the one starting at block 288); short
     # chunks from block 544 to the end (1975 samples; a tail this short takes them anyway)
-    assert tilt_batch.GAP_CHUNK_BLOCKS == 32 and tilt_batch.CHUNK_BLOCKS == 256
+    assert short[1] == 32 and long[1] == 256
     assert used == [short, long, long, short, short]
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
     ref = estimator.estimate_steps(gyr, acc, dts, block=BLOCK)

@@ -96,7 +96,9 @@ def run_sweeps(quick: bool = False, progress=None) -> tuple[dict, float]:
         for run in runs:
             _, _, sigma, _, noise = run
             setting = ekf_runs.Setting(ekf_runs.SIGMA_PROCESS[:3] + (sigma,), noise)
-            metrics[run] = ekf_runs.run_settings(traj, condition, [setting], seeds=seeds)[0][0]
+            metrics[run] = ekf_runs.run_settings(
+                traj, condition, [setting], seeds=seeds,
+                loop_duration_s=ekf_runs.loop_duration_s(quick))[0][0]
         simulated_s += traj.duration_s * len(seeds) * len(runs)
     out = {sweep: {scenario: {label: _row(metrics[fixed], metrics[stab])
                               for label, (fixed, stab) in rows.items()}

@@ -96,6 +96,10 @@ SIGMA_PROCESS_CONSTANT = (1e-3, 0.3, 3e-4, 1e-3)
 SEEDS = (0, 1, 2)
 IMPACT_RAMP_IN_S = 1.5
 JUMP_T_PUSH_S, JUMP_DURATION_S = 3.0, 8.0
+QUICK_DURATION_S = 6.0  # both scenarios' quick runs: one duration, so one compiled loop per head
+# The closed loop the scenarios' full runs are simulated on: the impact's duration (the longer);
+# the jump's 8 s are its first 400 EKF ticks (:func:`loop_duration_s`).
+FULL_LOOP_DURATION_S = 10.0
 SIGMA_PROCESS_STACKED = (0.3, 1e-3, 0.03, 1e-3)  # blocks in P13's order: ω_S, R_IS, ω_H, R_IH
 SIGMA_RELATIVE_PENDULUM_RAD = 0.02
 U_BLOCKS = 4
@@ -245,25 +249,42 @@ def _sensor_noise(std: float) -> sim.NoiseParams:
                            gyro=sim.DEFAULT_NOISE.gyro._replace(noise_std_rad_s=std))
 
 
+def loop_duration_s(quick: bool) -> float:
+    """The duration the ekf-* scenarios' runs are simulated for (``loop_duration_s`` of
+    :func:`simulate_runs`): one for both scenarios, so that the jump's runs reuse the closed loops
+    compiled for the impact's (a loop compiles once per duration; the closed loop is causal, so the
+    first ticks of a longer run are the shorter run's, and only those are scored)."""
+    return QUICK_DURATION_S if quick else FULL_LOOP_DURATION_S
+
+
 def simulate_runs(traj, condition: str, settings, seeds, variant: str = "multiplicative",
                   torque_input: str = "gimbal", accel_frame: str = "inertial", p0: str = "common",
                   consider_noise: bool = True, *, model_params=EKF_MODEL,
-                  t_settle_s: float = T_SETTLE_S):
+                  t_settle_s: float = T_SETTLE_S, loop_duration_s: float | None = None):
     """The closed loop of the ekf-* runs for a batch of runs, one :class:`Setting` and one noise
     seed each (``settings`` and ``seeds`` of equal length): one compiled simulator, all runs in one
     ``vmap`` batch. Returns the batch's :class:`simulation.SimResult` and its per-run
-    :func:`simulation.tilt_metrics` (arrays with a leading run axis)."""
+    :func:`simulation.tilt_metrics` (arrays with a leading run axis).
+
+    ``loop_duration_s`` (default the trajectory's duration): simulate this long, at least the
+    trajectory's duration, on a trajectory defined that long, and keep the record of the
+    trajectory's duration only (its final states are the loop's): runs of shorter trajectories
+    then share the compiled loop of a longer one (:func:`loop_duration_s`)."""
     settings = [Setting(*s) for s in settings]
     seeds = list(seeds)
     if not settings or len(settings) != len(seeds):
         raise ValueError("simulate_runs needs one setting per seed, at least one "
                          f"(got {len(settings)} settings, {len(seeds)} seeds)")
+    loop_s = traj.duration_s if loop_duration_s is None else float(loop_duration_s)
+    if loop_s < traj.duration_s:
+        raise ValueError(f"loop_duration_s {loop_s} is shorter than the trajectory's "
+                         f"{traj.duration_s} s")
     for s in settings:
         if not s.sensor_noise_std > 0.0:
             raise ValueError("sensor_noise_std must be > 0 (it is also the filter's R), not "
                              f"{s.sensor_noise_std!r}")
     filt, est = closed_loop_estimator(variant, accel_frame, model_params)
-    cfg = sim.SimConfig(duration_s=traj.duration_s, condition=condition, u_blocks=U_BLOCKS,
+    cfg = sim.SimConfig(duration_s=loop_s, condition=condition, u_blocks=U_BLOCKS,
                         accel_frame=accel_frame)
     controller = sim.p13_controller() if condition == "stabilized" else None
     run = sim.make_simulator(traj, cfg, est, controller)
@@ -289,6 +310,9 @@ def simulate_runs(traj, condition: str, settings, seeds, variant: str = "multipl
     keys = jnp.stack([jax.random.PRNGKey(seed) for seed in seeds])
     res = sim.simulate_batch(run, keys, PLANT, noise, states0, batched_estimator=True,
                              batched_noise=True)
+    if loop_s != traj.duration_s:  # the trajectory's ticks (runs, ticks, ...)
+        ticks = sim.make_loop(cfg._replace(duration_s=traj.duration_s), est, controller).estimates
+        res = res._replace(record=jax.tree_util.tree_map(lambda a: a[:, :ticks], res.record))
     per = jax.vmap(lambda r: sim.tilt_metrics(r, t_settle_s))(res.record)
     return res, per
 
@@ -296,7 +320,8 @@ def simulate_runs(traj, condition: str, settings, seeds, variant: str = "multipl
 def run_settings(traj, condition: str, settings, variant: str = "multiplicative",
                  torque_input: str = "gimbal", seeds=(SEED,), accel_frame: str = "inertial",
                  p0: str = "common", consider_noise: bool = True, *, model_params=EKF_MODEL,
-                 t_settle_s: float = T_SETTLE_S) -> list[tuple[dict, dict]]:
+                 t_settle_s: float = T_SETTLE_S,
+                 loop_duration_s: float | None = None) -> list[tuple[dict, dict]]:
     """:func:`run_condition` for several :class:`Setting` s at once: all settings × seeds in one
     :func:`simulate_runs` batch (each seed's noise is the same in every setting).
     Returns ``(metrics, series)`` per setting, in order."""
@@ -307,7 +332,7 @@ def run_settings(traj, condition: str, settings, variant: str = "multiplicative"
     res, per = simulate_runs(traj, condition, [s for s in settings for _ in seeds],
                              [seed for _ in settings for seed in seeds], variant, torque_input,
                              accel_frame, p0, consider_noise, model_params=model_params,
-                             t_settle_s=t_settle_s)
+                             t_settle_s=t_settle_s, loop_duration_s=loop_duration_s)
     mx_all = np.asarray(per["max_tilt_error_deg"]).reshape(n_set, n_seed)
     rms_all = np.asarray(per["rms_tilt_error_deg"]).reshape(n_set, n_seed)
     out = []
@@ -337,7 +362,7 @@ def run_condition(traj, condition: str, variant: str = "multiplicative",
                   torque_input: str = "gimbal", sigma_process=None, seeds=(SEED,),
                   accel_frame: str = "inertial", p0: str = "common", consider_noise: bool = True,
                   *, sensor_noise_std: float = SIGMA_MEASUREMENT, model_params=EKF_MODEL,
-                  t_settle_s: float = T_SETTLE_S):
+                  t_settle_s: float = T_SETTLE_S, loop_duration_s: float | None = None):
     """Closed-loop runs (one per seed, vmapped); returns the metrics and the first seed's series.
 
     ``sensor_noise_std``: σ of the white noise on the two inclinometer angles and the three gyro
@@ -346,10 +371,11 @@ def run_condition(traj, condition: str, variant: str = "multiplicative",
     P13_HEAD)`` is the exact model). The metrics cover t ≥ ``t_settle_s``.
 
     Metrics: ``max``/``rms`` tilt error over the seeds (max of maxima, rms over all samples), plus
-    ``*_per_seed`` lists."""
+    ``*_per_seed`` lists. ``loop_duration_s``: as in :func:`simulate_runs`."""
     return run_settings(traj, condition, [Setting(sigma_process, sensor_noise_std)], variant,
                         torque_input, seeds, accel_frame, p0, consider_noise,
-                        model_params=model_params, t_settle_s=t_settle_s)[0]
+                        model_params=model_params, t_settle_s=t_settle_s,
+                        loop_duration_s=loop_duration_s)[0]
 
 
 
@@ -368,8 +394,9 @@ SCALED_PARAMETERS = {
 def scenario_trajectory(scenario: str, quick: bool = False, *, amplitude_scale: float = 1.0,
                         frequency_scale: float = 1.0, **overrides):
     """The trunk trajectory of ``ekf-impact`` (``scenario="impact"``) or ``ekf-jump`` (``"jump"``),
-    with the settings above; ``quick``: their quick durations (impact 6.5 s, the impact at 5 s
-    included; jump 6 s). ``overrides`` go to the trajectory function (e.g. ``pitch_rad``).
+    with the settings above; ``quick``: their quick duration, 6 s (the impact at 5 s and the
+    stop after it included; the jump's whole motion), one for both so that their quick runs
+    share compiled closed loops. ``overrides`` go to the trajectory function (e.g. ``pitch_rad``).
 
     ``amplitude_scale`` and ``frequency_scale`` scale the trunk's motion through the trajectory's
     parameters (:data:`SCALED_PARAMETERS`). Impact: the oscillation's translation and rotation
@@ -378,10 +405,11 @@ def scenario_trajectory(scenario: str, quick: bool = False, *, amplitude_scale: 
     free fall's edges divided by ``frequency_scale``: a faster jump is a shorter, lower one, g
     being g); the push time and the landing's 30 m/s² peak are kept."""
     if scenario == "impact":
-        kw = {"ramp_in_s": IMPACT_RAMP_IN_S, **({"duration_s": 6.5} if quick else {})}
+        kw = {"ramp_in_s": IMPACT_RAMP_IN_S,
+              **({"duration_s": QUICK_DURATION_S} if quick else {})}
         fn = trajectories.impact
     elif scenario == "jump":
-        kw = {"duration_s": JUMP_DURATION_S - 2.0 if quick else JUMP_DURATION_S,
+        kw = {"duration_s": QUICK_DURATION_S if quick else JUMP_DURATION_S,
               "t_push_s": JUMP_T_PUSH_S}
         fn = trajectories.jump
     else:

@@ -21,18 +21,27 @@ from verticality.tilt import kernels as tilt_kernels
 from verticality.tilt.flags import (
     DT_GAP,
     INIT,
-    OUT_OF_RANGE,
     REACQUIRING,
     accelerometer_used,
 )
-from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, NE, ROW, SOA, TRANS, E, S, X
-from verticality.tilt.params import MAX_ACC_M_S2, MAX_RATE_RAD_S
+from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, NE, ROW, TRANS, E, S, X
+from verticality.tilt.params import MAX_RATE_RAD_S
 
-CHUNK_BLOCKS = 256
+# the kernel's chunks hold whole blocks, about this many samples at any block length (the cost
+# of a call and of its host work is per chunk, the kernel's per sample and per block): long ones
+# without gap handling, short ones with it (a sample costs more there; and a short chunk pads a
+# recording's tail less)
+CHUNK_SAMPLES = 8192
+GAP_CHUNK_SAMPLES = 1024
 PIECE_SAMPLES = 2**18  # a long recording is filtered piece by piece (tilt.estimate, estimate's
 # streaming read), each piece ending at a block boundary (piece_cut), so that reading and writing
 # in pieces gives the numbers of the in-memory run bit for bit
-GAP_CHUNK_BLOCKS = 32  # chunks with gap handling are short: a sample costs more with it
+
+
+def chunk_blocks(block: int, gaps: bool) -> int:
+    """The blocks of a chunk of the kernel with (``gaps``) or without gap handling: one shape
+    per block length and kernel."""
+    return max(1, (GAP_CHUNK_SAMPLES if gaps else CHUNK_SAMPLES) // block)
 
 
 def _acc_ok(acc, dts):
@@ -90,7 +99,7 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     if dt.ndim > 1 or (dt.ndim == 1 and dt.shape[0] != n):
         raise InputError(f"dt must be a scalar or have shape ({n},); got {dt.shape}")
     dts = np.broadcast_to(dt, (n,)).copy()
-    tv = np.zeros(n) if tilt_var is None else np.asarray(tilt_var, dtype=np.float64)
+    tv = None if tilt_var is None else np.asarray(tilt_var, dtype=np.float64)
     vv = None if vel_var is None else np.asarray(vel_var, dtype=np.float64)
     for name, v in (("tilt_var", tv), ("vel_var", vv)):
         if v is not None and (v.shape != (n,) or not np.all(np.isfinite(v) & (v >= 0))):
@@ -112,12 +121,9 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     res = empty_output(n, np.empty)
     if k > 0 and not bool(state.initialized):
         _before_initialization(res, params, x0, x, j, sums, gyr, acc, dts)
-    in_range = _within(gyr, MAX_RATE_RAD_S) and _within(acc, MAX_ACC_M_S2)
     trans = Transitions(n, np.zeros((0, TRANS.size)))
-    if run_ is not None:
+    if run_ is not None:  # (the chunks flag OUT_OF_RANGE themselves)
         x, sums, count, trans = _collect(res, run_)
-    if not in_range:
-        res.flags[:] |= np.where(core.out_of_range(gyr.T, acc.T, xp=np), OUT_OF_RANGE, 0)
     if flags is not None:
         res.flags[:] |= np.asarray(flags, dtype=np.int32)
     res.measured[:] = accelerometer_used(res.flags)
@@ -178,7 +184,8 @@ def _before_initialization(res, p, x, x_init, j, sums, gyr, acc, dts):
     dt_ok, gyr_ok, acc_ok, _ = core.masks(gyr[:k].T, acc[:k].T, dts[:k], xp=np)
     pending = (x[X.reacquire] > 0.5) | (sums[S.gap] > 0)
     flags = core.flag_bits(dt_ok, gyr_ok, acc_ok, gap=core.gaps_in(dts[:k], p, xp=np),
-                           reacquiring=pending, xp=np)
+                           reacquiring=pending,
+                           beyond=core.out_of_range(gyr[:k].T, acc[:k].T, xp=np), xp=np)
     var = core.output_var(x[X.P].reshape(NE, NE), False, 0.0, p, xp=np)
     quat = np.tile(x[X.q], (k, 1))
     variances = np.tile(var, (k, 1))
@@ -248,6 +255,7 @@ def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv
     # the gap handling (blocks_needing_gaps says so too), and the first chunk is dispatched
     # before the host looks for the others' gaps
     pending0 = bool(x[X.reacquire] > 0.5)
+    nb_long, nb_short = chunk_blocks(block, False), chunk_blocks(block, True)
     need = None
     pending, trans, j, v = [], [], 0, 0
     while v < nv:
@@ -257,9 +265,9 @@ def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv
         # a gap or a re-acquisition (after a gap, and after the initialization) within a chunk's
         # reach: short chunks with gap handling until it is past; and for a tail of at most half
         # a long chunk (less padding)
-        gaps = (need is None or bool(need[j:j + CHUNK_BLOCKS].any())
-                or 2 * (nv - v) <= CHUNK_BLOCKS * block)
-        nb = GAP_CHUNK_BLOCKS if gaps else CHUNK_BLOCKS
+        gaps = (need is None or bool(need[j:j + nb_long].any())
+                or 2 * (nv - v) <= nb_long * block)
+        nb = nb_short if gaps else nb_long
         size = nb * block
         # the chunk's samples (packed chunk by chunk, while the device works on the previous
         # one); positions without a sample: the current block's samples before k, the padding
@@ -275,8 +283,8 @@ def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv
                                                   data, p_vec, block, p._fields, gaps=gaps,
                                                   transitions=transitions)
         if transitions:
-            trans.append(outs[3][:n_update])
-            outs = outs[:3]
+            trans.append(outs[-1][:n_update])
+            outs = outs[:-1]
         pending.append((lo, lead, m, size, outs))
         v += m
         j += nb
@@ -310,14 +318,14 @@ def _collect(res, run_: _Dispatched):
 
 
 def chunk_data(nb: int, block: int, lead: int, gyr, acc, dts, tv=None, vv=None):
-    """A chunk's input for ``tilt_kernels.run_chunk``: (``CHUNK_SAMPLE``, block, nb), sample
-    ``k`` of block ``j`` at ``[:, k, j]``, from the ``m`` samples ``gyr``, ``acc`` (m, 3), ``dts``,
-    ``tv``, ``vv`` (m,) (None: zeros) placed from position ``lead`` on. The positions without a
-    sample (the ``lead`` ones, and those after the samples) are skipped samples (dt = NaN:
-    BAD_DT), so that every chunk has one of the two compiled shapes."""
+    """A chunk's input for ``tilt_kernels.run_chunk``: (``nb * block``, ``CHUNK_SAMPLE``), a row
+    per sample, from the ``m`` samples ``gyr``, ``acc`` (m, 3), ``dts``, ``tv``, ``vv`` (m,)
+    (None: zeros) placed from position ``lead`` on. The positions without a sample (the ``lead``
+    ones, and those after the samples) are skipped samples (dt = NaN: BAD_DT), so that every
+    chunk has one of the two compiled shapes."""
     size = nb * block
     m = lead + gyr.shape[0]
-    rows = np.empty((size, CHUNK_SAMPLE.size))  # sample-major, then one transposing copy
+    rows = np.empty((size, CHUNK_SAMPLE.size))
     rows[:lead, :] = 0.0
     rows[:lead, CHUNK_SAMPLE.dt] = np.nan
     rows[lead:m, CHUNK_SAMPLE.gyr] = gyr
@@ -328,7 +336,7 @@ def chunk_data(nb: int, block: int, lead: int, gyr, acc, dts, tv=None, vv=None):
     if m < size:
         rows[m:, :] = 0.0
         rows[m:, CHUNK_SAMPLE.dt] = np.nan
-    return np.ascontiguousarray(rows.reshape(nb, block, CHUNK_SAMPLE.size).transpose(2, 1, 0))
+    return rows
 
 
 def _dropout_variance(gyr, acc, dts, k, pad, qmiss0, block, p, tv=None):
@@ -411,37 +419,32 @@ def blocks_needing_gaps(dts, acc, k, block, p, pending, t_sum, pad: int = 0,
 
 def put_chunk(res, k0: int, outs, block: int, gap0: bool = False):
     """Write the outputs of one ``tilt_kernels.run_chunk`` (all its samples) into ``res`` from
-    sample ``k0`` on: one transposing copy per field, bias and variances broadcast per block.
+    sample ``k0`` on: one whole copy per per-sample field, bias and variances broadcast per block.
     ``gap0``: the chunk's first block holds a gap before the chunk."""
-    soa, rows, fl = (np.asarray(o) for o in outs)
-    nb = soa.shape[2]
+    quat, up, roll, pitch, fl, rows = (np.asarray(o) for o in outs)
+    nb = rows.shape[0]
     n = nb * block
-
-    def dst(a):  # (n, ...) rows of a from k0 as a (nb, block, ...) view
-        return a[k0:k0 + n].reshape((nb, block) + a.shape[1:], copy=False)
-
-    dst(res.quat_E_S)[...] = soa[SOA.quat].T
-    dst(res.up_S)[...] = soa[SOA.up].T
-    dst(res.roll_rad)[...] = soa[SOA.roll].T
-    dst(res.pitch_rad)[...] = soa[SOA.pitch].T
+    sl = slice(k0, k0 + n)
+    res.quat_E_S[sl], res.up_S[sl], res.roll_rad[sl], res.pitch_rad[sl] = quat, up, roll, pitch
+    res.flags[sl] = fl
     for a, start, end in ((res.bias_S_rad_s, rows[:, ROW.b0], rows[:, ROW.b1]),
                           (res.var, rows[:, ROW.var0], rows[:, ROW.var1])):
-        v = dst(a)
+        v = a[sl].reshape((nb, block) + a.shape[1:], copy=False)  # (nb, block, ...) view
         v[:, :-1] = start[:, None, :]
         v[:, -1] = end
-    fl_dst = dst(res.flags)
-    fl_dst[...] = fl.T
     # REACQUIRING (x.reacquire or a gap in the block so far; rare: after a gap or the start),
     # which the kernel leaves to the host
+    fl = fl.reshape(nb, block)
     pend_start, pend_end = rows[:, ROW.reacquire0] > 0.5, rows[:, ROW.reacquire1] > 0.5
     pend_start[0] |= gap0
     # a block holding a gap is pending after it (its update, if the chunk applied it, says so too)
-    rare = np.flatnonzero(pend_start | pend_end | np.any(fl & DT_GAP, axis=0))
+    rare = np.flatnonzero(pend_start | pend_end | np.any(fl & DT_GAP, axis=1))
     if rare.size:
         # a block pending at its start is flagged from its first sample; one that only turns
         # pending (it holds a gap) from its gap on; the last sample as the state after the update
-        first = np.where(pend_start[rare], 0, np.argmax((fl[:, rare] & DT_GAP) > 0, axis=0))
+        first = np.where(pend_start[rare], 0, np.argmax((fl[rare] & DT_GAP) > 0, axis=1))
         kk = np.arange(block)[None, :]
         on = (kk >= first[:, None]) & (kk < block - 1)
         on[:, -1] = pend_end[rare]
+        fl_dst = res.flags[sl].reshape(nb, block, copy=False)
         fl_dst[rare] |= np.where(on, REACQUIRING, 0).astype(fl_dst.dtype)

@@ -510,7 +510,7 @@ class BlockTransition(NamedTuple):
     split: jax.Array  # () bool
 
 
-def block_update(x, c, p, gaps: bool = True):
+def block_update(x, c, p, gaps: bool = True, summed: bool = True):
     """Kalman prediction over a block and the otolith/rest updates (T eq. 2, 7–13 in 3-D): the
     filter ``x`` (``X``) at the block start and the block's inputs ``c`` (``C``,
     :func:`block_inputs`) give ``(x_new, disturbed, reacquired, transition)``
@@ -519,7 +519,11 @@ def block_update(x, c, p, gaps: bool = True):
 
     ``gaps=False`` leaves out the handling of gaps and re-acquisitions (for a block with no gap
     while no re-acquisition is pending: the results are then the same, and the batch kernel's
-    scan is cheaper without the branches; docs/tilt.md, "Two batch kernels")."""
+    scan is cheaper without the branches; docs/tilt.md, "Two batch kernels"). ``summed``: the new
+    state vector as a sum of padded fields (``Packed.pack``'s ``summed``: fewer kernels where
+    XLA runs each fused kernel as a task of its own, the per-sample ``step``) or as a
+    concatenate (fewer operations where the whole scan is compiled into one kernel, the batch
+    kernel: the sum evaluates every field at every element); the same numbers."""
     g = p.g_m_s2
     b, P0 = x[X.b], x[X.P].reshape(NE, NE)
     reacquire0 = x[X.reacquire] > 0.5
@@ -645,7 +649,7 @@ def block_update(x, c, p, gaps: bool = True):
 
     q_new = so3.quat_multiply(jnp.stack(so3.quat_exp_components(dx[0], dx[1], 0.0)), q_end)
     q_new = unit(q_new)
-    x_new = X.pack(summed=True, q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel,
+    x_new = X.pack(summed=summed, q=q_new, b=b + dx[E.bias], s=x[X.s] + dx[E.scale], v=vel,
                    P=P.reshape(-1), acc_dev_var=acc_dev_var,
                    rest_s=rest_s, reacquire=pending, reacq_f_E=reacq_f_E, reacq_t=reacq_t,
                    vel_inn=inn, vel_fix=fix, speed_var=speed_var, dv_var=dv_var)

@@ -13,12 +13,14 @@ quickly:
   blocks before the sequential ``lax.scan`` over the blocks (``tilt_core.block_update``, written
   element-wise, with the rest update and the gap handling under ``lax.cond``);
 * the per-sample quaternion, up, roll and pitch (:func:`atan2`, a vectorizable arctan2) and flags
-  leave the device block-major; the host writes them, and the per-block bias and variances, into
-  the result arrays (:mod:`verticality.tilt.batch`).
+  leave the device sample-major, as the result arrays, which the host fills with whole copies,
+  and the per-block bias and variances (:mod:`verticality.tilt.batch`);
+* the chunk is compiled into a single kernel where XLA can (:func:`run_chunk`).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from types import SimpleNamespace
 
@@ -28,7 +30,7 @@ import numpy as np
 
 from verticality.core import so3
 from verticality.tilt import core
-from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, P_DIAG, ROW, SOA, TRANS, S, X
+from verticality.tilt.layout import CHUNK_SAMPLE, HEAD, P_DIAG, ROW, TRANS, S, X
 
 SMALL_TH2 = 0.04  # |rotation|² (rad²) below which the Taylor exponential is used (error < 1e-27)
 
@@ -88,32 +90,34 @@ for _sl in (S.dquat, S.f, S.tau):
 
 
 def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool = True,
-               transitions: bool = False):
+               transitions: bool = False, summed: bool = True):
     """Filter a chunk of ``n = nb * block`` samples that starts at a block boundary of the
-    initialized filter ``x`` (``X``). ``data`` (``CHUNK_SAMPLE``, block, nb): [gyr (3), acc (3),
-    dt, tilt_var, vel_var] of sample ``k`` of block ``j`` at ``[:, k, j]``, as the outputs (one
-    array: one host-to-device transfer per chunk; packed so by the host, which transposes faster
-    than XLA: :func:`verticality.tilt.batch.chunk_data`). ``head`` (``HEAD``): ``sums0``, the sums
+    initialized filter ``x`` (``X``). ``data`` (n, ``CHUNK_SAMPLE``): a row per sample, [gyr (3),
+    acc (3), dt, tilt_var, vel_var] (one array: one host-to-device transfer per chunk;
+    :func:`verticality.tilt.batch.chunk_data`). ``head`` (``HEAD``): ``sums0``, the sums
     the first block starts from (the samples of a block begun before the chunk; they stand in for
     as many leading samples of ``data``, which the caller fills with skipped samples, dt = NaN),
     and ``n_update``, the number of leading blocks whose update is applied: a block after them is
     the current, unfinished block, whose sums are returned.
 
-    Returns ``(x, sums, (soa, rows, flags))``: the filter after ``n_update`` blocks; the sums of
-    block ``n_update`` (of the last block when all are updated); ``soa`` (``SOA``, block, nb) the
-    per-sample outputs, sample ``k`` of block ``j`` at ``[:, k, j]``; ``rows`` (nb, ``ROW``) per
-    block; ``flags`` (block, nb) int32 without ``REACQUIRING``, which the host sets from the rows
-    (computing it here costs a third of the chunk's time, XLA's fusion of it). A sample's bias and
-    variances are its block's start values, except at its last sample (the updated ones).
+    Returns ``(x, sums, (quat, up, roll, pitch, flags, rows))``: the filter after ``n_update``
+    blocks; the sums of block ``n_update`` (of the last block when all are updated); per sample,
+    in the result's layout, ``quat`` (n, 4), ``up`` (n, 3), ``roll``, ``pitch`` (n,) and ``flags``
+    (n,) int32 (``OUT_OF_RANGE`` included, ``REACQUIRING`` not: the host sets it from the rows,
+    the rare case); ``rows`` (nb, ``ROW``) per block. A sample's bias and variances are its
+    block's start values, except at its last sample (the updated ones): the host writes them
+    from the rows.
     ``gaps=False``: the caller guarantees that no gap and no re-acquisition is in the chunk.
     ``transitions``: the outputs also hold ``trans`` (nb, ``TRANS``), each block's covariance at
     its start and its ``tilt_core.BlockTransition`` (for the offline smoother; a separately
-    compiled kernel, so the filter's own kernels are untouched)."""
+    compiled kernel, so the filter's own kernels are untouched). ``summed``: the block update's
+    form of its new state (``tilt_core.block_update``; False where the chunk is one kernel)."""
     # ``params``: a TiltParams, or its values as one vector with ``names`` its fields (one
     # argument: passing it costs less than passing 20 scalars)
     p = SimpleNamespace(**dict(zip(names, params, strict=True))) if names else params
-    ds = data  # (CHUNK_SAMPLE, block, nb): structure of arrays, sample k of every block in a row
-    nb = data.shape[2]
+    nb = data.shape[0] // block
+    # structure of arrays (CHUNK_SAMPLE, block, nb): sample k of every block in a row
+    ds = data.reshape(nb, block, CHUNK_SAMPLE.size).transpose(2, 1, 0)
     sums0 = head[HEAD.sums0]
     t = core.sample_terms(tuple(ds[CHUNK_SAMPLE.gyr]), tuple(ds[CHUNK_SAMPLE.acc]),
                           ds[CHUNK_SAMPLE.dt], p, gaps=gaps, tilt_var=ds[CHUNK_SAMPLE.tilt_var],
@@ -146,7 +150,7 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
 
     def body(xc, cj):
         c, j = cj
-        xn, disturbed, reacq, tr = core.block_update(xc, c, p, gaps)
+        xn, disturbed, reacq, tr = core.block_update(xc, c, p, gaps, summed=summed)
         xn = jnp.where(j < head[HEAD.n_update], xn, xc)
         # (only the kernel with gap handling reads the re-acquisition state: the other has no use
         # for it and would pay for the reads; docs/tilt.md, "Two batch kernels")
@@ -176,14 +180,71 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     dist = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, ROW.disturbed] > 0.5)
     reacq = (jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, ROW.reacquired] > 0.5)
              if gaps else False)
-    fl = core.flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, dist, t.gap, reacq)  # (block, nb), as soa
-    # the host writes these straight into the sample-major result arrays (a transposing copy
-    # there is cheaper than XLA's transpose here, and bias/var need no per-sample array at all)
+    g, a = tuple(ds[CHUNK_SAMPLE.gyr]), tuple(ds[CHUNK_SAMPLE.acc])
+    fl = core.flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, dist, t.gap, reacq,
+                        beyond=core.out_of_range(g, a))  # (block, nb)
     current = sums[jnp.minimum(head[HEAD.n_update].astype(jnp.int32), nb - 1)]
-    outs = (SOA.pack(axis=0, quat=q, up=up, roll=roll, pitch=pitch), rows, fl)
+
+    def by_sample(v):  # (block, nb) per sample, or a tuple of them → (n,) or (n, len) rows
+        v = jnp.stack(v, axis=-1) if isinstance(v, tuple) else v
+        return v.swapaxes(0, 1).reshape((nb * block,) + v.shape[2:])
+
+    # sample-major, as the result arrays: the host copies them whole (bias and variances need no
+    # per-sample array: the host writes them per block from the rows)
+    outs = (by_sample(q), by_sample(up), by_sample(roll), by_sample(pitch), by_sample(fl), rows)
     return x, current, (outs + (trans,) if transitions else outs)
+
+
+# XLA's CPU backend runs a computation as a sequence of fused kernels, each a task of its own that
+# costs ~100 ns to start whatever it computes: in the scan over blocks the block update's ~45
+# kernels, not its arithmetic, set the time. A call whose frontend attributes say so
+# (``xla_cpu_small_call``, which XLA itself puts on small while loops, with ``inlineable`` false
+# so that it stays a call) is compiled into a single kernel instead, loops included: the whole
+# chunk then costs its arithmetic alone. Such a kernel cannot hold the library's reductions
+# (YNNPACK fusions), which the compile options turn off; the numbers are the same to rounding
+# (docs/tilt.md, "Benchmark")
+_ONE_KERNEL_ATTRIBUTES = {"inlineable": "false", "xla_cpu_small_call": "true"}
+_ONE_KERNEL_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
+_STATIC = ("block", "names", "gaps", "transitions")
+
+
+def _run_chunk_one_kernel(x, head, data, params, block: int, names: tuple = (),
+                          gaps: bool = True, transitions: bool = False):
+    """:func:`_run_chunk` as one call that XLA compiles into a single kernel."""
+    from jax.experimental.xla_metadata import set_xla_metadata
+
+    chunk = jax.jit(functools.partial(_run_chunk, block=block, names=names, gaps=gaps,
+                                      transitions=transitions, summed=False))
+    return set_xla_metadata(chunk(x, head, data, params), **_ONE_KERNEL_ATTRIBUTES)
 
 
 # one compilation for every parameter value (the host puts the parameters on the device once per
 # recording, so that a call transfers only its chunk)
-run_chunk = jax.jit(_run_chunk, static_argnames=("block", "names", "gaps", "transitions"))
+_run_chunk_jit = jax.jit(_run_chunk, static_argnames=_STATIC)
+try:
+    _run_chunk_one_kernel_jit = jax.jit(_run_chunk_one_kernel, static_argnames=_STATIC,
+                                        compiler_options=_ONE_KERNEL_OPTIONS)
+except TypeError:  # a JAX without per-function compile options: the fused kernels only
+    _run_chunk_one_kernel_jit = None
+_COMPILED: dict = {}  # which of the two each compiled shape uses
+
+
+def run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool = True,
+              transitions: bool = False):
+    """:func:`_run_chunk` compiled (once per ``block``, chunk shape and static argument): as a
+    single kernel where this JAX and XLA can build one (see above), else as XLA's fused kernels
+    (the same numbers to rounding)."""
+    key = (block, names, gaps, transitions, data.shape)
+    fn = _COMPILED.get(key)
+    if fn is None:
+        fn = _run_chunk_jit
+        if _run_chunk_one_kernel_jit is not None:
+            try:
+                out = _run_chunk_one_kernel_jit(x, head, data, params, block, names, gaps=gaps,
+                                                transitions=transitions)
+                _COMPILED[key] = _run_chunk_one_kernel_jit
+                return out
+            except Exception:  # noqa: BLE001 — an older JAX or XLA: the fused kernels below
+                pass
+        _COMPILED[key] = fn
+    return fn(x, head, data, params, block, names, gaps=gaps, transitions=transitions)

@@ -30,8 +30,8 @@ arrays. The layouts:
 * :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input).
 * :data:`CHUNK_SAMPLE` a batch chunk's sample: a :data:`SAMPLE` (same offsets), ``tilt_var`` and
   ``vel_var``, the tilt (rad²) and velocity (m²/s²) variances the sample adds besides its own
-  terms (clipped gyro and accelerometer axes, :mod:`~verticality.tilt.limits`); along
-  the leading axis of the chunk's input (structure of arrays).
+  terms (clipped gyro and accelerometer axes, :mod:`~verticality.tilt.limits`); a row of the
+  chunk's input.
 * :data:`OUT` the stepper's output ``[roll, pitch, up (3), quat (4), bias (3), flags]``.
 * :data:`ROW` the batch kernel's row per block: the state at its start (``q0``, ``b0``, ``var0``
   the diagonal of ``P``) and after its update (``q1``, ``b1``, ``var1``), whether the update found
@@ -39,7 +39,6 @@ arrays. The layouts:
 * :data:`TRANS` the batch kernel's row per block for the offline smoother: the covariance at the
   block's start ``P0`` and the block's :class:`~verticality.tilt.core.BlockTransition`
   (``F``, ``P_prior``, ``dx``, ``split``; matrices row-major).
-* :data:`SOA` the batch kernel's per-sample outputs, along the leading axis.
 * :data:`HEAD` the batch kernel's chunk header: the sums the chunk's first block starts from and
   the number of blocks whose update the chunk applies.
 """
@@ -133,5 +132,4 @@ ROW = Packed([("q0", 4), ("b0", 3), ("s0", 3), ("var0", NE), ("q1", 4), ("b1", 3
               ("reacquire1", None)])
 TRANS = Packed([("P0", NE * NE), ("F", NE * NE), ("P_prior", NE * NE), ("dx", NE),
                 ("split", None)])
-SOA = Packed([("quat", 4), ("up", 3), ("roll", None), ("pitch", None)])
 HEAD = Packed([("sums0", S.size), ("n_update", None)])

@@ -58,6 +58,17 @@ class TiltParams(NamedTuple):
     ``rest_min_s`` every block has gyro deviation below ``rest_gyr_rad_s`` and accelerometer
     deviation below ``rest_acc_m_s2``, the block-mean gyro measures the bias, with the residual
     motion ``rest_motion_rad_s`` as extra noise.
+
+    After a violent event (docs/tilt.md, "After a violent event"; prototyped in the plain-Python
+    :mod:`verticality.tilt.stream` only, the JAX core still has today's behaviour, which these
+    defaults keep): ``acc_tau_steady_s`` the disturbance estimate's time constant in a steady
+    block (gyro and accelerometer without variation within it; 0: the block's own
+    ``(|f| − g)²`` at once; the default, ``acc_tau_s``, keeps a shock's memory for seconds);
+    ``rest_gyr_raw_rad_s``: a steady block whose raw gyro mean is below it counts as still
+    whatever the bias estimate (0: only ``|ḡ − b̂| < rest_gyr_rad_s``); ``rest_tilt_s``: the
+    quiet time after which the velocity takes its rest prior (the bias's rest update waits
+    ``rest_min_s``). The prototype's values: 0, ``rest_gyr_rad_s`` (0.035) and 0.5 s
+    (:data:`SHOCK_RECOVERY`).
     """
 
     gyr_noise: float = 1e-3
@@ -83,9 +94,15 @@ class TiltParams(NamedTuple):
     vel_disturbed_hz: float = 1.0
     vel_jump_nis: float = 9.21
     update_s: float = 0.112
+    acc_tau_steady_s: float = 0.5
+    rest_gyr_raw_rad_s: float = 0.0
+    rest_tilt_s: float = 1.5
 
 
 DEFAULT_PARAMS = TiltParams()
+# the prototype's recovery after a violent event (docs/tilt.md, "After a violent event"), to become
+# the defaults when the JAX core has it
+SHOCK_RECOVERY = {"acc_tau_steady_s": 0.0, "rest_gyr_raw_rad_s": 0.035, "rest_tilt_s": 0.5}
 # prior covariance of the error state (δx, δy [rad], ṽx, ṽy [m/s], b̃x, b̃y, b̃z [rad/s]). The
 # gyro bias prior, 0.1 rad/s (5.7 °/s), covers the turn-on offsets of common MEMS gyros (±1–10 °/s):
 # with a tighter prior a bias of 0.1 rad/s left the estimate 11° off for tens of seconds while σ

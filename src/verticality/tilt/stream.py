@@ -168,6 +168,8 @@ class Stream:
         self.vel_fix = np.zeros(5)  # the tilt and bias corrections the velocity made over it
         self.speed2 = 0.0  # low-passed per-axis mean square of the velocity
         self.dv2 = 0.0  # and of its change over a block
+        self.u = np.zeros(2)  # the horizontal velocity changes integrated with a leak
+        self.sp2 = self.p.vel_m_s**2  # the motion's per-axis mean square speed
         self._zero()
 
     @property
@@ -302,23 +304,33 @@ class Stream:
         qb = p.bias_walk**2 * T
         P = F @ self.P @ F.T + np.diag([q_gyr, q_gyr, q_vel, q_vel, qb, qb, qb, 0.0, 0.0, 0.0])
         dev2 = self.dev2 / t_acc_s
-        if has_acc:
-            alpha = 1.0 - math.exp(-t_acc / p.acc_tau_s)
-            self.acc_dev_var += alpha * (dev2 - self.acc_dev_var)
-        disturbed = has_acc and self.acc_dev_var > p.acc_disturbed_m_s2**2
         has_gyr = tau > 0
         tau_s = tau if has_gyr else 1.0
         g_mean = np.array(self.gsum) / tau_s
         g_var = max(self.w2 / (T if T > 0 else 1.0) - g_mean @ g_mean, 0.0)
         a_mean = np.array(self.asum) / t_acc_s
         a_var = max(self.a2 / t_acc_s - a_mean @ a_mean, 0.0)
-        gd = g_mean - b
         gap = self.gap > 0
+        # the block is steady: gyro and accelerometer without variation within it
+        steady = (has_gyr and has_acc and g_var < p.rest_gyr_rad_s**2
+                  and a_var < p.rest_acc_m_s2**2 and not gap)
+        if has_acc:
+            # a steady block shows the disturbance as it is now: there the low-pass follows it
+            # within acc_tau_steady_s (0: at once), not with the memory of an event that is over
+            tau_d = p.acc_tau_steady_s if steady else p.acc_tau_s
+            alpha = 1.0 - math.exp(-t_acc / tau_d) if tau_d > 0 else 1.0
+            self.acc_dev_var += alpha * (dev2 - self.acc_dev_var)
+        disturbed = has_acc and self.acc_dev_var > p.acc_disturbed_m_s2**2
+        gd = g_mean - b
         collecting = self.reacquire and not gap
-        quiet = (has_gyr and has_acc and g_var < p.rest_gyr_rad_s**2
-                 and gd @ gd < p.rest_gyr_rad_s**2 and a_var < p.rest_acc_m_s2**2 and not gap)
+        # the gyro mean at rest is the bias: within rest_gyr of the estimate, or, whatever the
+        # estimate (which a violent event may have corrupted), a gyro that reads no rotation
+        quiet = steady and (gd @ gd < p.rest_gyr_rad_s**2
+                            or g_mean @ g_mean < p.rest_gyr_raw_rad_s**2)
         self.rest_s = self.rest_s + T if quiet else 0.0
         at_rest = self.rest_s >= p.rest_min_s
+        # the velocity's rest prior (the tilt) may start sooner than the bias's rest update
+        still = self.rest_s >= p.rest_tilt_s
         dx = np.zeros(10)
         f_sum = self.reacq_f_E + np.array(f_E) if collecting else np.zeros(3)
         t_sum = self.reacq_t + t_acc if collecting else 0.0
@@ -328,7 +340,7 @@ class Stream:
             dx, P = _kf(P, 0, 2, _tilt_error_from_force(f_sum), 2.0 * (v_r / (g * t_sum)) ** 2)
         jump = kept = False
         if has_acc and not gap and not collecting:
-            s_vel = (p.vel_rest_m_s**2 if at_rest else p.vel_m_s**2) * p.vel_corr_s
+            s_vel = (p.vel_rest_m_s**2 if still else p.vel_m_s**2) * p.vel_corr_s
             S = P[2:4, 2:4] + (s_vel / t_acc_s) * np.eye(2)
             jump = bool(vel @ np.linalg.solve(S, vel) > p.vel_jump_nis)  # a kick: not the tilt
             # a velocity beyond the prior for longer than its correlation time: the running mean
@@ -341,7 +353,7 @@ class Stream:
             self.dv2 = lam * self.dv2 + (1.0 - lam) * float(dv @ dv) / 2.0
             share = min(max(self.dv2 / max(2.0 * self.speed2, 1e-12), 1.0 - lam),
                         1.0 - math.exp(-1.0))
-            tau_motion = p.vel_corr_s if at_rest else -T / math.log(1.0 - share)
+            tau_motion = p.vel_corr_s if still else -T / math.log(1.0 - share)
             inn = lam * self.vel_inn + (1.0 - lam) * np.linalg.solve(np.linalg.cholesky(S), -vel)
             persist = not jump and bool(inn @ inn * (1.0 + lam) / (1.0 - lam) > p.vel_jump_nis)
             v_dist = math.sqrt(self.acc_dev_var) / (2.0 * math.pi * p.vel_disturbed_hz)
