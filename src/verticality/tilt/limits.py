@@ -91,6 +91,7 @@ import numpy as np
 from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.tilt.flags import CLIPPED, HELD
+from verticality.tilt.params import MAX_ACC_M_S2, MAX_RATE_RAD_S
 
 MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make it a clip level
 GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s
@@ -640,9 +641,15 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     a_known = known_mask(acc_clipped, n, "acc_clipped")
     dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), (n,))
     held = held_rows(gyr, acc, prev)
-    gyr_clipped, g_level = _clipped(gyr, held, gyr_range_rad_s, "gyr_range_rad_s",
+    # a reading beyond any sensor's physical range is corrupt, not clipped: the filter takes it
+    # as missing (OUT_OF_RANGE), and the search for plateaus does not see it
+    with np.errstate(invalid="ignore"):
+        gyr_read = np.where(np.abs(gyr) < MAX_RATE_RAD_S, gyr, np.nan)
+        acc_read = np.where(np.abs(acc) < MAX_ACC_M_S2, acc, np.nan)
+    gyr_clipped, g_level = _clipped(gyr_read, held, gyr_range_rad_s, "gyr_range_rad_s",
                                     GYR_FLOOR_RAD_S, infer)
-    a_axes, a_level = _clipped(acc, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2, infer)
+    a_axes, a_level = _clipped(acc_read, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2,
+                               infer)
     if g_known is not None:  # clips the log reports (module doc)
         reported = _reported_level(gyr, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S)
         g_level = np.where(g_known & ~gyr_clipped, reported, g_level)
