@@ -661,13 +661,13 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     acc_clipped = np.any(a_axes, axis=1)
     vel_var, a_excess = np.zeros(n), np.zeros(acc.shape)
     if acc_clipped.any():
-        a_excess, sigma = (peak_excess(acc, a_axes, dts, a_level, ~held) if fit_peaks
+        a_excess, sigma = (peak_excess(acc_read, a_axes, dts, a_level, ~held) if fit_peaks
                            else (a_excess, EXCESS_FRACTION * a_level))
         vel_var = clip_variance(a_axes, sigma, dts)
     flags = np.where(held, np.int32(HELD), np.int32(0))
     var, g_excess = np.zeros(n), np.zeros(gyr.shape)
     if gyr_clipped.any():
-        g_excess, sigma = (peak_excess(gyr, gyr_clipped, dts, g_level, ~held) if fit_peaks
+        g_excess, sigma = (peak_excess(gyr_read, gyr_clipped, dts, g_level, ~held) if fit_peaks
                            else (g_excess, EXCESS_FRACTION * g_level))
         var = clip_variance(gyr_clipped, sigma, dts)
         flags |= np.where(gyr_clipped.any(axis=1), np.int32(CLIPPED), np.int32(0))
