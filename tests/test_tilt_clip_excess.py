@@ -1,6 +1,6 @@
 """What a clipped run hides (tilt/limits.py, ``peak_excess``): the peak beyond the clip level,
 fitted from the samples either side of the run, added to the readings, and the σ left over it;
-against the truth of parabolic peaks, and the filter on a calibrated accelerometer and gyro that
+against the truth of a swing's peaks, and the filter on a calibrated accelerometer and gyro that
 clip (the saturation classes, shortened)."""
 
 import numpy as np
@@ -14,20 +14,23 @@ from verticality.tilt.evaluation import failures
 from verticality.tilt.flags import CLIPPED
 
 
-def _parabolic_peaks(rate_hz, noise, seed, peaks=60, level=20.0):
-    """``peaks`` parabolic peaks of one axis (heights 0.2–5 beyond ``level``, each clipped for
-    30–120 ms, either sign), 0.4 s apart, with white noise of ``noise`` before the clip: ``(x (N,
-    3) the clipped readings on axis 0, truth (N,) the unclipped signal, clipped (N, 3))``."""
+def _swing_peaks(rate_hz, noise, seed, peaks=60, level=20.0):
+    """``peaks`` peaks of one axis, each the top of a sinusoid (a swing: heights 0.2–5 beyond
+    ``level``, each clipped for 30–120 ms over 0.6–1.2 rad of its phase, either sign), 0.4 s
+    apart, with white noise of ``noise`` before the clip: ``(x (N, 3) the clipped readings on
+    axis 0, truth (N,) the unclipped signal, clipped (N, 3))``."""
     rng = np.random.default_rng(seed)
     dt = 1.0 / rate_hz
     t = np.arange(int(round(peaks * 0.4 * rate_hz))) * dt
     truth = np.zeros(t.size)
     for j in range(peaks):
         h, half = rng.uniform(0.2, 5.0), rng.uniform(0.015, 0.06)  # height, half the clip
-        k = h / half**2  # the parabola h − k τ² crosses the level at τ = ±half
-        tau = t - (0.2 + 0.4 * j + rng.uniform(-0.01, 0.01))
-        truth += np.where(np.abs(tau) < 0.2, np.maximum(level + h - k * tau * tau, 0.0), 0.0) * (
-            -1) ** j
+        theta = rng.uniform(0.6, 1.2)  # the phase at which the sinusoid crosses the level
+        amp, w = h / (1.0 - np.cos(theta)), theta / half
+        slot = (t >= 0.4 * j) & (t < 0.4 * (j + 1))  # each peak's own 0.4 s
+        phase = w * (t[slot] - (0.2 + 0.4 * j + rng.uniform(-0.01, 0.01)))
+        top = level + h - amp + amp * np.cos(np.clip(phase, -np.pi, np.pi))
+        truth[slot] = np.maximum(top, 0.0) * (-1) ** j
     x = np.zeros((t.size, 3))
     x[:, 0] = np.clip(truth + rng.normal(0, noise, t.size), -level, level)
     clipped = np.zeros(x.shape, dtype=bool)
@@ -35,17 +38,13 @@ def _parabolic_peaks(rate_hz, noise, seed, peaks=60, level=20.0):
     return x, truth, clipped
 
 
-@pytest.mark.parametrize("rate_hz, noise", [(100.0, 0.02), (1000.0, 0.05)])
-def test_the_fitted_excess_of_a_parabolic_peak_is_unbiased_and_its_sigma_honest(rate_hz, noise):
-    """On parabolic peaks clipped for 3–12 (100 Hz) or 30–120 (1000 Hz) samples, the integral of
-    the fitted excess over each run (what the filter would otherwise miss) is the true one within
-    5 % on average and within 10 % on most runs, and within 2σ (σ of the constant rate left ×
-    the run's length) on ≥ 95 % of the runs. (σ is mostly EXCESS_SPREAD of the integral: it is
-    there for peaks that are not parabolas.)"""
-    x, truth, clipped = _parabolic_peaks(rate_hz, noise, seed=int(rate_hz))
+def _run_integrals(x, truth, clipped, rate_hz):
+    """The fitted and the true excess integrated over each clipped peak of axis 0, and the σ of
+    each fitted integral (σ of the constant rate left × the run's length)."""
     dt = 1.0 / rate_hz
-    dts = np.full(x.shape[0], dt)
-    excess, sigma = tilt_limits.peak_excess(x, clipped, dts, np.where(clipped, 20.0, 0.0))
+    excess, sigma = tilt_limits.peak_excess(x, clipped, np.full(x.shape[0], dt),
+                                            np.where(clipped, 20.0, 0.0))
+    assert np.all(excess[~clipped] == 0)
     c = clipped[:, 0]
     peaks = list(tilt_limits._events(*tilt_limits._runs(c)))  # (a noisy edge splits a run)
     assert len(peaks) == 60
@@ -53,12 +52,27 @@ def test_the_fitted_excess_of_a_parabolic_peak_is_unbiased_and_its_sigma_honest(
     true = np.array([np.sum((truth[a:b + 1] - x[a:b + 1, 0])[c[a:b + 1]]) * dt for a, b in peaks])
     sig = np.array([np.max(sigma[a:b + 1, 0]) * np.count_nonzero(c[a:b + 1]) * dt
                     for a, b in peaks])
+    return est, true, sig
+
+
+@pytest.mark.parametrize("rate_hz, noise", [(100.0, 0.02), (1000.0, 0.05)])
+def test_the_fitted_excess_of_a_swing_is_found_and_its_sigma_honest(rate_hz, noise, monkeypatch):
+    """On the tops of sinusoids clipped for 3–12 (100 Hz) or 30–120 (1000 Hz) samples, the
+    integral of the fitted excess over each run (what the filter would otherwise miss) is on the
+    clip's side, the true one within 10 % on average and within 12 % on most runs (measured
+    0.93 and 0.95 of it; median error 8 % and 6 %), and within 2σ on ≥ 95 % of the runs. The
+    parabola through the flanks alone (``PEAK_CHORD_SHARE`` = 0) finds less of it (measured
+    0.83 and 0.87): a swing's top is fuller than a parabola."""
+    x, truth, clipped = _swing_peaks(rate_hz, noise, seed=int(rate_hz))
+    est, true, sig = _run_integrals(x, truth, clipped, rate_hz)
     assert np.all(np.sign(est) == np.sign(true))  # the excess is beyond the level, on its side
-    assert abs(np.sum(np.abs(est)) / np.sum(np.abs(true)) - 1.0) < 0.05
-    z = (true - est) / sig
-    assert np.mean(np.abs(z) <= 2.0) >= 0.95
-    assert np.median(np.abs(true - est) / np.abs(true)) < 0.1  # each peak is found
-    assert np.all(excess[~clipped] == 0)
+    found = np.sum(np.abs(est)) / np.sum(np.abs(true))
+    assert 0.9 < found < 1.05
+    assert np.median(np.abs(true - est) / np.abs(true)) < 0.12  # each peak is found
+    assert np.mean(np.abs((true - est) / sig) <= 2.0) >= 0.95
+    monkeypatch.setattr(tilt_limits, "PEAK_CHORD_SHARE", 0.0)
+    est0, _, _ = _run_integrals(x, truth, clipped, rate_hz)
+    assert np.sum(np.abs(est0)) / np.sum(np.abs(true)) < found - 0.05
 
 
 def test_a_run_without_flanks_keeps_the_bound_of_its_level():

@@ -100,6 +100,10 @@ EXCESS_FRACTION = 0.5  # σ of a clipped run's excess where no peak is fitted, �
 EXCESS_SPREAD = 0.5  # σ of a fitted peak's excess (its integral over the run), × that integral
 FLANK_MIN = 2  # unclipped samples needed on each side of a clipped run to fit its peak
 FLANK_MAX = 8  # the most samples of each flank the fit uses
+# a motion's peak is fuller than the parabola through its flanks (a swing's is a sinusoid's top:
+# on the saturation classes the parabola misses 8-13 % of the excess, the chords' bound doubles
+# it): the peak is taken this share of the way from the parabola to that bound
+PEAK_CHORD_SHARE = 0.125
 PLANE_TOL = 1.0 / 16.0  # a plateau's spread along its raw axis, as a fraction of the noise σ
 PLANE_BAND = 0.05  # the share of the extreme within which a calibrated plateau wanders
 PLANE_TILT_RAD = 0.1  # the largest angle between a raw axis and its calibrated axis
@@ -528,10 +532,14 @@ def peak_excess(x, clipped, dts, level, usable=None, sd=None):
     side (up to :data:`FLANK_MAX` on each, a quarter of the run's length, at least
     :data:`FLANK_MIN`) and to the unclipped samples within, and kept below the lines fitted to
     each flank (a concave peak lies below the extension of its chords: the bound of a peak that
-    enters and leaves as fast as its flanks say, twice the parabola's height); the excess is the
-    fit minus the reading, never below 0. Its integral over the run is what the filter would
-    otherwise miss (a rotation for the gyro, a velocity for the accelerometer); that integral is
-    left uncertain by :data:`EXCESS_SPREAD` of itself and by the flanks' noise through the fit.
+    enters and leaves as fast as its flanks say, twice the parabola's height). The truth lies
+    between the two: a motion's peak (a swing's, a sinusoid's top) is fuller than the parabola
+    through its flanks, so the peak is taken :data:`PEAK_CHORD_SHARE` of the way from the
+    parabola to the chords' bound. The excess is that peak minus the reading, never below 0 (the
+    true value is beyond the level: a one-sided constraint). Its integral over the run is what
+    the filter would otherwise miss (a rotation for the gyro, a velocity for the accelerometer);
+    that integral is left uncertain by :data:`EXCESS_SPREAD` of itself and by the flanks' noise
+    through the fit.
     A run whose flanks are missing (the recording's ends, another clipped run next to it), not
     concave, or that does not rise into the clip and fall out of it gets no excess and σ =
     :data:`EXCESS_FRACTION` × its level (the model without the fit)."""
@@ -593,8 +601,9 @@ def _run_excess(col, a: int, b: int, t, d, ok, step: float, sd: float):
     if not (c[2] < 0 and line_l[0] > 0 and line_r[0] < 0):
         return None, None
     ur = (t[a:b + 1] - tc) / span
-    peak = np.minimum(c[0] + c[1] * ur + c[2] * ur * ur,
-                      np.minimum(np.polyval(line_l, ur), np.polyval(line_r, ur)))
+    lines = np.minimum(np.polyval(line_l, ur), np.polyval(line_r, ur))
+    peak = np.minimum(c[0] + c[1] * ur + c[2] * ur * ur, lines)
+    peak = peak + PEAK_CHORD_SHARE * (lines - peak)
     e = np.where(fin, np.maximum(peak - sign * np.where(fin, run, 0.0), 0.0), 0.0)
     w = np.where(clip, d[a:b + 1], 0.0)
     duration = float(np.sum(w))
