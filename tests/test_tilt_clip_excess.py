@@ -122,8 +122,8 @@ def test_the_fitted_peaks_beat_the_level_bound_on_a_clipping_sensor(sensor, shar
     """The saturation classes (a calibrated sensor clipping in its raw axes, the vigorous motion;
     100 Hz, 20 s): with each run's peak fitted and added the tilt is closer to the truth than with
     σ = 0.5 × the level over each run and nothing added (the model before; measured: the
-    accelerometer clipping 20 % 2.00° → 1.41°, 1.64° with no clipping detected; the gyro clipping
-    10 % 3.84° → 2.05°, 8.24° undetected), and σ covers ≥ 95 % of the samples within 2σ."""
+    accelerometer clipping 20 % 2.00° → 1.40°, 1.64° with no clipping detected; the gyro clipping
+    10 % 3.84° → 1.87°, 8.24° undetected), and σ covers ≥ 95 % of the samples within 2σ."""
     rec = failures.saturated(sensor, share, 0, 100.0, duration_s=20.0)
     fitted = tilt_limits.find_limits(rec.gyr_rad_s, rec.acc_m_s2, rec.period_s)
     bound = tilt_limits.find_limits(rec.gyr_rad_s, rec.acc_m_s2, rec.period_s, fit_peaks=False)
