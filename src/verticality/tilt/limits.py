@@ -45,29 +45,33 @@ saturates before the converter: the plateau then reads noise like a peak), and a
 were rotated into another frame (the plane is then far from every axis). The given range
 (``gyr_range_rad_s``) covers the first two.
 
-What the filter does with a clipped reading, by physics:
+What the filter does with a clipped reading, by physics: its true value lies *beyond* the clip
+level (a one-sided constraint, neither a point value nor a missing one), and a signal passes a
+range in a smooth peak whose way in and out the unclipped samples either side of the run show.
+So each clipped run's peak is fitted from its flanks (:func:`peak_excess`), its excess added to
+the clipped readings (:meth:`Limits.readings`), and what is left of the excess is an unknown
+constant over the run (one motion, not white noise) of σ from the fit (:data:`EXCESS_SPREAD` of
+its integral and the flanks' noise); a run whose peak cannot be fitted keeps the bound σ =
+:data:`EXCESS_FRACTION` × the clip level and nothing added (a motion that clips a sensor
+typically exceeds its range by a fraction of it: a ±7 rad/s gyro on a 10–12 rad/s rotation,
+40–70 %). After ``t`` s of clipping on an axis the unknown constant has integrated to variance
+``(σ t)²``; each sample adds its increment ``σ² (t_k² − t_{k−1}²)`` (:func:`clip_variance`):
 
-* a clipped gyro axis reads a rate whose true value is at least the clip level, with an unknown
-  excess. The reading is still used (it is the best value there is), and the excess is modelled as
-  an unknown constant rate of standard deviation ``EXCESS_FRACTION`` times the clip level for the
-  duration of the clipped run (it is one motion, not white noise): after ``t`` s of clipping on an
-  axis the tilt has turned by an unknown angle of variance ``(σ t)²``. Each sample adds its
-  increment ``σ² (t_k² − t_{k−1}²)`` to the tilt variance (:attr:`Limits.tilt_var_rad2`, added where
-  the filter adds a gyro dropout's; the projection of the axis on the horizontal is at most 1, so
-  adding it to both tilt variances is conservative). The widened σ lets the accelerometer pull the
-  tilt back. ``EXCESS_FRACTION`` = 0.5: a motion that clips a sensor typically exceeds its range by
-  a fraction of it (a ±7 rad/s gyro on a 10–12 rad/s rotation: 40–70 %), and σ must cover the
-  excess rather than claim it known;
-* a clipped accelerometer axis reads a specific force whose true value is at least the clip
-  level; its other axes are right. The reading is kept, and the excess is modelled as for the
-  gyro: an unknown constant of σ = ``EXCESS_FRACTION`` × the clip level over the clipped run, so
-  the velocity the filter integrates is off by an unknown amount of variance ``(σ t)²`` after ``t``
-  s; each sample adds its increment to both horizontal velocity variances
-  (:attr:`Limits.vel_var_m2_s2`, the velocity's process noise). Dropping the sample instead would
-  treat a reading known to be beyond the range as an unknown of the size of an ordinary motion's:
-  on a shake that clips more on one side than the other the velocity would then miss the clipped
-  side's impulse, biased, and the tilt would follow (a synthetic fast translation
-  read by a ±4 g accelerometer, 4 % of its samples clipped: 2.16° dropped, 0.57° kept).
+* for a clipped gyro axis, to the tilt variance (:attr:`Limits.tilt_var_rad2`, added where the
+  filter adds a gyro dropout's; the projection of the axis on the horizontal is at most 1, so
+  adding it to both tilt variances is conservative). The widened σ lets the accelerometer pull
+  the tilt back;
+* for a clipped accelerometer axis (its other axes are right), to both horizontal velocity
+  variances (:attr:`Limits.vel_var_m2_s2`, the velocity's process noise). Dropping the sample
+  instead would treat a reading known to be beyond the range as an unknown of the size of an
+  ordinary motion's: on a shake that clips more on one side than the other the velocity would
+  then miss the clipped side's impulse, biased, and the tilt would follow (a synthetic fast
+  translation read by a ±4 g accelerometer, 4 % of its samples clipped: 2.16° dropped, 0.57°
+  kept).
+
+A recording without a clipped sample is filtered exactly as read (the readings handed on are the
+arrays given). A stream (:class:`verticality.tilt.stream.Stream`) cannot see a run's end and
+keeps the bound (``find_limits(..., fit_peaks=False)``).
 
 Either way the sample is flagged ``CLIPPED``.
 
@@ -101,8 +105,8 @@ EXCESS_SPREAD = 0.5  # σ of a fitted peak's excess (its integral over the run),
 FLANK_MIN = 2  # unclipped samples needed on each side of a clipped run to fit its peak
 FLANK_MAX = 8  # the most samples of each flank the fit uses
 # a motion's peak is fuller than the parabola through its flanks (a swing's is a sinusoid's top:
-# on the saturation classes the parabola misses 8-13 % of the excess, the chords' bound doubles
-# it): the peak is taken this share of the way from the parabola to that bound
+# on the saturation classes the parabola finds 0.87-0.92 of the excess, the chords' bound 1.5-2
+# times it): the peak is taken this share of the way from the parabola to that bound
 PEAK_CHORD_SHARE = 0.125
 PLANE_TOL = 1.0 / 16.0  # a plateau's spread along its raw axis, as a fraction of the noise σ
 PLANE_BAND = 0.05  # the share of the extreme within which a calibrated plateau wanders
