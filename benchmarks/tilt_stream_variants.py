@@ -3,11 +3,11 @@ validation set beside VQF (docs/tilt.md, "Validation across datasets and rates")
 and rate by rate, with a leave-one-class-out choice among the variants.
 
     python benchmarks/tilt_stream_variants.py --cache DIR --broad BROAD_DIR [--seeds 2]
-        [--variants current,shock_recovery,vel_m_s=1.0] [--engine stream|batch] [--only REGEX]
+        [--variants current,no_shock_recovery,vel_m_s=1.0] [--engine stream|batch] [--only REGEX]
         [--jobs 2] [--json FILE]
 
 A variant is a ``TiltParams``: a name of ``VARIANTS`` or ``field=value;field=value`` over the
-defaults (the prototype's options are parameters whose defaults keep the filter as it is). Every
+defaults (a prototype's options are parameters whose defaults keep the filter as it is). Every
 case is run through ``Stream`` sample by sample (~40 000 samples/s on a quiet core), so a full
 table over BROAD at four rates and the synthetic classes costs minutes per variant; the cases
 (resampled BROAD trials, synthetic recordings) and the scores are kept in ``--cache`` (scores
@@ -33,19 +33,24 @@ import numpy as np
 from verticality.io import broad
 from verticality.tilt import limits as tilt_limits
 from verticality.tilt import stream as tilt_stream
-from verticality.tilt.params import DEFAULT_PARAMS, SHOCK_RECOVERY, TiltParams, block_samples
+from verticality.tilt.params import (
+    DEFAULT_PARAMS,
+    NO_SHOCK_RECOVERY,
+    TiltParams,
+    block_samples,
+)
 
 BROAD_KIND = {"01": "rotation", "03": "rotation", "05": "rotation", "06": "rotation",
               "08": "rotation", "10": "translation", "12": "translation", "15": "translation",
               "18": "translation", "24": "disturbed", "26": "disturbed", "32": "disturbed"}
 RATES = (50.0, 100.0, 286.0, 1000.0)
-CODE_VERSION = "s2"
+CODE_VERSION = "s3"
 SHOCK_AFTER_S = (1.0, 2.0, 5.0)  # the error this long after the impact is reported
 SHOCK_WINDOW_S = 10.0  # a shock case is scored from the impact to this long after it
 
 VARIANTS: dict[str, TiltParams] = {
     "current": DEFAULT_PARAMS,
-    "shock_recovery": DEFAULT_PARAMS._replace(**SHOCK_RECOVERY),
+    "no_shock_recovery": DEFAULT_PARAMS._replace(**NO_SHOCK_RECOVERY),
 }
 
 
@@ -60,11 +65,11 @@ def variant(name: str) -> TiltParams:
 
 def _tag(p: dict, engine: str) -> str:
     """The key of a variant's scores: the parameters it changes from the defaults and the
-    engine (the stream's scores are kept across edits that leave the defaults' filter as it is:
-    bump ``CODE_VERSION`` when they do not)."""
+    engine (the scores are kept across edits that leave the defaults' filter as it is: bump
+    ``CODE_VERSION`` when they do not, as when the defaults change)."""
     changed = {k: v for k, v in p.items() if v != getattr(DEFAULT_PARAMS, k)}
     return (hashlib.sha1(json.dumps(changed, sort_keys=True).encode()).hexdigest()[:12]
-            + (CODE_VERSION if engine == "stream" else "batch"))
+            + CODE_VERSION + ("" if engine == "stream" else "batch"))
 
 
 class _Store:
@@ -210,7 +215,7 @@ def run_stream(params: TiltParams, gyr, acc, dt, gyr_range=None, acc_range=None)
 
 def run_batch(params: TiltParams, gyr, acc, dt, gyr_range=None, acc_range=None):
     """The same through the JAX batch filter (``tilt.estimate``'s path), for variants of the
-    existing parameters (no recompilation per parameter set): the same outputs to ~1e-9."""
+    parameters it implements (no recompilation per parameter set): the same outputs to ~1e-9."""
     from verticality.tilt import estimator
     from verticality.tilt.output import tilt_sigma_rad
 
@@ -352,7 +357,7 @@ def main(argv=None) -> None:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--json")
     ap.add_argument("--engine", choices=("stream", "batch"), default="stream",
-                    help="batch: the JAX batch filter (existing parameters only)")
+                    help="batch: the JAX batch filter (parameters it implements only)")
     args = ap.parse_args(argv)
     cache = Path(args.cache)
     keys = (build_cases(args.broad, range(args.seeds), cache, range(args.shock_seeds))

@@ -310,7 +310,10 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
         return real(*args, gaps=gaps, **kw)
 
     monkeypatch.setattr(tilt_kernels, "run_chunk", spy)
-    fast = estimator.estimate_steps(gyr, acc, dts, block=BLOCK)  # (the chunks counted in it)
+    # the filter on the steps as given (estimate would read these continuous readings' steps
+    # as clock jumps, tilt.clock)
+    filt = estimator.TiltFilter(block=BLOCK)
+    fast = filt.run(filt.init(), gyr, acc, dts)[1]  # (the chunks counted in it)
     short, long = ((True, tilt_batch.chunk_blocks(BLOCK, True)),
                    (False, tilt_batch.chunk_blocks(BLOCK, False)))
     assert set(used) == {short, long}
@@ -320,7 +323,7 @@ def test_kernel_without_gap_handling_gives_the_same_numbers(monkeypatch):
     assert short[1] == 32 and long[1] == 256
     assert used == [short, long, long, short, short]
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
-    ref = estimator.estimate_steps(gyr, acc, dts, block=BLOCK)
+    ref = filt.run(filt.init(), gyr, acc, dts)[1]
     for name in TiltOutput._fields:
         np.testing.assert_allclose(getattr(fast, name), getattr(ref, name), rtol=0, atol=1e-12,
                                    err_msg=name)
@@ -341,8 +344,9 @@ def test_host_twin_of_the_reacquisition_flag_covers_the_kernel(monkeypatch):
     acc[1500:1700] = np.nan  # no accelerometer: the re-acquisition after 1450 waits
     real = tilt_kernels.run_chunk
     monkeypatch.setattr(tilt_kernels, "run_chunk", lambda *a, gaps=True, **kw: real(*a, **kw))
-    out = estimator.estimate_steps(gyr, acc, dts)
     block = tilt.block_samples(tilt.DEFAULT_PARAMS, dts)  # estimate's samples per update
+    filt = estimator.TiltFilter(block=block)  # the steps as given (no clock: tilt.clock)
+    out = filt.run(filt.init(), gyr, acc, dts)[1]
     fl = out.flags[1:]  # blocks start after the sample that initializes
     nb = -(-fl.size // block)
     pad = np.zeros(nb * block, dtype=fl.dtype)
@@ -542,7 +546,10 @@ def test_a_regular_10_hz_clock_is_no_gap():
     assert not np.any(out.flags & tilt.DT_GAP)
     gap = dt.copy()
     gap[150] = 0.1 + 2e-6
-    assert estimator.estimate_steps(gyr, acc, gap).flags[150] & tilt.DT_GAP
+    filt = estimator.TiltFilter(block=tilt.block_samples(tilt.DEFAULT_PARAMS, gap))
+    assert filt.run(filt.init(), gyr, acc, gap)[1].flags[150] & tilt.DT_GAP  # the filter's rule
+    # (through the clock, a sensor at rest on both sides shows no motion lost: one sample)
+    assert estimator.estimate_steps(gyr, acc, gap).flags[150] & tilt.CLOCK_JUMP
 
 
 def test_sigma_stays_honest_under_a_turn_on_bias_of_0_1_rad_s():

@@ -109,7 +109,8 @@ def test_sigma_is_computed_from_the_runs_own_parameters(recording):
 
 def test_flag_constants_are_exported():
     names = ["ACC_MISSING", "GYR_MISSING", "BAD_DT", "ACC_DISTURBED", "INIT", "DT_GAP",
-             "REACQUIRED", "REACQUIRING", "OUT_OF_RANGE", "CLIPPED", "HELD", "LOG_BREAK"]
+             "REACQUIRED", "REACQUIRING", "OUT_OF_RANGE", "CLIPPED", "HELD", "LOG_BREAK",
+             "CLOCK_JUMP"]
     bits = [getattr(tilt, name) for name in names]
     assert bits == [getattr(flags, name) for name in names] == [getattr(tilt.flags, name)
                                                                  for name in names]

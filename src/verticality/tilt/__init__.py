@@ -33,6 +33,7 @@ from verticality.tilt.flags import (
     ACC_MISSING,
     BAD_DT,
     CLIPPED,
+    CLOCK_JUMP,
     DT_GAP,
     FLAG_NAMES,
     GYR_MISSING,
@@ -53,4 +54,4 @@ __all__ = ["estimate", "smooth", "Stream", "read_log", "estimate_log", "compare_
            "DEFAULT_PARAMS", "block_samples", "tilt_sigma_rad", "flags", "ACC_MISSING",
            "GYR_MISSING", "BAD_DT",
            "ACC_DISTURBED", "INIT", "DT_GAP", "REACQUIRED", "REACQUIRING", "OUT_OF_RANGE",
-           "CLIPPED", "HELD", "LOG_BREAK", "FLAG_NAMES"]
+           "CLIPPED", "HELD", "LOG_BREAK", "CLOCK_JUMP", "FLAG_NAMES"]

@@ -327,12 +327,22 @@ def block_inputs(s, p):
     a_mean = s[..., S.asum] / t_acc_s[..., None]
     a_var = jnp.maximum(s[..., S.a2] / t_acc_s - jnp.sum(a_mean * a_mean, -1), 0.0)
     gap = s[..., S.gap] > 0
-    quiet0 = (has_gyr & has_acc & (g_var < p.rest_gyr_rad_s**2) & (a_var < p.rest_acc_m_s2**2)
+    # the block is steady: gyro and accelerometer without variation within it (the rest
+    # detector's per-block test without its bias condition)
+    steady = (has_gyr & has_acc & (g_var < p.rest_gyr_rad_s**2) & (a_var < p.rest_acc_m_s2**2)
               & ~gap)
+    # a steady block shows the disturbance as it is now: there the low-pass of (|f| − g)² follows
+    # it within acc_tau_steady_s (0: at once), not with the memory of an event that is over
+    tau_d = jnp.where(steady, p.acc_tau_steady_s, p.acc_tau_s)
+    alpha = jnp.where(tau_d > 0, 1.0 - jnp.exp(-t_acc / jnp.where(tau_d > 0, tau_d, 1.0)), 1.0)
+    # a steady block whose gyro reads no rotation is still, whatever the bias estimate (which a
+    # violent event may have corrupted); the other quiet test, the mean within rest_gyr of the
+    # estimate, needs the filter state (block_update)
+    still0 = steady & (jnp.sum(g_mean * g_mean, -1) < p.rest_gyr_raw_rad_s**2)
     return C.pack(dquat=s[..., S.dquat], tau=tau, f=s[..., S.f], T=T, has_acc=has_acc,
                   q_gyr=q_gyr, q_vel=q_vel, qb=p.bias_walk**2 * T,
-                  alpha=1.0 - jnp.exp(-t_acc / p.acc_tau_s), dev2=s[..., S.dev2] / t_acc_s,
-                  g_mean=g_mean, quiet0=quiet0,
+                  alpha=alpha, dev2=s[..., S.dev2] / t_acc_s,
+                  g_mean=g_mean, steady=steady, still0=still0,
                   r_vel=(p.vel_m_s**2 * p.vel_corr_s) / t_acc_s,
                   r_vel_rest=(p.vel_rest_m_s**2 * p.vel_corr_s) / t_acc_s,
                   r_b=p.gyr_noise**2 / tau_s + p.rest_motion_rad_s**2, gap=gap, t_acc=t_acc,
@@ -545,16 +555,20 @@ def block_update(x, c, p, gaps: bool = True, summed: bool = True):
                             acc_dev_var0)
     disturbed = has_acc & (acc_dev_var > p.acc_disturbed_m_s2**2)
 
+    # rest (T eq. 1 with ω = 0): a steady block whose gyro mean is within rest_gyr of the bias
+    # estimate, or reads no rotation at all (block_inputs)
     gd = c[C.g_mean] - b
-    quiet = (c[C.quiet0] > 0.5) & (sum_sq(gd) < p.rest_gyr_rad_s**2)
+    quiet = (c[C.still0] > 0.5) | ((c[C.steady] > 0.5) & (sum_sq(gd) < p.rest_gyr_rad_s**2))
     rest_s = jnp.where(quiet, x[X.rest_s] + T, 0.0)
-    at_rest = rest_s >= p.rest_min_s
+    at_rest = rest_s >= p.rest_min_s  # the bias's rest update
+    # the velocity's rest prior (the tilt) may start sooner than the bias's rest update
+    rest_vel = rest_s >= p.rest_tilt_s
 
     # otolith update: accelerations are short and periodic (T §I), so the velocity they produce
     # stays small: pseudo-measurement 0 = v + n_v (n_v ~ 0 at rest). Since v integrates the
     # specific force rotated by the estimate, its error grows as g J δ: this observes the tilt
     # (T eq. 5) with the inertial part integrated out rather than taken as white noise.
-    r_v0 = jnp.where(at_rest, c[C.r_vel_rest], c[C.r_vel])
+    r_v0 = jnp.where(rest_vel, c[C.r_vel_rest], c[C.r_vel])
     # the motion's own correlation time τ (docs/tilt.md, "The filter (choices)"): a velocity of
     # correlation time τ changes over a block of length T by E[Δv²] = 2 E[v²] (1 − e^(−T/τ)) per
     # axis; the low-passed (over vel_corr_s) mean squares of the predicted velocity and of the
@@ -571,7 +585,7 @@ def block_update(x, c, p, gaps: bool = True, summed: bool = True):
     rho = jnp.clip(dv_var / jnp.maximum(2.0 * speed_var, 1e-12), 1.0 - lam, 1.0 - math.exp(-1.0))
     tau_motion = -T / jnp.log1p(-rho)
     r_v = r_v0 * disturbed_velocity_scale(acc_dev_var, p) * jnp.where(
-        at_rest, 1.0, tau_motion / p.vel_corr_s)
+        rest_vel, 1.0, tau_motion / p.vel_corr_s)
     # a velocity far beyond what its covariance allows under the undisturbed prior (a kick that
     # leaves the sensor moving) is not the tilt's doing: it is forgotten, not turned into tilt
     jump = eligible & (innovation_nis(P, E.vel, vel, r_v0) > p.vel_jump_nis)

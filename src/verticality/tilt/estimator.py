@@ -71,6 +71,7 @@ import numpy as np
 from verticality.core.errors import InputError
 from verticality.models.base import model_dataclass, static_field
 from verticality.tilt import batch as tilt_batch
+from verticality.tilt import clock as tilt_clock
 from verticality.tilt import core as tilt_core
 from verticality.tilt import limits as tilt_limits
 from verticality.tilt import smoother as tilt_smoother
@@ -80,7 +81,8 @@ from verticality.tilt.output import TiltEstimate, estimate_of, time_axis
 from verticality.tilt.params import BLOCK, DEFAULT_P0, DEFAULT_PARAMS, TiltParams, block_samples
 
 __all__ = ["TiltFilter", "Stepper", "estimate", "smooth", "estimate_steps", "smooth_steps",
-           "recording_limits", "run_in_pieces", "concatenate_outputs", "make_step"]
+           "recording_limits", "judged_steps", "with_clock", "run_in_pieces",
+           "concatenate_outputs", "make_step"]
 
 _NO_ACC = np.full(3, np.nan)
 
@@ -238,11 +240,12 @@ def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: i
     gyr = np.asarray(gyr, dtype=np.float64)
     acc = np.asarray(acc, dtype=np.float64)
     n = gyr.shape[0] if gyr.ndim == 2 else 0
-    dt = np.asarray(dt_s, dtype=np.float64)
+    dt, judged = judged_steps(gyr, acc, dt_s, params)
     block = block_samples(params, dt) if block is None else block
     filt = TiltFilter(params, block)
-    lim = recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2, detect_clipping,
-                           gyr_clipped=gyr_clipped, acc_clipped=acc_clipped)
+    lim = with_clock(recording_limits(gyr, acc, dt, gyr_range_rad_s, acc_range_m_s2,
+                                      detect_clipping, gyr_clipped=gyr_clipped,
+                                      acc_clipped=acc_clipped), judged)
     if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
     if n <= tilt_batch.PIECE_SAMPLES:
@@ -259,19 +262,43 @@ def smooth_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int
     ``TiltOutput`` with the smoothed variances."""
     gyr = np.asarray(gyr, dtype=np.float64)
     tilt_smoother.check_size(gyr.shape[0] if gyr.ndim else 0)
+    acc = np.asarray(acc, dtype=np.float64)
+    dt_s, judged = judged_steps(gyr, acc, dt_s, params)
     block = block_samples(params, dt_s) if block is None else block
     filt = TiltFilter(params, block)
-    acc = np.asarray(acc, dtype=np.float64)
-    lim = recording_limits(gyr, acc, np.asarray(dt_s, dtype=np.float64), gyr_range_rad_s,
-                           acc_range_m_s2, detect_clipping, gyr_clipped=gyr_clipped,
-                           acc_clipped=acc_clipped)
+    lim = with_clock(recording_limits(gyr, acc, dt_s, gyr_range_rad_s, acc_range_m_s2,
+                                      detect_clipping, gyr_clipped=gyr_clipped,
+                                      acc_clipped=acc_clipped), judged)
     extra = {} if lim is None else lim.run_args()
     if lim is not None:
         gyr, acc = lim.readings(gyr, acc)
     final, out, trans = tilt_batch.run(params, block, filt.init(), gyr, acc, dt_s,
                                        transitions=True, **extra)
-    dts = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), gyr.shape[:1])
+    dts = np.broadcast_to(dt_s, gyr.shape[:1])
     return tilt_smoother.smoothed_output(out, trans, final.P, dts, block)
+
+
+def judged_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS):
+    """``(steps, judged)``: the steps ``dt_s`` (scalar or (N,)) as the filter takes them, with the
+    time stamps' clock jumps told from their gaps by the readings
+    (:func:`verticality.tilt.clock.judge_steps`; ``judged`` its result, or None when every step
+    is taken as given: then ``steps`` is ``dt_s`` as a float64 array, bit for bit)."""
+    dt = np.asarray(dt_s, dtype=np.float64)
+    judged = None
+    if dt.ndim == 1 and gyr.ndim == 2 and gyr.shape == acc.shape == (dt.shape[0], 3):
+        judged = tilt_clock.judge_steps(dt, gyr, acc, params)
+    return (dt, None) if judged is None else (judged.dt_s, judged)
+
+
+def with_clock(lim: tilt_limits.Limits | None, judged) -> tilt_limits.Limits | None:
+    """The recording's limits (:func:`recording_limits`) with the tilt variance and flags of the
+    clock jumps and gaps added (``judged``: :func:`judged_steps`' second value; None or nothing
+    to add: ``lim``)."""
+    if lim is None or judged is None or not (np.any(judged.flags)
+                                             or np.any(judged.tilt_var_rad2)):
+        return lim
+    return lim._replace(tilt_var_rad2=lim.tilt_var_rad2 + judged.tilt_var_rad2,
+                        flags=lim.flags | judged.flags)
 
 
 def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int | None = None,

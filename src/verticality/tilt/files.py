@@ -13,9 +13,10 @@ from verticality.core.sizing import check_work_size
 from verticality.io.paths import atomic_output
 from verticality.tilt import batch as tilt_batch
 from verticality.tilt import estimator
+from verticality.tilt.clock import Clock, Judged
 from verticality.tilt.core import TiltOutput, gaps_in, up_roll_pitch
 from verticality.tilt.evaluation.broad import OURS, run_filter
-from verticality.tilt.flags import DT_GAP, INIT, REACQUIRED, REACQUIRING
+from verticality.tilt.flags import CLOCK_JUMP, DT_GAP, INIT, REACQUIRED, REACQUIRING
 from verticality.tilt.layout import NE
 from verticality.tilt.output import TiltEstimate, estimate_of, tilt_sigma_rad
 from verticality.tilt.params import DEFAULT_PARAMS, block_samples
@@ -113,12 +114,17 @@ def sigma_summary(sigma_rad, flags) -> str:
             f"95 % of samples below {np.percentile(s, 95):.2f}°, largest {np.max(s):.2f}°")
 
 
-def gap_warning(t_s, dt_s, ours: bool = True) -> str | None:
+def gap_warning(t_s, dt_s, ours: bool = True, flags=None) -> str | None:
     """A one-line warning when the time stamps have gaps longer than the tilt filter's
-    ``gap_flag_s`` (motion inside a gap goes unseen by the gyro integration), else None."""
+    ``gap_flag_s`` (motion inside a gap goes unseen by the gyro integration), else None.
+    ``flags``: our filter's flags of the same samples, whose clock jumps (``CLOCK_JUMP``: the
+    stamps stepped while the readings went on, taken as one sample) are no gaps."""
     p = DEFAULT_PARAMS
     dt = np.asarray(dt_s, dtype=np.float64)
-    gaps = np.flatnonzero(gaps_in(dt, p, xp=np))
+    gap = gaps_in(dt, p, xp=np)
+    if flags is not None:
+        gap &= (np.asarray(flags) & CLOCK_JUMP) == 0
+    gaps = np.flatnonzero(gap)
     if gaps.size == 0:
         return None
     k = gaps[np.argmax(dt[gaps])]
@@ -129,9 +135,8 @@ def gap_warning(t_s, dt_s, ours: bool = True) -> str | None:
     else:
         what = "this filter's estimate after a gap can be off for seconds"
     return (f"warning: {gaps.size} gap(s) in the time stamps longer than {p.gap_flag_s:g} s "
-            f"(largest {dt[k]:.6g} s, ending at t = {t_s[k]:.6g} s): the gyro rate is integrated "
-            f"across a gap, so motion inside one is not seen; {what}. Flag {DT_GAP} marks the "
-            "sample that ends each gap")
+            f"(largest {dt[k]:.6g} s, ending at t = {t_s[k]:.6g} s): motion inside a gap is not "
+            f"seen; {what}. Flag {DT_GAP} marks the sample that ends each gap")
 
 
 WRITE_ROWS = 65536  # estimate rows formatted and written at a time
@@ -212,7 +217,8 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
             s_line = (None if est.tilt_sigma_rad is None
                       else sigma_summary(est.tilt_sigma_rad, est.out.flags))
             return EstimateRun(rec.t_s.size, filter_name, s_line,
-                               gap_warning(rec.t_s, rec.dt_s, ours=filter_name == OURS),
+                               gap_warning(rec.t_s, rec.dt_s, ours=filter_name == OURS,
+                                           flags=est.out.flags if filter_name == OURS else None),
                                rec.t_origin, rec.t_s, est.out, est.tilt_sigma_rad,
                                float(rec.t_s[-1] - rec.t_s[0]), np.asarray(est.out.flags),
                                est.tilt_sigma_rad)
@@ -227,7 +233,10 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                                  "t_all": []}
         n_done = [0]
         t_last = [None]  # the last filtered row's time
-        buf = None  # samples read but not yet filtered: (t, gyr, acc, dt)
+        # samples read but not yet filtered: (t, gyr, acc, the stamps' steps, the steps taken,
+        # their tilt variance and flags)
+        buf = None
+        clock = Clock(DEFAULT_PARAMS)  # the steps judged as the rows arrive (tilt.clock)
         first = None
         prev = [None]  # the last filtered row (gyro, accelerometer), for the held rows
         with open(part, "w", encoding="utf-8") as fh:
@@ -239,9 +248,11 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                 # run_in_pieces cuts: the last window of a recording is taken whole)
                 while buf is not None and buf[0].size and (final or buf[0].size > piece_rows):
                     w = min(buf[0].size, piece_rows)
-                    t, g, a_read, d = (v[:w] for v in buf)
+                    t, g, a_read, d_raw, d, d_var, d_flags = (v[:w] for v in buf)
                     last = final and w == buf[0].size
-                    lim = estimator.recording_limits(g, a_read, d, prev=prev[0], **ranges)
+                    lim = estimator.with_clock(
+                        estimator.recording_limits(g, a_read, d, prev=prev[0], **ranges),
+                        Judged(d, d_var, d_flags, None))
                     if filt is None:
                         filt = estimator.TiltFilter(block=block_samples(DEFAULT_PARAMS, d))
                     m = tilt_batch.piece_cut(state, a_read, d, filt.block, final=last) or w
@@ -255,8 +266,9 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                         part_out = TiltOutput(*(v[lo:hi] for v in o))
                         fh.write(imu.estimate_rows(t[lo:hi], part_out,
                                                    sig[lo:hi] if sigma else None))
-                    gaps = gaps_in(d[:m], filt.params, xp=np)  # the gap warning's rows
-                    for key, v in (("t", t[:m][gaps]), ("dt", d[:m][gaps]),
+                    # the gap warning's rows: the stamps' gaps that are not clock jumps
+                    gaps = gaps_in(d_raw[:m], filt.params, xp=np) & ((o.flags & CLOCK_JUMP) == 0)
+                    for key, v in (("t", t[:m][gaps]), ("dt", d_raw[:m][gaps]),
                                    ("flags", o.flags.astype(np.int16)),
                                    ("sigma", sig.astype(np.float32))):
                         kept[key].append(v)
@@ -270,7 +282,9 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
             for piece in pieces:
                 if first is None:
                     first = piece
-                new = (piece.t_s, piece.gyr_rad_s, piece.acc_m_s2, piece.dt_s)
+                j = clock.steps(piece.dt_s, piece.gyr_rad_s, piece.acc_m_s2)
+                new = (piece.t_s, piece.gyr_rad_s, piece.acc_m_s2, piece.dt_s, j.dt_s,
+                       j.tilt_var_rad2, j.flags)
                 buf = new if buf is None else tuple(np.concatenate([b, v])
                                                     for b, v in zip(buf, new, strict=True))
                 filter_some(final=False)

@@ -24,18 +24,22 @@ HELD = 1024  # the row repeats the previous row's six channels bit for bit (tilt
 # faster than its sensor; filtered as any row (a zero-order hold over its true Δt)
 LOG_BREAK = 2048  # a robotics log marks a break before this sample (verticality.io.logs): samples
 # lost (a logger drop-out), or the selected IMU changed (the filter starts afresh here)
+CLOCK_JUMP = 4096  # the time stamps step by more than a gap (or back, or absurdly far) while the
+# readings go on as from one sample to the next (tilt.clock): a clock set, taken as one sample at
+# the nominal step, no rotation invented and no re-acquisition
 
 FLAG_NAMES = {ACC_MISSING: "accelerometer missing", GYR_MISSING: "gyro missing",
               BAD_DT: "bad time step", ACC_DISTURBED: "accelerometer disturbed",
               INIT: "initialization", DT_GAP: "gap in the time stamps",
               REACQUIRED: "tilt re-acquired", REACQUIRING: "re-acquiring",
               OUT_OF_RANGE: "beyond the sensor's range", CLIPPED: "clipped",
-              HELD: "held (repeated row)", LOG_BREAK: "break in the log"}
+              HELD: "held (repeated row)", LOG_BREAK: "break in the log",
+              CLOCK_JUMP: "clock jump"}
 # short identifiers of the bits (table columns such as a folder summary's ``n_<key>``)
 FLAG_KEYS = {ACC_MISSING: "acc_missing", GYR_MISSING: "gyr_missing", BAD_DT: "bad_dt",
              ACC_DISTURBED: "acc_disturbed", INIT: "init", DT_GAP: "dt_gap",
              REACQUIRED: "reacquired", REACQUIRING: "reacquiring", OUT_OF_RANGE: "out_of_range",
-             CLIPPED: "clipped", HELD: "held", LOG_BREAK: "log_break"}
+             CLIPPED: "clipped", HELD: "held", LOG_BREAK: "log_break", CLOCK_JUMP: "clock_jump"}
 
 
 def accelerometer_used(flags):

@@ -24,7 +24,9 @@ arrays. The layouts:
   ``a2`` Σ |f|² Δt, ``gap`` the number of gap samples, ``vmiss`` the velocity variance of clipped
   accelerometer samples (m²/s²).
 * :data:`C` the per-block inputs of the block update that do not depend on the filter state
-  (computed for all the blocks of a chunk before the scan over blocks).
+  (computed for all the blocks of a chunk before the scan over blocks): among them ``steady``
+  (neither sensor varies within the block) and ``still0`` (steady with a gyro that reads no
+  rotation), the rest tests' state-free parts.
 * :data:`Z` the real-time stepper's state: ``x``, ``sums``, ``count`` (samples in the block),
   ``initialized`` (1.0 or 0.0).
 * :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input).
@@ -118,8 +120,8 @@ S = Packed([("dquat", 4), ("tau", None), ("f", 3), ("t_acc", None), ("dev2", Non
             ("gap", None), ("vmiss", None)])
 C = Packed([("dquat", 4), ("tau", None), ("f", 3), ("T", None), ("has_acc", None),
             ("q_gyr", None), ("q_vel", None), ("qb", None), ("alpha", None), ("dev2", None),
-            ("g_mean", 3), ("quiet0", None), ("r_vel", None), ("r_vel_rest", None),
-            ("r_b", None), ("gap", None), ("t_acc", None), ("gsum", 3),
+            ("g_mean", 3), ("steady", None), ("still0", None), ("r_vel", None),
+            ("r_vel_rest", None), ("r_b", None), ("gap", None), ("t_acc", None), ("gsum", 3),
             ("lam", None)])
 Z = Packed([("x", X.size), ("sums", S.size), ("count", None), ("initialized", None)])
 SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None)])

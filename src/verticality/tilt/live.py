@@ -4,7 +4,8 @@ through it.
 
 The filter is :class:`verticality.tilt.Stream`, the plain-Python implementation (equal to the
 batch run to 1e-9; a jitted JAX call per sample would be too slow for 1 kHz), given each row's
-step as this reader judges the time stamps (:func:`next_step`). The rows are read
+step as the time stamps and readings say (:class:`~verticality.tilt.clock.Clock`, the rule
+``tilt.estimate`` follows: a clock jump, a gap, a stamp that is skipped). The rows are read
 by :class:`~verticality.io.imu_rows.RowReader`: the first second (at most 500 rows) is held back
 and read and checked as ``verticality estimate`` reads a whole file
 (:func:`verticality.io.imu.recording_from_rows`: layout, time unit, units, increasing time); then
@@ -23,7 +24,8 @@ import numpy as np
 from verticality.io import imu, imu_layout
 from verticality.io import lines as text_lines
 from verticality.io.imu_rows import RowReader
-from verticality.tilt.realtime import Stream, next_step
+from verticality.tilt.clock import SKIP, Clock
+from verticality.tilt.realtime import Stream
 
 
 def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin",
@@ -52,8 +54,8 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
     s = Stream(period_s=float(np.median(head.dt_s)) if head.dt_s.size else None)
     fmt = imu.estimate_row_format(sigma)
 
-    def emit(t_s, g, a, dt):
-        e = s.step_dt(g, a, dt, t_s)
+    def emit(t_s, g, a, dt, var=0.0, flags=0):
+        e = s.step_dt(g, a, dt, t_s, var, flags)
         up = e.up_S
         row = (e.t_s, e.roll_rad, e.pitch_rad, -up[0], -up[1], -up[2], *e.bias_S_rad_s, e.flags)
         if sigma:
@@ -61,16 +63,20 @@ def stream_estimates(fh: TextIO, out: TextIO, err: TextIO, source: str = "stdin"
         out.write(fmt % row + "\n")
         out.flush()
 
-    dt_head = head.dt_s
-    for k in range(head.t_s.size):
-        emit(float(head.t_s[k]), head.gyr_rad_s[k], head.acc_m_s2[k], float(dt_head[k]))
-    t_last = t_prev = float(head.t_s[-1])
-    behind = 0  # rows in a row whose time did not follow t_last
+    clock = Clock(s.params)
+    clock.first(head.gyr_rad_s[0], head.acc_m_s2[0])
+    emit(float(head.t_s[0]), head.gyr_rad_s[0], head.acc_m_s2[0], float(head.dt_s[0]))
+    for k in range(1, head.t_s.size):
+        emit(float(head.t_s[k]), head.gyr_rad_s[k], head.acc_m_s2[k],
+             *clock.step(float(head.dt_s[k]), head.gyr_rad_s[k], head.acc_m_s2[k])[:3])
+    t_prev = float(head.t_s[-1])  # the last finite stamp
     for line in reader.lines(fh):
         t_s, g, a = (reader.sample(line.text.strip()) if line.problem is None
                      else reader.unreadable(line.problem))
-        dt, t_last, behind = next_step(t_s, t_last, t_prev, behind, reader.warn, s.params)
+        dt, var, flags, kind = clock.step(t_s - t_prev, g, a)
+        if kind == SKIP and math.isfinite(t_s):
+            reader.warn(f"time {t_s:.9g} s does not follow {t_prev:.9g} s by a usable step")
         if math.isfinite(t_s):
             t_prev = t_s
-        emit(t_s, g, a, dt)
+        emit(t_s, g, a, dt, var, flags)
     reader.summary()

@@ -343,6 +343,7 @@ def estimate_log_file(path, out_path, *, topic: str | None = None, units=(),
     ours = filter_name == OURS
     sig = est.sigma_rad if ours else None
     run = EstimateRun(rec.t_s.size, filter_name, sigma_summary(sig, est.flags) if ours else None,
-                      gap_warning(rec.t_s, rec.dt_s, ours=ours), rec.t_origin, rec.t_s, est, sig,
+                      gap_warning(rec.t_s, rec.dt_s, ours=ours, flags=est.flags if ours else None),
+                      rec.t_origin, rec.t_s, est, sig,
                       float(rec.t_s[-1] - rec.t_s[0]), np.asarray(est.flags), sig)
     return LogRun(run, rec, comp, tuple(written))

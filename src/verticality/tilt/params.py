@@ -59,16 +59,15 @@ class TiltParams(NamedTuple):
     deviation below ``rest_acc_m_s2``, the block-mean gyro measures the bias, with the residual
     motion ``rest_motion_rad_s`` as extra noise.
 
-    After a violent event (docs/tilt.md, "After a violent event"; prototyped in the plain-Python
-    :mod:`verticality.tilt.stream` only, the JAX core still has today's behaviour, which these
-    defaults keep): ``acc_tau_steady_s`` the disturbance estimate's time constant in a steady
-    block (gyro and accelerometer without variation within it; 0: the block's own
-    ``(|f| − g)²`` at once; the default, ``acc_tau_s``, keeps a shock's memory for seconds);
-    ``rest_gyr_raw_rad_s``: a steady block whose raw gyro mean is below it counts as still
-    whatever the bias estimate (0: only ``|ḡ − b̂| < rest_gyr_rad_s``); ``rest_tilt_s``: the
-    quiet time after which the velocity takes its rest prior (the bias's rest update waits
-    ``rest_min_s``). The prototype's values: 0, ``rest_gyr_rad_s`` (0.035) and 0.5 s
-    (:data:`SHOCK_RECOVERY`).
+    After a violent event (docs/tilt.md, "After a violent event"): a block is *steady* when both
+    sensors are present, there is no gap and neither varies within it (gyro and accelerometer
+    deviations below ``rest_gyr_rad_s`` and ``rest_acc_m_s2``); ``acc_tau_steady_s`` the
+    disturbance estimate's time constant in a steady block (0: the block's own ``(|f| − g)²`` at
+    once, so that a shock's memory ends with the shock); ``rest_gyr_raw_rad_s``: a steady block
+    whose raw gyro mean is below it counts as quiet whatever the bias estimate (which a violent
+    event may have corrupted), besides the usual ``|ḡ − b̂| < rest_gyr_rad_s``; ``rest_tilt_s``:
+    the quiet time after which the velocity takes its rest prior (the bias's rest update waits
+    ``rest_min_s``). :data:`NO_SHOCK_RECOVERY` sets the filter without them, for comparison.
     """
 
     gyr_noise: float = 1e-3
@@ -94,15 +93,17 @@ class TiltParams(NamedTuple):
     vel_disturbed_hz: float = 1.0
     vel_jump_nis: float = 9.21
     update_s: float = 0.112
-    acc_tau_steady_s: float = 0.5
-    rest_gyr_raw_rad_s: float = 0.0
-    rest_tilt_s: float = 1.5
+    acc_tau_steady_s: float = 0.0
+    rest_gyr_raw_rad_s: float = 0.035
+    rest_tilt_s: float = 0.5
 
 
 DEFAULT_PARAMS = TiltParams()
-# the prototype's recovery after a violent event (docs/tilt.md, "After a violent event"), to become
-# the defaults when the JAX core has it
-SHOCK_RECOVERY = {"acc_tau_steady_s": 0.0, "rest_gyr_raw_rad_s": 0.035, "rest_tilt_s": 0.5}
+# the filter without the recovery after a violent event (docs/tilt.md, "After a violent event"):
+# a steady block's disturbance low-pass as any block's, no raw-gyro rest test, the velocity's rest
+# prior after rest_min_s; ``DEFAULT_PARAMS._replace(**NO_SHOCK_RECOVERY)``, for comparisons
+NO_SHOCK_RECOVERY = {"acc_tau_steady_s": DEFAULT_PARAMS.acc_tau_s, "rest_gyr_raw_rad_s": 0.0,
+                     "rest_tilt_s": DEFAULT_PARAMS.rest_min_s}
 # prior covariance of the error state (δx, δy [rad], ṽx, ṽy [m/s], b̃x, b̃y, b̃z [rad/s]). The
 # gyro bias prior, 0.1 rad/s (5.7 °/s), covers the turn-on offsets of common MEMS gyros (±1–10 °/s):
 # with a tighter prior a bias of 0.1 rad/s left the estimate 11° off for tens of seconds while σ

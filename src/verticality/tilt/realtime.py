@@ -16,9 +16,10 @@ import numpy as np
 
 from verticality.core.errors import InputError
 from verticality.tilt import stream
+from verticality.tilt.clock import Clock
 from verticality.tilt.flags import accelerometer_used
 from verticality.tilt.output import TiltEstimate
-from verticality.tilt.params import DEFAULT_PARAMS, GAP_TOLERANCE_S, MAX_DT_S, TiltParams
+from verticality.tilt.params import DEFAULT_PARAMS, TiltParams
 from verticality.tilt.stamps import stamp_seconds
 
 
@@ -36,7 +37,11 @@ class Stream:
     first sample only initializes the tilt, its step enters no integration). Without
     ``period_s`` every sample needs its time stamp and the first one is given the longest step
     that is not a gap (``params.gap_flag_s``), which enters nothing but a clipped first sample's
-    excess. A time stamp that does not go forward skips its sample (flag ``BAD_DT``).
+    excess. The stamps are read as :func:`verticality.tilt.estimate` reads them
+    (:mod:`verticality.tilt.clock`): a step beyond a gap across which the readings go on is a
+    clock jump (one sample at the nominal step, flag ``CLOCK_JUMP``), else a gap (``DT_GAP``); a
+    time stamp that does not go forward skips its sample (flag ``BAD_DT``) unless the readings
+    show a clock set back.
 
     ``params``, ``block``, ``gyr_range_rad_s``, ``acc_range_m_s2`` (full-scale readings: a stream
     cannot infer them from flat tops), ``x0`` and ``P0`` as :class:`~verticality.tilt.TiltFilter`
@@ -54,8 +59,9 @@ class Stream:
         self.params = params
         self.filter = stream.Stream(params, block, P0, x0, gyr_range_rad_s, acc_range_m_s2,
                                     period_s=self.period_s)
+        self.clock = Clock(params)  # how the stamps are read (tilt.clock)
         self.t_s = None  # the time of the last sample taken
-        self.t_prev, self.behind = None, 0  # the last stamp given; stamps skipped in a row
+        self.t_prev = None  # the previous sample's time (its stamp, or the period's clock)
         # a period's clock counts samples from the last time stamp (t0 + k period, as the batch
         # run's k × period_s: no sum of rounded steps)
         self.t0_s, self.k = 0.0, -1
@@ -65,11 +71,13 @@ class Stream:
         """One sample: gyro (3,) rad/s, accelerometer (3,) m/s² (any sequence of three numbers:
         a list, an array, a pandas row; NaN: missing), at time ``t_s`` (s, or a date-time:
         :mod:`verticality.tilt.stamps`), or a period after the last sample when ``t_s`` is None
-        (``period_s`` needed). The stamps are judged as ``verticality stream`` judges them
-        (:func:`next_step`): one that does not follow the last by a usable step skips its sample
-        (flag ``BAD_DT``) and leaves the clock where it was; when the next one follows it, the
-        clock was set (or restarted), and a jump of more than a gap is a break, re-acquired as
-        after a gap (flag ``DT_GAP``)."""
+        (``period_s`` needed). The stamps are read by the rule of :mod:`verticality.tilt.clock`,
+        as ``tilt.estimate`` and ``verticality stream`` read them: a step beyond a gap is a clock
+        jump (flag ``CLOCK_JUMP``: one sample at the nominal step) when the readings go on across
+        it, else a gap (``DT_GAP``, re-acquired after it); a stamp that does not follow the last
+        by a usable step skips its sample (``BAD_DT``) and leaves the clock where it was, unless
+        the readings go on (a clock jump); when the next one follows it, the clock was set and is
+        followed from there."""
         gyr, acc = three(gyr_rad_s, "gyr_rad_s"), three(acc_m_s2, "acc_m_s2")
         if t_s is None:
             if self.period_s is None:
@@ -77,28 +85,36 @@ class Stream:
                                  "with period_s")
             self.k += 1
             t = self.t0_s + self.k * self.period_s
+            if self.t_prev is None:
+                self.clock.first(gyr, acc)
+            else:
+                self.clock.follow(self.period_s, gyr, acc)
             self.t_s = self.t_prev = t  # (the period's clock goes on from the last stamp)
             return self.step_dt(gyr, acc, self.period_s, t)
         t = stamp_seconds(t_s)
-        if self.t_s is None:
-            dt, t_last = (self.params.gap_flag_s if self.period_s is None else self.period_s), t
+        if self.t_prev is None:
+            dt, var, flags = (self.params.gap_flag_s if self.period_s is None
+                              else self.period_s), 0.0, 0
+            self.clock.first(gyr, acc)
         else:
-            dt, t_last, self.behind = next_step(t, self.t_s, self.t_prev, self.behind,
-                                                params=self.params)
-        est = self.step_dt(gyr, acc, dt, t)
+            dt, var, flags, _ = self.clock.step(t - self.t_prev, gyr, acc)
+        est = self.step_dt(gyr, acc, dt, t, var, flags)
         self.t_prev = t
-        if t_last != self.t_s:  # a skipped stamp does not move the clock
+        t_last = t - self.clock.ahead  # the time taken (a skipped stamp does not move it)
+        if t_last != self.t_s:
             self.t_s = self.t0_s = t_last
             self.k = 0
         return est
 
-    def step_dt(self, gyr_rad_s, acc_m_s2, dt_s, t_s=math.nan) -> TiltEstimate:
+    def step_dt(self, gyr_rad_s, acc_m_s2, dt_s, t_s=math.nan, tilt_var_rad2=0.0,
+                flags=0) -> TiltEstimate:
         """One sample given its step ``dt_s`` from the previous one (non-finite or ≤ 0: skipped,
         flag ``BAD_DT``), for a reader that judges the time stamps itself (``verticality
-        stream``); ``t_s`` only labels the output. The stream's clock (:meth:`step`) is not
-        moved."""
+        stream``, with a :class:`~verticality.tilt.clock.Clock`); ``t_s`` only labels the
+        output; ``tilt_var_rad2``, ``flags``: what the step adds (the clock's). The stream's
+        clock (:meth:`step`) is not moved."""
         f = self.filter
-        roll, pitch, up, q, bias, flags = f.step(gyr_rad_s, acc_m_s2, dt_s)
+        roll, pitch, up, q, bias, flags = f.step(gyr_rad_s, acc_m_s2, dt_s, tilt_var_rad2, flags)
         # the variances a sample reports (as tilt.core.output_var): the block-start P with what
         # dropouts and gaps have added to the tilt since, or the initialization's before it
         var = f.P.diagonal().copy()
@@ -127,35 +143,3 @@ def three(values, name: str) -> tuple[float, float, float]:
         shown = type(values).__name__ if arr is None else f"{arr.size} numbers"
         raise InputError(f"Stream.step: {name} must be three numbers (x, y, z); got {shown}")
     return float(arr[0]), float(arr[1]), float(arr[2])
-
-
-def next_step(t_s: float, t_last: float, t_prev: float, behind: int, warn=None,
-              params: TiltParams = DEFAULT_PARAMS) -> tuple[float, float, int]:
-    """``(dt, t_last, behind)`` for a sample stamped ``t_s`` s: the step from ``t_last`` (the last
-    time taken) when it is one the filter can use (positive, below ``MAX_DT_S``), and ``t_s``
-    becomes the last time. One absurd stamp (1e300, a stamp far back) is not taken, so it costs
-    its own sample only (skipped: ``dt`` NaN; named through ``warn``); when two in a row go on
-    from each other but not from ``t_last`` (``t_prev`` the previous sample's stamp, ``behind``
-    the stamps skipped since ``t_last``), the clock was set or restarted and is followed from
-    there. A jump of more than a gap (``params.gap_flag_s``, forward or back) is then a break:
-    the step is given as a gap (at least :func:`break_step_s`), so that the filter re-acquires
-    the tilt as after a gap (flags ``DT_GAP``, ``REACQUIRED``); the rotation across the jump is
-    unknown. Shared by :meth:`Stream.step` and ``verticality stream``."""
-    dt = t_s - t_last if math.isfinite(t_s) else math.nan
-    if 0.0 < dt < MAX_DT_S:
-        return dt, t_s, 0
-    if math.isfinite(t_s) and behind >= 1 and t_prev is not None and 0.0 < t_s - t_prev < MAX_DT_S:
-        step = t_s - t_prev
-        if dt >= MAX_DT_S or -dt > params.gap_flag_s:  # far ahead, or back by more than a gap
-            step = max(step, break_step_s(params))
-        return step, t_s, 0
-    if math.isfinite(t_s) and warn is not None:
-        warn(f"time {t_s:.9g} s does not follow {t_last:.9g} s by a usable step")
-    return math.nan, t_last, behind + 1
-
-
-def break_step_s(params: TiltParams = DEFAULT_PARAMS) -> float:
-    """The step given across a break in the clock: the shortest that the filter takes as a gap
-    (``gap_flag_s`` and its rounding tolerance), so that what it integrates over the unknown
-    time stays the least a gap allows."""
-    return params.gap_flag_s + 2 * GAP_TOLERANCE_S

@@ -193,7 +193,9 @@ class Stream:
         self.asum = [0.0, 0.0, 0.0]
         self.count = 0
 
-    def step(self, gyr, acc, dt):
+    def step(self, gyr, acc, dt, tilt_var=0.0, flags=0):
+        """One sample; ``tilt_var`` (rad²) and ``flags``: what its time step adds (a clock
+        jump's, :mod:`verticality.tilt.clock`), as ``tilt_core.step`` takes them."""
         p = self.p
         gx, gy, gz = float(gyr[0]), float(gyr[1]), float(gyr[2])
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
@@ -229,8 +231,8 @@ class Stream:
                 self.tau += dts
             if gap or not gyr_ok:  # the rotation inside a gap is unknown
                 self.qmiss += (p.omega_missing_rad_s * dts) ** 2
-            if dt_ok:  # a clipped gyro or accelerometer axis's unknown excess
-                self.qmiss += clip_var
+            if dt_ok:  # a clipped gyro or accelerometer axis's unknown excess, a clock jump's
+                self.qmiss += clip_var + tilt_var
                 self.vmiss += clip_vvar
             self.gap += gap
             r = _rotate(dq, (ax, ay, az))
@@ -273,7 +275,7 @@ class Stream:
               | (REACQUIRING if self.reacquire or self.gap > 0 else 0)
               | (OUT_OF_RANGE if any(abs(v) >= MAX_RATE_RAD_S for v in gyr3)
                  or any(abs(v) >= MAX_ACC_M_S2 for v in acc3) else 0)
-              | (CLIPPED if gyr_clipped or acc_clipped else 0) | (HELD if held else 0))
+              | (CLIPPED if gyr_clipped or acc_clipped else 0) | (HELD if held else 0) | flags)
         return (math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2])), up, q,
                 tuple(self.b), fl)
 
