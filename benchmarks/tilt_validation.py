@@ -6,14 +6,16 @@ defaults, one parameter set for every case, in this run.
 
     python benchmarks/tilt_validation.py [--broad BROAD_DIR] [--classes broad,sat-gyro,...]
         [--rates 50,100] [--shares 0.01,0.2] [--seeds 2] [--json FILE] [--per-case]
-        [--no-faults] [--detection] [--loco]
+        [--no-faults] [--detection] [--loco] [--loco-limits [--offline]]
 
 BROAD_DIR: the folder of BROAD's HDF5 files (CC BY 4.0; docs/references.md); without it the
 BROAD rows are left out. The failure classes (:mod:`verticality.tilt.evaluation.failures`:
 saturated-then-calibrated gyro and accelerometer at each clipped share, shocks, drop-outs, clock
 jumps, jittered rates) are datasets of their own; ``--detection`` prints the clip detector's hit
 and false-alarm rates on the saturation classes instead, ``--loco`` the leave-one-class-out of
-clip detection on and off. Needs the peers extra (vqf).
+clip detection on and off, ``--loco-limits`` of what a clipped sample means
+(:data:`LIMITS_VARIANTS`; ``--offline`` the smoother against offlineVQF). Needs the peers extra
+(vqf).
 """
 
 from __future__ import annotations
@@ -65,6 +67,42 @@ def detection_rates(cases) -> dict:
             for k, p in pooled.items()}
 
 
+LIMITS_VARIANTS = {"fitted": {}, "fraction": {"fit_peaks": False}, "off": {"infer": False}}
+
+
+def limits_runner(options: dict):
+    """:func:`~verticality.tilt.evaluation.validation.leave_one_class_out`'s runner for variants
+    of what a clipped sample means (:data:`LIMITS_VARIANTS`: keyword arguments of
+    :func:`verticality.tilt.limits.find_limits`; "fitted" the default, each clipped run's peak
+    fitted and added; "fraction" the earlier model, σ = 0.5 × the clip level and nothing added;
+    "off" no clipping inferred): our filter and smoother run on the limits so found as
+    ``estimate_steps`` and ``smooth_steps`` run them (a recording of one piece); the peers as
+    always."""
+    from verticality.tilt import batch, estimator, smoother
+    from verticality.tilt.evaluation.broad import OURS, OURS_OFFLINE, run_filter_sigma
+    from verticality.tilt.limits import find_limits
+    from verticality.tilt.output import tilt_sigma_rad
+    from verticality.tilt.params import DEFAULT_PARAMS, block_samples
+
+    def run(name, gyr, acc, dt):
+        if name not in (OURS, OURS_OFFLINE):
+            return run_filter_sigma(name, gyr, acc, dt)
+        lim = find_limits(gyr, acc, dt, **options)
+        g, a = lim.readings(gyr, acc)
+        block = block_samples(DEFAULT_PARAMS, dt)
+        init = estimator.TiltFilter(DEFAULT_PARAMS, block).init()
+        if name == OURS:
+            out = batch.run(DEFAULT_PARAMS, block, init, g, a, dt, **lim.run_args())[1]
+        else:
+            final, out, trans = batch.run(DEFAULT_PARAMS, block, init, g, a, dt,
+                                          transitions=True, **lim.run_args())
+            dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), g.shape[:1])
+            out = smoother.smoothed_output(out, trans, final.P, dts, block)
+        return out.quat_E_S, out.bias_S_rad_s, tilt_sigma_rad(out.var, DEFAULT_PARAMS)
+
+    return run
+
+
 def _floats(text):
     return None if text is None else [float(x) for x in text.split(",")]
 
@@ -110,6 +148,10 @@ def main(argv=None) -> None:
                     help="only the clip detector's hit and false-alarm rates (no filters)")
     ap.add_argument("--loco", action="store_true",
                     help="leave-one-class-out of clip detection on/off instead of the table")
+    ap.add_argument("--loco-limits", action="store_true",
+                    help="leave-one-class-out of the clipped-sample models (LIMITS_VARIANTS)")
+    ap.add_argument("--offline", action="store_true",
+                    help="with --loco-limits: our smoother against offlineVQF")
     args = ap.parse_args(argv)
 
     classes = set(args.classes.split(","))
@@ -134,6 +176,21 @@ def main(argv=None) -> None:
         for c, r in res["chosen"].items():
             print(f"{c:16s} chosen {r['variant']:7s} (best here {r['best_here']:7s}) "
                   + " ".join(f"{rate:.0f} Hz {x:.3f}" for rate, x in r["ratios"].items()))
+        return
+    if args.loco_limits:
+        res = tv.leave_one_class_out(cases, LIMITS_VARIANTS, offline=args.offline,
+                                     runner=limits_runner,
+                                     progress=lambda m: print(f"\r{m:60s}", end="",
+                                                              file=sys.stderr))
+        print(file=sys.stderr)
+        print(f"{'class':16s} {'Hz':>6s} " + " ".join(f"{v:>9s} {'2σ':>6s}"
+                                                      for v in LIMITS_VARIANTS))
+        for key in sorted(res["ratios"]["off"], key=lambda k: (k[0], -k[1])):
+            print(f"{key[0]:16s} {key[1]:6.0f} " + " ".join(
+                f"{res['ratios'][v][key]:9.3f} {100 * res['within_2sigma'][v][key]:5.1f}%"
+                for v in LIMITS_VARIANTS))
+        for c, r in res["chosen"].items():
+            print(f"{c:16s} chosen {r['variant']:8s} (best here {r['best_here']:8s})")
         return
     scored = {}
     for i, case in enumerate(cases):

@@ -325,17 +325,24 @@ def _clipped_and_held():
 
 def test_reference_stream_clipping_and_held_rows_equal_core():
     """Clipped gyro and accelerometer samples and held rows: the plain-Python stream (detecting
-    them sample by sample from the given ranges) gives the batch run's outputs and σ to 1e-9, and
-    the batch run (``tilt.estimate``) equals the core's ``step`` given the same limits."""
+    them sample by sample from the given ranges) gives the batch run's outputs and σ to 1e-9 given
+    the limits a stream can know (it cannot see a clipped run's end, so no peak is fitted:
+    ``fit_peaks=False``), and the batch run (``tilt.estimate``, each clipped run's peak fitted and
+    added to the readings) equals the core's ``step`` given the same limits and readings."""
+    from verticality.tilt import batch as tilt_batch
+    from verticality.tilt import limits as tilt_limits
     from verticality.tilt.flags import CLIPPED, HELD
 
     gyr, acc, dts, ranges = _clipped_and_held()
-    out = estimator.estimate_steps(gyr, acc, dts, **ranges)
+    block = tilt.block_samples(tilt.DEFAULT_PARAMS, dts)  # as estimate's
+    causal = tilt_limits.find_limits(gyr, acc, dts, **ranges, fit_peaks=False)
+    out = tilt_batch.run(tilt.DEFAULT_PARAMS, block, tilt.TiltFilter(block=block).init(), gyr,
+                         acc, dts, **causal.run_args())[1]
     f = out.flags
     assert np.count_nonzero(f & CLIPPED) > 40 and np.flatnonzero(f & HELD).tolist() == [900, 901,
                                                                                          902, 903]
     assert np.count_nonzero(f & CLIPPED) > 40 and not np.any(f & ACC_MISSING)  # (both kept)
-    s = Stream(**ranges, block=tilt.block_samples(tilt.DEFAULT_PARAMS, dts))  # as estimate
+    s = Stream(**ranges, block=block)
     rows, sigma = [], []
     for k in range(N):
         rows.append(s.step(gyr[k], acc[k], dts[k]))
@@ -344,9 +351,13 @@ def test_reference_stream_clipping_and_held_rows_equal_core():
     np.testing.assert_allclose(np.array([r[2] for r in rows]), out.up_S, rtol=0, atol=1e-9)
     np.testing.assert_allclose(sigma, tilt.tilt_sigma_rad(out.var, tilt.DEFAULT_PARAMS), rtol=0,
                                atol=1e-9)
+    out = estimator.estimate_steps(gyr, acc, dts, **ranges)
+    np.testing.assert_array_equal(out.flags & (CLIPPED | HELD), f & (CLIPPED | HELD))
     lim = estimator.recording_limits(gyr, acc, dts, **ranges)
     assert np.all(lim.tilt_var_rad2 >= 0) and lim.tilt_var_rad2.max() > 0
     assert np.all(lim.vel_var_m2_s2 >= 0) and lim.vel_var_m2_s2.max() > 0
+    assert lim.gyr_excess_rad_s.any() and lim.acc_excess_m_s2.any()
+    gyr, acc = lim.readings(gyr, acc)
 
     filt = tilt.TiltFilter(block=tilt.block_samples(tilt.DEFAULT_PARAMS, dts))  # as estimate's
 

@@ -249,7 +249,8 @@ def estimate_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: i
     if lim is None:
         return filt.run(filt.init(), gyr, acc, dt)[1]
     if n <= tilt_batch.PIECE_SAMPLES:
-        return tilt_batch.run(params, block, filt.init(), gyr, acc, dt, **lim.run_args())[1]
+        return tilt_batch.run(params, block, filt.init(), *lim.readings(gyr, acc), dt,
+                              **lim.run_args())[1]
     return concatenate_outputs(list(run_in_pieces(filt, filt.init(), gyr, acc,
                                                   np.broadcast_to(dt, (n,)), limits=lim)))
 
@@ -269,6 +270,8 @@ def smooth_steps(gyr, acc, dt_s, params: TiltParams = DEFAULT_PARAMS, block: int
                                       detect_clipping, gyr_clipped=gyr_clipped,
                                       acc_clipped=acc_clipped), judged)
     extra = {} if lim is None else lim.run_args()
+    if lim is not None:
+        gyr, acc = lim.readings(gyr, acc)
     final, out, trans = tilt_batch.run(params, block, filt.init(), gyr, acc, dt_s,
                                        transitions=True, **extra)
     dts = np.broadcast_to(dt_s, gyr.shape[:1])
@@ -315,9 +318,9 @@ def run_in_pieces(filt: TiltFilter, state: TiltState, gyr, acc, dts, piece: int 
         m = tilt_batch.piece_cut(state, acc[k:hi], dts[k:hi], filt.block, final=hi == n)
         m = m or hi - k  # no block boundary within a piece (piece < block): take it whole
         sl = slice(k, k + m)
+        g, a = (gyr[sl], acc[sl]) if limits is None else limits.readings(gyr[sl], acc[sl], sl)
         extra = {} if limits is None else limits.run_args(sl)
-        state, out = tilt_batch.run(filt.params, filt.block, state, gyr[sl], acc[sl], dts[sl],
-                                    **extra)
+        state, out = tilt_batch.run(filt.params, filt.block, state, g, a, dts[sl], **extra)
         yield out
         k += m
 

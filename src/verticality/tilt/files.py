@@ -256,8 +256,9 @@ def estimate_file(path, out_path, units=(), columns=None, time_unit=None,
                     if filt is None:
                         filt = estimator.TiltFilter(block=block_samples(DEFAULT_PARAMS, d))
                     m = tilt_batch.piece_cut(state, a_read, d, filt.block, final=last) or w
-                    state, o = tilt_batch.run(filt.params, filt.block, state, g[:m], a_read[:m],
-                                              d[:m], **lim.run_args(slice(m)))
+                    state, o = tilt_batch.run(filt.params, filt.block, state,
+                                              *lim.readings(g[:m], a_read[:m], slice(m)), d[:m],
+                                              **lim.run_args(slice(m)))
                     prev[0] = np.concatenate([g[m - 1], a_read[m - 1]])
                     sig = tilt_sigma_rad(o.var, filt.params)
                     for lo in range(0, m, WRITE_ROWS):  # the rows' text, a slice at a time

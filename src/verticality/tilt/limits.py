@@ -45,29 +45,33 @@ saturates before the converter: the plateau then reads noise like a peak), and a
 were rotated into another frame (the plane is then far from every axis). The given range
 (``gyr_range_rad_s``) covers the first two.
 
-What the filter does with a clipped reading, by physics:
+What the filter does with a clipped reading, by physics: its true value lies *beyond* the clip
+level (a one-sided constraint, neither a point value nor a missing one), and a signal passes a
+range in a smooth peak whose way in and out the unclipped samples either side of the run show.
+So each clipped run's peak is fitted from its flanks (:func:`peak_excess`), its excess added to
+the clipped readings (:meth:`Limits.readings`), and what is left of the excess is an unknown
+constant over the run (one motion, not white noise) of σ from the fit (:data:`EXCESS_SPREAD` of
+its integral and the flanks' noise); a run whose peak cannot be fitted keeps the bound σ =
+:data:`EXCESS_FRACTION` × the clip level and nothing added (a motion that clips a sensor
+typically exceeds its range by a fraction of it: a ±7 rad/s gyro on a 10–12 rad/s rotation,
+40–70 %). After ``t`` s of clipping on an axis the unknown constant has integrated to variance
+``(σ t)²``; each sample adds its increment ``σ² (t_k² − t_{k−1}²)`` (:func:`clip_variance`):
 
-* a clipped gyro axis reads a rate whose true value is at least the clip level, with an unknown
-  excess. The reading is still used (it is the best value there is), and the excess is modelled as
-  an unknown constant rate of standard deviation ``EXCESS_FRACTION`` times the clip level for the
-  duration of the clipped run (it is one motion, not white noise): after ``t`` s of clipping on an
-  axis the tilt has turned by an unknown angle of variance ``(σ t)²``. Each sample adds its
-  increment ``σ² (t_k² − t_{k−1}²)`` to the tilt variance (:attr:`Limits.tilt_var_rad2`, added where
-  the filter adds a gyro dropout's; the projection of the axis on the horizontal is at most 1, so
-  adding it to both tilt variances is conservative). The widened σ lets the accelerometer pull the
-  tilt back. ``EXCESS_FRACTION`` = 0.5: a motion that clips a sensor typically exceeds its range by
-  a fraction of it (a ±7 rad/s gyro on a 10–12 rad/s rotation: 40–70 %), and σ must cover the
-  excess rather than claim it known;
-* a clipped accelerometer axis reads a specific force whose true value is at least the clip
-  level; its other axes are right. The reading is kept, and the excess is modelled as for the
-  gyro: an unknown constant of σ = ``EXCESS_FRACTION`` × the clip level over the clipped run, so
-  the velocity the filter integrates is off by an unknown amount of variance ``(σ t)²`` after ``t``
-  s; each sample adds its increment to both horizontal velocity variances
-  (:attr:`Limits.vel_var_m2_s2`, the velocity's process noise). Dropping the sample instead would
-  treat a reading known to be beyond the range as an unknown of the size of an ordinary motion's:
-  on a shake that clips more on one side than the other the velocity would then miss the clipped
-  side's impulse, biased, and the tilt would follow (a synthetic fast translation
-  read by a ±4 g accelerometer, 4 % of its samples clipped: 2.16° dropped, 0.57° kept).
+* for a clipped gyro axis, to the tilt variance (:attr:`Limits.tilt_var_rad2`, added where the
+  filter adds a gyro dropout's; the projection of the axis on the horizontal is at most 1, so
+  adding it to both tilt variances is conservative). The widened σ lets the accelerometer pull
+  the tilt back;
+* for a clipped accelerometer axis (its other axes are right), to both horizontal velocity
+  variances (:attr:`Limits.vel_var_m2_s2`, the velocity's process noise). Dropping the sample
+  instead would treat a reading known to be beyond the range as an unknown of the size of an
+  ordinary motion's: on a shake that clips more on one side than the other the velocity would
+  then miss the clipped side's impulse, biased, and the tilt would follow (a synthetic fast
+  translation read by a ±4 g accelerometer, 4 % of its samples clipped: 2.16° dropped, 0.57°
+  kept).
+
+A recording without a clipped sample is filtered exactly as read (the readings handed on are the
+arrays given). A stream (:class:`verticality.tilt.stream.Stream`) cannot see a run's end and
+keeps the bound (``find_limits(..., fit_peaks=False)``).
 
 Either way the sample is flagged ``CLIPPED``.
 
@@ -96,7 +100,14 @@ from verticality.tilt.params import MAX_ACC_M_S2, MAX_RATE_RAD_S
 MIN_RUN = 4  # consecutive identical (non-held) samples at an extreme that make it a clip level
 GYR_FLOOR_RAD_S = 2.0  # the smallest common gyro range is ±125 °/s ≈ 2.18 rad/s
 ACC_FLOOR_M_S2 = 1.5 * G_M_S2  # the smallest common accelerometer range is ±2 g
-EXCESS_FRACTION = 0.5  # σ of a clipped gyro axis's unknown excess, as a fraction of the clip level
+EXCESS_FRACTION = 0.5  # σ of a clipped run's excess where no peak is fitted, × the clip level
+EXCESS_SPREAD = 0.5  # σ of a fitted peak's excess (its integral over the run), × that integral
+FLANK_MIN = 2  # unclipped samples needed on each side of a clipped run to fit its peak
+FLANK_MAX = 8  # the most samples of each flank the fit uses
+# a motion's peak is fuller than the parabola through its flanks (a swing's is a sinusoid's top:
+# on the saturation classes the parabola finds 0.87-0.92 of the excess, the chords' bound 1.5-2
+# times it): the peak is taken this share of the way from the parabola to that bound
+PEAK_CHORD_SHARE = 0.125
 PLANE_TOL = 1.0 / 16.0  # a plateau's spread along its raw axis, as a fraction of the noise σ
 PLANE_BAND = 0.05  # the share of the extreme within which a calibrated plateau wanders
 PLANE_TILT_RAD = 0.1  # the largest angle between a raw axis and its calibrated axis
@@ -115,12 +126,24 @@ class Limits(NamedTuple):
     tilt_var_rad2: np.ndarray  # (N,) the tilt variance the clipped gyro axes add at the sample
     vel_var_m2_s2: np.ndarray  # (N,) the velocity variance the clipped accelerometer axes add
     flags: np.ndarray  # (N,) int32: CLIPPED and HELD
+    gyr_excess_rad_s: np.ndarray  # (N, 3) the fitted excess of each clipped gyro reading, else 0
+    acc_excess_m_s2: np.ndarray  # (N, 3) likewise for the accelerometer
 
     def run_args(self, rows=slice(None)) -> dict:
         """The filter's per-sample arguments for the samples ``rows`` (``tilt_batch.run``'s
         ``tilt_var``, ``vel_var`` and ``flags``)."""
         return {"tilt_var": self.tilt_var_rad2[rows], "vel_var": self.vel_var_m2_s2[rows],
                 "flags": self.flags[rows]}
+
+    def readings(self, gyr, acc, rows=slice(None)):
+        """``(gyr, acc)`` of the samples ``rows`` as the filter takes them: each clipped reading
+        plus its fitted excess (:func:`peak_excess`); the arrays given, untouched, where nothing
+        is added (a recording without clipping is filtered exactly as read)."""
+        out = []
+        for x, e in ((gyr, self.gyr_excess_rad_s), (acc, self.acc_excess_m_s2)):
+            e = e[rows]
+            out.append(np.where(e != 0, x + e, x) if e.any() else x)
+        return out[0], out[1]
 
 
 def datasheet_ranges(gyr_range_deg_s=None, acc_range_g=None) -> dict:
@@ -458,6 +481,144 @@ def clip_variance(clipped, sigma_rad_s, dts) -> np.ndarray:
     return out
 
 
+def _runs(c):
+    """``(starts, ends)`` (inclusive) of the runs of True in the bool vector ``c``."""
+    k = np.flatnonzero(c)
+    if k.size == 0:
+        return k, k
+    breaks = np.flatnonzero(np.diff(k) != 1)
+    return (np.concatenate([k[:1], k[breaks + 1]]), np.concatenate([k[breaks], k[-1:]]))
+
+
+def _flank(ok, edge: int, step: int, count: int, t, reach: float) -> list:
+    """Up to ``count`` rows where ``ok`` is 1, from ``edge`` outwards (``step`` ±1): rows where it
+    is 0 are passed over, a row where it is −1 (clipped) or beyond ``reach`` s of ``edge`` ends
+    the flank."""
+    out = []
+    k, n = edge, ok.shape[0]
+    while len(out) < count and 0 <= k < n and ok[k] >= 0 and abs(t[k] - t[edge]) <= reach:
+        if ok[k] > 0:
+            out.append(k)
+        k += step
+    return out
+
+
+def _flank_count(a: int, b: int) -> int:
+    """The samples of each flank a clipped run ``a``…``b`` is fitted with (:func:`peak_excess`)."""
+    return int(min(FLANK_MAX, max(FLANK_MIN, (b - a + 1) // 4)))
+
+
+def _events(starts, ends):
+    """The clipped runs of one axis grouped into peaks: runs whose gap is no longer than a flank
+    (:func:`_flank_count`) are one peak whose noise crossed the level on its way (a noisy signal
+    near the level reads clipped, then not, then clipped again). Yields ``(a, b)``."""
+    j = 0
+    while j < starts.size:
+        a, b = int(starts[j]), int(ends[j])
+        j += 1
+        while j < starts.size and starts[j] - b - 1 <= _flank_count(a, b):
+            b = int(ends[j])
+            j += 1
+        yield a, b
+
+
+def peak_excess(x, clipped, dts, level, usable=None, sd=None):
+    """The excess of each clipped reading of ``x`` (N, 3) beyond its reading, fitted from the
+    samples either side of its clipped run: ``(excess (N, 3), sigma (N, 3))``, the excess signed
+    as the clip (0 where not clipped or not fitted) and the standard deviation of the unknown
+    constant rate that is left over each run (for :func:`clip_variance`). ``clipped`` (N, 3)
+    bool, ``dts`` (N,) the steps (non-positive or non-finite: skipped), ``level`` (N, 3) the clip
+    level's size (for a run not fitted), ``usable`` (N,) bool the rows a fit may use (not held),
+    ``sd`` (3,) the readings' white noise (default :func:`noise_std`).
+
+    A signal beyond a range passes it in a smooth peak: on each run (runs apart by less than a
+    flank are one peak, :func:`_events`), a parabola is fitted to the unclipped samples either
+    side (up to :data:`FLANK_MAX` on each, a quarter of the run's length, at least
+    :data:`FLANK_MIN`) and to the unclipped samples within, and kept below the lines fitted to
+    each flank (a concave peak lies below the extension of its chords: the bound of a peak that
+    enters and leaves as fast as its flanks say, twice the parabola's height). The truth lies
+    between the two: a motion's peak (a swing's, a sinusoid's top) is fuller than the parabola
+    through its flanks, so the peak is taken :data:`PEAK_CHORD_SHARE` of the way from the
+    parabola to the chords' bound. The excess is that peak minus the reading, never below 0 (the
+    true value is beyond the level: a one-sided constraint). Its integral over the run is what
+    the filter would otherwise miss (a rotation for the gyro, a velocity for the accelerometer);
+    that integral is left uncertain by :data:`EXCESS_SPREAD` of itself and by the flanks' noise
+    through the fit.
+    A run whose flanks are missing (the recording's ends, another clipped run next to it), not
+    concave, or that does not rise into the clip and fall out of it gets no excess and σ =
+    :data:`EXCESS_FRACTION` × its level (the model without the fit)."""
+    x = np.asarray(x, dtype=np.float64)
+    n = x.shape[0]
+    d = np.where(np.isfinite(dts) & (dts > 0), dts, 0.0)
+    t = np.cumsum(d)
+    excess, sigma = np.zeros(x.shape), np.zeros(x.shape)
+    if not clipped.any():
+        return excess, sigma
+    sd = noise_std(x) if sd is None else sd
+    step = float(np.median(d[d > 0])) if np.any(d > 0) else 0.0
+    usable = np.ones(n, dtype=bool) if usable is None else usable
+    for i in range(x.shape[1]):
+        col, c = x[:, i], clipped[:, i]
+        # per row: 1 a fit may use it, 0 it is passed over (held, missing, no time), −1 clipped
+        ok = np.where(c, -1, np.where(usable & np.isfinite(col) & (d > 0), 1, 0))
+        for a, b in _events(*_runs(c)):
+            e, s_rate = _run_excess(col, a, b, t, d, ok, step, sd[i])
+            at = slice(a, b + 1)
+            if e is None:  # not fitted
+                sigma[at, i] = np.where(c[at], EXCESS_FRACTION * level[at, i], 0.0)
+            else:
+                excess[at, i] = e
+                sigma[at, i] = np.where(c[at], s_rate, 0.0)
+    return excess, sigma
+
+
+def _run_excess(col, a: int, b: int, t, d, ok, step: float, sd: float):
+    """The fitted excess (signed, 0 on the unclipped rows) of the peak ``a``…``b`` of one axis
+    and the σ of the constant rate left over its clipped rows (:func:`peak_excess`), or ``(None,
+    None)``."""
+    count = _flank_count(a, b)
+    reach = 2.0 * (count + 1) * step  # (a flank does not cross a gap in the time stamps)
+    left = _flank(ok, a - 1, -1, count, t, reach)[::-1]
+    right = _flank(ok, b + 1, 1, count, t, reach)
+    if len(left) < FLANK_MIN or len(right) < FLANK_MIN:
+        return None, None
+    rows = np.arange(a, b + 1)
+    clip = ok[a:b + 1] < 0
+    run = col[a:b + 1]
+    fin = clip & np.isfinite(run)
+    if not fin.any():
+        return None, None
+    sign = 1.0 if np.sum(run[fin]) >= 0 else -1.0
+    idx = np.concatenate([left, rows[ok[a:b + 1] > 0], right]).astype(int)
+    span = max(t[right[-1]] - t[left[0]], 1e-12)
+    tc = 0.5 * (t[left[0]] + t[right[-1]])
+    u = (t[idx] - tc) / span  # (scaled: the normal equations stay well conditioned)
+    y = sign * col[idx]
+    X = np.stack([np.ones_like(u), u, u * u], axis=1)
+    XtX = X.T @ X
+    if abs(np.linalg.det(XtX)) < 1e-12:
+        return None, None
+    c = np.linalg.solve(XtX, X.T @ y)
+    nl, nr = len(left), len(right)
+    line_l = np.polyfit(u[:nl], y[:nl], 1)
+    line_r = np.polyfit(u[-nr:], y[-nr:], 1)
+    if not (c[2] < 0 and line_l[0] > 0 and line_r[0] < 0):
+        return None, None
+    ur = (t[a:b + 1] - tc) / span
+    lines = np.minimum(np.polyval(line_l, ur), np.polyval(line_r, ur))
+    peak = np.minimum(c[0] + c[1] * ur + c[2] * ur * ur, lines)
+    peak = peak + PEAK_CHORD_SHARE * (lines - peak)
+    e = np.where(fin, np.maximum(peak - sign * np.where(fin, run, 0.0), 0.0), 0.0)
+    w = np.where(clip, d[a:b + 1], 0.0)
+    duration = float(np.sum(w))
+    if duration <= 0:
+        return None, None
+    integral = float(np.sum(e * w))
+    g = np.array([duration, float(np.sum(w * ur)), float(np.sum(w * ur * ur))])
+    noise_var = float(g @ np.linalg.solve(XtX, g)) * sd * sd
+    return sign * e, math.sqrt((EXCESS_SPREAD * integral) ** 2 + noise_var) / duration
+
+
 def known_mask(mask, n: int, name: str) -> np.ndarray | None:
     """A per-sample, per-axis clip mask given by the caller as (N, 3) bool (None: none given),
     else a one-line ``InputError``."""
@@ -471,7 +632,8 @@ def known_mask(mask, n: int, name: str) -> np.ndarray | None:
 
 
 def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=None,
-                infer: bool = True, prev=None, gyr_clipped=None, acc_clipped=None) -> Limits:
+                infer: bool = True, prev=None, gyr_clipped=None, acc_clipped=None,
+                fit_peaks: bool = True) -> Limits:
     """The clipped and held samples of a recording (module doc): gyro (N, 3) rad/s, accelerometer
     (N, 3) m/s², ``dt_s`` scalar or (N,). ``gyr_range_rad_s``, ``acc_range_m_s2``: the sensor's
     full-scale readings (scalar or (3,)); a component at or beyond them is clipped. Without them
@@ -482,7 +644,9 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     bool, the components a log says clipped (a flight controller's per-sample clip bits: its
     samples are averages that never sit at full scale), clipped in addition to those found here,
     with the range as the level of their excess where it is known, else the reading's size (at
-    least the smallest common range)."""
+    least the smallest common range). ``fit_peaks=False``: no run's peak is fitted, every run
+    gets σ = :data:`EXCESS_FRACTION` × its level and no excess (what a stream, which cannot see
+    a run's end, does: :class:`verticality.tilt.stream.Stream`)."""
     gyr = np.asarray(gyr_rad_s, dtype=np.float64)
     acc = np.asarray(acc_m_s2, dtype=np.float64)
     n = gyr.shape[0]
@@ -508,14 +672,18 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
         a_level = np.where(a_known & ~a_axes, reported, a_level)
         a_axes = a_axes | a_known
     acc_clipped = np.any(a_axes, axis=1)
-    vel_var = np.zeros(n)
+    vel_var, a_excess = np.zeros(n), np.zeros(acc.shape)
     if acc_clipped.any():
-        vel_var = clip_variance(a_axes, EXCESS_FRACTION * a_level, dts)
+        a_excess, sigma = (peak_excess(acc_read, a_axes, dts, a_level, ~held) if fit_peaks
+                           else (a_excess, EXCESS_FRACTION * a_level))
+        vel_var = clip_variance(a_axes, sigma, dts)
     flags = np.where(held, np.int32(HELD), np.int32(0))
-    var = np.zeros(n)
+    var, g_excess = np.zeros(n), np.zeros(gyr.shape)
     if gyr_clipped.any():
-        var = clip_variance(gyr_clipped, EXCESS_FRACTION * g_level, dts)
+        g_excess, sigma = (peak_excess(gyr_read, gyr_clipped, dts, g_level, ~held) if fit_peaks
+                           else (g_excess, EXCESS_FRACTION * g_level))
+        var = clip_variance(gyr_clipped, sigma, dts)
         flags |= np.where(gyr_clipped.any(axis=1), np.int32(CLIPPED), np.int32(0))
     if acc_clipped.any():
         flags |= np.where(acc_clipped, np.int32(CLIPPED), np.int32(0))
-    return Limits(gyr_clipped, acc_clipped, held, var, vel_var, flags)
+    return Limits(gyr_clipped, acc_clipped, held, var, vel_var, flags, g_excess, a_excess)
