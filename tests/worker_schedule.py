@@ -71,6 +71,7 @@ COST_S = {
     "test_sweep_knobs.py": 14.0,  # ~
     "test_logs_cli.py": 13.0,
     "test_logs.py": 10.0,
+    "test_tilt_clip_excess.py": 10.0,
     "test_tilt_shock_recovery.py": 5.0,
     "test_newton.py": 28.0,
     "test_tahboub_experiments.py": 26.0,
