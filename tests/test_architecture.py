@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import ast
 import dataclasses
+import functools
 import re
 from pathlib import Path
 
@@ -117,11 +118,16 @@ def test_one_medial_value_through_simulator_ekf_newton_linearization_observabili
 
 
 # ------------------------------------------------------------------------------ the code's shape
-def _modules():
+@functools.cache
+def _modules() -> tuple:
+    """(module name, path, syntax tree) of every module of the package, parsed once for the
+    tests below (which only read the trees)."""
+    out = []
     for path in sorted(SRC.rglob("*.py")):
         rel = path.relative_to(SRC.parent).with_suffix("")
         parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
-        yield ".".join(parts), path, ast.parse(path.read_text(encoding="utf-8"))
+        out.append((".".join(parts), path, ast.parse(path.read_text(encoding="utf-8"))))
+    return tuple(out)
 
 
 def _resolve(module: str, path: Path, node: ast.ImportFrom) -> str:

@@ -99,12 +99,14 @@ def test_non_finite_measurement_never_makes_nan():
         filt.init(jnp.zeros(2))
 
 
-def test_all_missing_measurement_is_exactly_predict(medial):
+def test_all_missing_measurement_is_exactly_predict(medial, medial_step):
+    """Compiled, as ``run`` uses them: ``step`` with the shapes of test_run_equals_repeated_step
+    (four substeps, a float64 measurement), so that both use one compiled step."""
     filt, x = medial
     s = filt.init(x, 0.01 * jnp.eye(ekf.N_ERR))
-    u = _u_blocks(2)
-    pred = filt.predict(s, u, 0.02)
-    new, out = filt.step(s, u, jnp.full(ekf.N_Y, jnp.nan), 0.02)
+    u = _u_blocks(4)
+    pred = jax.jit(filt.predict)(s, u, 0.02)
+    new, out = medial_step(s, u, jnp.full(ekf.N_Y, jnp.nan, dtype=float), 0.02)
     for a, b in zip(jax.tree_util.tree_leaves(new), jax.tree_util.tree_leaves(pred), strict=True):
         np.testing.assert_array_equal(a, b)
     assert bool(out.predict_only) and not bool(out.rejected)
@@ -138,6 +140,13 @@ def medial():
     x = _state(so3.exp(jnp.array([0.1, -0.2, 0.3])), jnp.array([0.3, 0.1, -0.2]),
                so3.exp(jnp.array([0.2, 0.1, 0.4])), jnp.array([0.5, -0.3, 1.0]))
     return filt, x
+
+
+@pytest.fixture(scope="module")
+def medial_step(medial):
+    """``medial``'s ``step`` compiled once for the module (each ``jax.jit`` of the bound method
+    would trace and compile it again)."""
+    return jax.jit(medial[0].step)
 
 
 def test_autodiff_jacobians_match_finite_differences(medial):
@@ -289,16 +298,16 @@ def test_common_initial_covariance_is_one_rotation_of_both(medial):
                                ekf_runs.INITIAL_ERROR_RAD**2 * np.eye(12), atol=0.0)
 
 
-def test_run_equals_repeated_step(medial):
+def test_run_equals_repeated_step(medial, medial_step):
     filt, x = medial
     s0 = filt.init(x, 0.01 * jnp.eye(ekf.N_ERR))
-    n = 5
+    n = 30  # test_estimator_contract's length: one compiled run for both
     us = HeadInput(jnp.tile(jnp.array([0.01, -0.02, 0.005]), (n, 4, 1)),
                    jnp.tile(jnp.array([1.0, 0.5, -0.3]), (n, 4, 1)))
     ys = jnp.asarray(np.random.default_rng(4).normal(scale=0.1, size=(n, ekf.N_Y)))
     ys = ys.at[2].set(jnp.nan).at[3, 0].set(jnp.nan)
     final, outs = jax.jit(filt.run)(s0, us, ys, 0.02)
-    step = jax.jit(filt.step)
+    step = medial_step
     s = s0
     for k in range(n):
         s, out = step(s, jax.tree_util.tree_map(lambda a, k=k: a[k], us), ys[k], 0.02)

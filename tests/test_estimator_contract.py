@@ -6,6 +6,8 @@ flagged, a non-finite input never makes a finite estimate non-finite, and partia
 flagged per component (or for the whole sample, where the estimator uses a sample all or
 nothing)."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -45,8 +47,11 @@ def _otolith(form):
                                                       otolith_canal.steady_state_gain())}[form]()
 
 
+@functools.cache
 def _case(name):
-    """(estimator, x0, P0, us (N, ...), ys (N, p), dt) for each estimator of this half."""
+    """(estimator, x0, P0, us (N, ...), ys (N, p), dt) for each estimator of this half: one value
+    per estimator for the module, so that its compiled methods (:func:`_compiled`) are shared by
+    the tests (the cases copy what they change)."""
     rng = np.random.default_rng(4)
     if name in ("time-varying", "steady-state", "continuous"):
         ys = rng.normal(size=(N, 2)) * np.array([0.01, 0.3])
@@ -97,6 +102,15 @@ def _case(name):
     return est, x0, None, us, ys, 0.025
 
 
+@functools.cache
+def _compiled(name, method):
+    """``_case(name)``'s estimator's ``method``, compiled once for the module (as ``run`` uses it;
+    each ``jax.jit`` of a bound method would trace and compile it again); the tilt filter's own
+    (NumPy at its edges) as it is."""
+    fn = getattr(_case(name)[0], method)
+    return fn if name == "tilt" else jax.jit(fn)
+
+
 NAMES = ["time-varying", "steady-state", "continuous", "luenberger", "disturbance", "newton", "ekf",
          "tilt", "merfeld", "laurens"]
 WHOLE_SAMPLE = {"tilt"}  # estimators that use a sample all or nothing (one flag per sample)
@@ -135,8 +149,8 @@ def test_run_is_repeated_step(name):
     ys[5] = np.nan  # a sample with nothing measured
     ys[9, -1] = np.nan  # and one with a component missing
     s0 = est.init(x0, P0)
-    final, outs = est.run(s0, us, ys, dt) if name == "tilt" else jax.jit(est.run)(s0, us, ys, dt)
-    step = est.step if name == "tilt" else jax.jit(est.step)
+    final, outs = _compiled(name, "run")(s0, us, ys, dt)
+    step = _compiled(name, "step")
     s = s0
     for k in range(N):
         s, o = step(s, _u(us, k), ys[k], dt)
@@ -156,18 +170,18 @@ def test_run_is_repeated_step(name):
 def test_no_measurement_is_predict_and_finite_stays_finite(name):
     est, x0, P0, us, ys, dt = _case(name)
     s0 = est.init(x0, P0)
-    jit = (lambda f: f) if name == "tilt" else jax.jit
+    step = _compiled(name, "step")
     # a float64 array like the measurements `run` gets (a weakly typed one would compile `step`
     # again rather than reuse test_run_is_repeated_step's)
-    s_nan, out = jit(est.step)(s0, _u(us, 0), jnp.full(np.shape(ys)[1], jnp.nan, dtype=float),
-                               dt)
-    s_pred = jit(est.predict)(s0, _u(us, 0), dt)
+    s_nan, out = step(s0, _u(us, 0), jnp.full(np.shape(ys)[1], jnp.nan, dtype=float), dt)
+    s_pred = _compiled(name, "predict")(s0, _u(us, 0), dt)
     for a, b in zip(jax.tree_util.tree_leaves(s_nan), jax.tree_util.tree_leaves(s_pred),
                     strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert not np.any(np.asarray(out.measured))
-    # a non-finite input: the estimate stays finite (the previous one is kept)
-    u_bad = jax.tree_util.tree_map(lambda a: jnp.full_like(jnp.asarray(a, dtype=float), jnp.nan),
-                                   _u(us, 0))
-    s_bad, _ = jit(est.step)(s0, u_bad, jnp.asarray(ys[0]), dt)
+    # a non-finite input: the estimate stays finite (the previous one is kept). Of the type of
+    # the input `step` had above (the estimators without one take a weakly typed 0.0: a float64
+    # array would compile `step` again)
+    u_bad = jax.tree_util.tree_map(lambda a: jnp.full_like(jnp.asarray(a), jnp.nan), _u(us, 0))
+    s_bad, _ = step(s0, u_bad, jnp.asarray(ys[0]), dt)
     assert np.all(np.isfinite(_estimate(s_bad)))

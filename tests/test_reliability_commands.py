@@ -152,7 +152,26 @@ def test_an_oversized_sweep_command_is_one_line_and_its_limit_can_be_raised(tmp_
 
 # -------------------------------------------------------------------------- sweep resume
 @pytest.fixture(scope="module")
-def swept(tmp_path_factory):
+def tasks_in_process():
+    """``distribute.run`` computes its tasks one after the other in this process: the engine's own
+    path without a cluster (``map_tasks`` given neither a scheduler nor workers), the same
+    ``run_task`` on the same rows. These cases test which parts a resume keeps, not the cluster
+    (each ``run`` here would otherwise start one of worker processes that import JAX and load the
+    kernel: ~15 CPU s a run); tests/test_sweep.py runs the tiny sweep on a cluster of one and of
+    two workers and checks that its table is the in-process one to the bit."""
+    from verticality.sweep import distribute, engine
+
+    def serial(fn, calls, *, scheduler=None, workers=None, **kwargs):
+        assert scheduler is None  # (a local cluster only: what it would have started)
+        return engine.map_tasks(fn, calls, **kwargs)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(distribute, "map_tasks", serial)
+        yield
+
+
+@pytest.fixture(scope="module")
+def swept(tmp_path_factory, tasks_in_process):
     """The tiny sweep, computed in this process, and the same kernel's sweep of another spec
     (other seeds): reference folders whose parts the cases copy and damage."""
     from verticality.sweep import distribute
@@ -210,7 +229,8 @@ def damaged_sweep(rng: random.Random, ref: Path, other: Path, d: Path) -> tuple[
 
 @settings(FEW, max_examples=6)
 @given(seed=SEEDS)
-def test_resume_keeps_only_parts_that_prove_they_are_this_specs(swept, tmp_path_factory, seed):
+def test_resume_keeps_only_parts_that_prove_they_are_this_specs(swept, tasks_in_process,
+                                                                 tmp_path_factory, seed):
     from verticality.sweep import distribute
     from verticality.sweep import spec as S
 
@@ -361,11 +381,13 @@ def test_report_on_a_damaged_results_file_never_shows_a_wrong_verdict(tmp_path_f
     found: list[str] = []
     _check_status(code, err, found)
     assert found == []
-    bad_pass = any(isinstance(c, dict) and "pass" in c and "value" in c
-                   and not isinstance(c["pass"], bool)
-                   for e in (data.get("experiments") or {}).values() if isinstance(e, dict)
-                   for c in (e.get("metrics") or {}).values()
-                   if isinstance(e.get("metrics"), dict))
+    # (the damage may have replaced "experiments" or an experiment's "metrics" by a value of
+    # another type: such a file names no check to misreport)
+    entries = data.get("experiments")
+    bad_pass = isinstance(entries, dict) and any(
+        isinstance(c, dict) and "pass" in c and "value" in c and not isinstance(c["pass"], bool)
+        for e in entries.values() if isinstance(e, dict) and isinstance(e.get("metrics"), dict)
+        for c in e["metrics"].values())
     if bad_pass:
         assert code == 2 and "pass" in err
     if code == 0:

@@ -1,5 +1,5 @@
 """`verticality sweep`: the spec's errors, the design's order, a real local Dask cluster of two
-worker processes, worker-count independence and resume."""
+worker processes, worker-count independence and resume (its tasks computed in this process)."""
 
 from __future__ import annotations
 
@@ -137,7 +137,18 @@ def test_task_size_does_not_change_a_run(two_workers):
     assert one.equals(pq.read_table(out2 / "results.parquet"))
 
 
-def test_resume_recomputes_only_the_missing_part(two_workers, tmp_path):
+def test_resume_recomputes_only_the_missing_part(two_workers, tmp_path, monkeypatch):
+    """Which parts a resume keeps is decided before any task is handed out; the tasks left are
+    computed in this process (the engine's path without a cluster, the same ``run_task``), as
+    tests/test_reliability_commands.py's resume cases do: the cluster itself is the two-worker and
+    one-worker tests' (a cluster of one started here would cost a process importing JAX)."""
+    from verticality.sweep import engine
+
+    def in_process(fn, calls, *, scheduler=None, workers=None, **kwargs):
+        assert scheduler is None and workers == 1
+        return engine.map_tasks(fn, calls, **kwargs)
+
+    monkeypatch.setattr(distribute, "map_tasks", in_process)
     spec, out2, _ = two_workers
     out = tmp_path / "r"
     out.mkdir()

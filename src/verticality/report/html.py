@@ -499,7 +499,8 @@ def render(results: dict, results_dir: Path, built: dict) -> str:
     mode = (provenance or {}).get("mode", "unknown")
     version = (provenance or {}).get("version", "unknown")
     git = (provenance or {}).get("git") or {}
-    commit = git.get("commit", "")[:12] if isinstance(git, dict) else ""
+    commit = git.get("commit") if isinstance(git, dict) else None
+    commit = commit[:12] if isinstance(commit, str) else ""  # (a damaged file: no commit shown)
     quick_note = ("<p class='callout'>Quick mode: shorter runs and fewer Monte Carlo "
                   "repetitions, so the numbers are not the ones of docs/reproduction.md; run "
                   "<code>verticality reproduce</code> without <code>--quick</code> for those.</p>"
