@@ -26,10 +26,14 @@ BAD = "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n0,0,0,0,0,0,9.81\nnot a number,0,0
 
 def _recordings(folder_path):
     """Three short tumbling recordings (the second with five missing accelerometer samples and a
-    0.5 s gap in its time stamps) and one file that is not an IMU CSV."""
+    0.5 s gap: the 50 samples the sensor took while it turned on are missing, so its readings
+    jump across the gap) and one file that is not an IMU CSV."""
     folder_path.mkdir()
     for i, n in enumerate((400, 400, 400)):
-        gyr, acc, _ = tumbling(np.array([0.01, -0.02, 0.0]), n, seed=i)
+        lost = 50 if i == 1 else 0
+        gyr, acc, _ = tumbling(np.array([0.01, -0.02, 0.0]), n + lost, seed=i)
+        gone = np.s_[200:200 + lost]
+        gyr, acc = np.delete(gyr, gone, axis=0), np.delete(acc, gone, axis=0)
         t = np.arange(n) * 0.01
         if i == 1:
             acc[100:105] = np.nan

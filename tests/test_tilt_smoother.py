@@ -62,12 +62,22 @@ def test_the_end_of_the_recording_is_the_filter_estimate():
 
 
 def _with_gap(seed_after: int):
-    gyr, acc, dt, up = fault_recording("shake", n=6000, seed=3)
-    dts = np.full(gyr.shape[0], dt)
-    k = 3001
-    dts[k] = 0.5  # a gap
-    if seed_after:  # other data after the gap
-        g2, a2, _, up2 = fault_recording("shake", n=6000, seed=seed_after)
+    """A recording with a 0.5 s gap before sample ``k``: the samples the sensor took meanwhile are
+    missing (its readings jump across the gap; a step of the stamps over readings that go on
+    would be a clock jump), and with ``seed_after`` other data after the gap."""
+    k, n = 3001, 6000
+
+    def shake(seed):
+        lost = 49  # 0.5 s at fault_recording's 100 Hz, less the step that spans them
+        gyr, acc, dt, up = fault_recording("shake", n=n + lost, seed=seed)
+        keep = np.r_[0:k, k + lost:n + lost]
+        return gyr[keep], acc[keep], dt, up[keep]
+
+    gyr, acc, dt, up = shake(3)
+    dts = np.full(n, dt)
+    dts[k] = 0.5
+    if seed_after:
+        g2, a2, _, up2 = shake(seed_after)
         gyr[k:], acc[k:], up[k:] = g2[k:], a2[k:], up2[k:]
     return gyr, acc, dts, up, k
 

@@ -70,7 +70,9 @@ typically exceeds its range by a fraction of it: a ±7 rad/s gyro on a 10–12 r
   kept).
 
 A recording without a clipped sample is filtered exactly as read (the readings handed on are the
-arrays given). A stream (:class:`verticality.tilt.stream.Stream`) cannot see a run's end and
+arrays given). A clip that only the log reports, on readings that do not sit at the level (a
+sensor's averaged samples, of whose raw samples some clipped), has no peak to fit and keeps the
+bound. A stream (:class:`verticality.tilt.stream.Stream`) cannot see a run's end and
 keeps the bound (``find_limits(..., fit_peaks=False)``).
 
 Either way the sample is flagged ``CLIPPED``.
@@ -663,6 +665,9 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
                                     GYR_FLOOR_RAD_S, infer)
     a_axes, a_level = _clipped(acc_read, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2,
                                infer)
+    # a clip the log reports on a reading that does not sit at its level (the average of raw
+    # samples of which some clipped) shows no peak to fit: it keeps the bound
+    g_seen, a_seen = gyr_clipped, a_axes
     if g_known is not None:  # clips the log reports (module doc)
         reported = _reported_level(gyr, gyr_range_rad_s, "gyr_range_rad_s", GYR_FLOOR_RAD_S)
         g_level = np.where(g_known & ~gyr_clipped, reported, g_level)
@@ -674,14 +679,16 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     acc_clipped = np.any(a_axes, axis=1)
     vel_var, a_excess = np.zeros(n), np.zeros(acc.shape)
     if acc_clipped.any():
-        a_excess, sigma = (peak_excess(acc_read, a_axes, dts, a_level, ~held) if fit_peaks
+        a_excess, sigma = (peak_excess(acc_read, a_seen, dts, a_level, ~held) if fit_peaks
                            else (a_excess, EXCESS_FRACTION * a_level))
+        sigma = np.where(a_axes & ~a_seen, EXCESS_FRACTION * a_level, sigma)
         vel_var = clip_variance(a_axes, sigma, dts)
     flags = np.where(held, np.int32(HELD), np.int32(0))
     var, g_excess = np.zeros(n), np.zeros(gyr.shape)
     if gyr_clipped.any():
-        g_excess, sigma = (peak_excess(gyr_read, gyr_clipped, dts, g_level, ~held) if fit_peaks
+        g_excess, sigma = (peak_excess(gyr_read, g_seen, dts, g_level, ~held) if fit_peaks
                            else (g_excess, EXCESS_FRACTION * g_level))
+        sigma = np.where(gyr_clipped & ~g_seen, EXCESS_FRACTION * g_level, sigma)
         var = clip_variance(gyr_clipped, sigma, dts)
         flags |= np.where(gyr_clipped.any(axis=1), np.int32(CLIPPED), np.int32(0))
     if acc_clipped.any():
