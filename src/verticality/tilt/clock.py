@@ -254,9 +254,12 @@ class Clock:
         prev = [np.full(6, np.nan) if v is None else np.array(v) for v in (self.x2, self.x1)]
         xx = np.concatenate([np.stack(prev), x])
         okx = np.concatenate([[self.x2 is not None, self.x1 is not None], ok])
-        e = (xx[2:] - 2.0 * xx[1:-1]) + xx[:-2]
-        eg2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2]
-        ea2 = e[:, 3] * e[:, 3] + e[:, 4] * e[:, 4] + e[:, 5] * e[:, 5]
+        # a corrupt reading (beyond any sensor's range) may overflow here; its rows are not
+        # judged (has_e below)
+        with np.errstate(over="ignore", invalid="ignore"):
+            e = (xx[2:] - 2.0 * xx[1:-1]) + xx[:-2]
+            eg2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2]
+            ea2 = e[:, 3] * e[:, 3] + e[:, 4] * e[:, 4] + e[:, 5] * e[:, 5]
         has_e = okx[2:] & okx[1:-1] & okx[:-2]
         dd = d.copy()
         start = 0
