@@ -118,8 +118,8 @@ def _shaken(rng, duration_s):
     """:data:`_SHAKEN`: the vigorous hand-held rotations with translations of up to ±15 cm at
     1.5–4 Hz, whose accelerations (up to 2–4 g beyond gravity) pass a small accelerometer's
     range."""
-    ra, rf, rp = (jnp.asarray(v) for v in rr._sines(rng, 3, [0.8, 0.5, 0.8], 1.5, 4.0))
-    pa, pf, pp = (jnp.asarray(v) for v in rr._sines(rng, 3, [0.15] * 3, 1.5, 4.0))
+    ra, rf, rp = (jnp.asarray(v) for v in rr.random_sines(rng, 3, [0.8, 0.5, 0.8], 1.5, 4.0))
+    pa, pf, pp = (jnp.asarray(v) for v in rr.random_sines(rng, 3, [0.15] * 3, 1.5, 4.0))
 
     def series(t, a, f, ph):
         return jnp.sum(a * (jnp.sin(2 * jnp.pi * f * t + ph) - jnp.sin(ph)), axis=1)
@@ -188,7 +188,7 @@ def _shock_trajectory(rng, duration_s):
     :data:`SHOCK_REST_S` after it; each shock a biphasic acceleration spike of peak 10–30 g
     (σ 1–3 ms, random direction) and a rotation of the sensor by a Gaussian rate pulse of peak
     10–15 rad/s (σ 2–5 ms) about its x or y axis."""
-    ra, rf, rp = (jnp.asarray(v) for v in rr._sines(rng, 3, [0.4, 0.4, 0.6], 0.1, 0.5))
+    ra, rf, rp = (jnp.asarray(v) for v in rr.random_sines(rng, 3, [0.4, 0.4, 0.6], 0.1, 0.5))
     times = jnp.asarray(SHOCK_TIMES_S)
     peak_a = rng.uniform(10.0, 30.0, len(SHOCK_TIMES_S)) * G_M_S2
     sig_a = rng.uniform(1e-3, 3e-3, len(SHOCK_TIMES_S))

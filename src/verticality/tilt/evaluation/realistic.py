@@ -88,7 +88,7 @@ def draw_errors(rng: np.random.Generator) -> SensorErrors:
         rate_hz=float(rng.choice(RATES_HZ)))
 
 
-def _sines(rng, n_axes, amp, f_lo, f_hi, n_terms=3):
+def random_sines(rng, n_axes, amp, f_lo, f_hi, n_terms=3):
     """Random sums of ``n_terms`` sinusoids per axis: (amplitudes, frequencies Hz, phases)."""
     a = rng.uniform(0.3, 1.0, (n_axes, n_terms)) * np.asarray(amp, float)[:, None] / n_terms
     return (a, rng.uniform(f_lo, f_hi, (n_axes, n_terms)),
@@ -121,8 +121,8 @@ def motion(kind: str, rng: np.random.Generator, duration_s: float = 60.0):
     rot_f = (0.5, 1.5) if fast else (0.1, 0.4)
     pos_amp = ([0.02] * 3 if rotation else ([0.2] * 3 if fast else [0.3] * 3))
     pos_f = (1.0, 3.0) if fast and not rotation else (0.2, 0.5)
-    ra, rf, rp = (jnp.asarray(v) for v in _sines(rng, 3, rot_amp, *rot_f))
-    pa, pf, pp = (jnp.asarray(v) for v in _sines(rng, 3, pos_amp, *pos_f))
+    ra, rf, rp = (jnp.asarray(v) for v in random_sines(rng, 3, rot_amp, *rot_f))
+    pa, pf, pp = (jnp.asarray(v) for v in random_sines(rng, 3, pos_amp, *pos_f))
 
     def series(t, a, f, ph):
         return jnp.sum(a * (jnp.sin(2 * jnp.pi * f * t + ph) - jnp.sin(ph)), axis=1)
@@ -140,8 +140,8 @@ def _vigorous(rng: np.random.Generator, duration_s: float):
     """:data:`VIGOROUS`: rotations of up to ±0.8 rad in roll and yaw (±0.5 rad in pitch, clear of
     the Euler angles' singularity) and hand translations of up to ±5 cm, both at 1.5–4 Hz,
     throughout."""
-    ra, rf, rp = (jnp.asarray(v) for v in _sines(rng, 3, [0.8, 0.5, 0.8], 1.5, 4.0))
-    pa, pf, pp = (jnp.asarray(v) for v in _sines(rng, 3, [0.05] * 3, 1.5, 4.0))
+    ra, rf, rp = (jnp.asarray(v) for v in random_sines(rng, 3, [0.8, 0.5, 0.8], 1.5, 4.0))
+    pa, pf, pp = (jnp.asarray(v) for v in random_sines(rng, 3, [0.05] * 3, 1.5, 4.0))
 
     def series(t, a, f, ph):
         return jnp.sum(a * (jnp.sin(2 * jnp.pi * f * t + ph) - jnp.sin(ph)), axis=1)
