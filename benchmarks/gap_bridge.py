@@ -89,12 +89,14 @@ def main(argv=None) -> None:
     ap.add_argument("--rates", default="1000,286,100,50")
     ap.add_argument("--gaps", default="0.2,0.5,1")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--dropout-only", action="store_true",
+                    help="the drop-out class alone (no BROAD, no choice)")
     args = ap.parse_args(argv)
     taus = [float(v) for v in args.taus.split(",")]
     rates = [float(v) for v in args.rates.split(",")]
     gaps = [float(v) for v in args.gaps.split(",")]
     d = dropout(taus, args.seeds, rates)
-    b = broad_gaps(taus, gaps, args.broad_dir)
+    b = {} if args.dropout_only else broad_gaps(taus, gaps, args.broad_dir)
 
     print("drop-out class (seeds 0.." f"{args.seeds - 1}): ours / VQF, offline / offlineVQF, 2σ")
     print(f"{'tau s':>6s} {'Hz':>5s} {'ours':>7s} {'VQF':>7s} {'ratio':>6s} {'off':>7s} "
@@ -103,6 +105,11 @@ def main(argv=None) -> None:
         print(f"{tau:6g} {rate:5g} {r['ours']:7.3f} {r['vqf']:7.3f} {r['ratio']:6.3f} "
               f"{r['offline']:7.3f} {r['ovqf']:7.3f} {r['offline_ratio']:6.3f} "
               f"{100 * r['within_2sigma']:5.1f}% {100 * r['within_2sigma_offline']:5.1f}%")
+    if args.dropout_only:
+        for tau in taus:
+            print(f"{tau:6g}", " ".join(f"{k}={v:.2f}" for k, v in d[(tau, rates[0])]
+                                         ["per_case"].items()))
+        return
     print("\nBROAD, eight gaps per trial: mean RMSE (deg) 0-3 s / 1.5-5 s after each gap / trial")
     for (tau, gap), r in b.items():
         m = r["mean"]
