@@ -97,8 +97,10 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     :func:`verticality.tilt.batch.chunk_data`). ``head`` (``HEAD``): ``sums0``, the sums
     the first block starts from (the samples of a block begun before the chunk; they stand in for
     as many leading samples of ``data``, which the caller fills with skipped samples, dt = NaN),
-    and ``n_update``, the number of leading blocks whose update is applied: a block after them is
-    the current, unfinished block, whose sums are returned.
+    ``n_update``, the number of leading blocks whose update is applied: a block after them is
+    the current, unfinished block, whose sums are returned; and ``gyr_prev``, the gyro reading
+    before the chunk's first row (the rate before a gap there; each other row's is the row
+    before it).
 
     Returns ``(x, sums, (quat, up, roll, pitch, flags, rows))``: the filter after ``n_update``
     blocks; the sums of block ``n_update`` (of the last block when all are updated); per sample,
