@@ -115,8 +115,9 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
             x = core.initialize(x, acc[j], params, xp=np)
     # the chunks are dispatched first (the device works on them asynchronously); the host work
     # that does not need their outputs runs meanwhile, then their outputs are collected
-    run_ = _dispatch(params, block, x, sums, count, gyr, acc, dts, k, transitions, tv, vv) \
-        if k < n else None
+    gyr_prev = np.asarray(state.gyr_prev, dtype=np.float64)
+    run_ = _dispatch(params, block, x, sums, count, gyr, acc, dts, k, transitions, tv, vv,
+                     gyr_prev) if k < n else None
     # every sample is written below: by the samples up to the initialization and by the chunks
     res = empty_output(n, np.empty)
     if k > 0 and not bool(state.initialized):
@@ -127,7 +128,8 @@ def run(params, block: int, state: core.TiltState, gyr_rad_s, acc_m_s2, dt_s,
     if flags is not None:
         res.flags[:] |= np.asarray(flags, dtype=np.int32)
     res.measured[:] = accelerometer_used(res.flags)
-    final = core.TiltState(x, sums, np.int32(count), np.bool_(initialized))
+    final = core.TiltState(x, sums, np.int32(count), np.bool_(initialized),
+                           gyr[-1].copy() if n else gyr_prev)
     return (final, res, trans) if transitions else (final, res)
 
 
@@ -206,14 +208,21 @@ def _before_initialization(res, p, x, x_init, j, sums, gyr, acc, dts):
 _HEADS: dict = {}
 
 
-def _head(sums0, n_update: int, nb: int):
+_NO_GYR = np.full(3, np.nan)
+
+
+def _head(sums0, n_update: int, nb: int, gyr_prev=None):
     """The chunk header (``HEAD``); the usual one (no sums carried in: ``sums0`` None or empty;
-    every block updated) is put on the device once per chunk size."""
-    if n_update == nb and (sums0 is None or np.array_equal(sums0, _EMPTY_SUMS)):
+    every block updated; no gap at the chunk's first sample, which would need ``gyr_prev``, the
+    reading before it) is put on the device once per chunk size."""
+    if n_update == nb and gyr_prev is None and (sums0 is None
+                                                or np.array_equal(sums0, _EMPTY_SUMS)):
         if nb not in _HEADS:
-            _HEADS[nb] = jax.device_put(HEAD.pack(xp=np, sums0=_EMPTY_SUMS, n_update=nb))
+            _HEADS[nb] = jax.device_put(HEAD.pack(xp=np, sums0=_EMPTY_SUMS, n_update=nb,
+                                                  gyr_prev=_NO_GYR))
         return _HEADS[nb]
-    return HEAD.pack(xp=np, sums0=_EMPTY_SUMS if sums0 is None else sums0, n_update=n_update)
+    return HEAD.pack(xp=np, sums0=_EMPTY_SUMS if sums0 is None else sums0, n_update=n_update,
+                     gyr_prev=_NO_GYR if gyr_prev is None else gyr_prev)
 
 
 _EMPTY_SUMS = np.asarray(core.empty_sums(xp=np))
@@ -236,11 +245,13 @@ class _Dispatched(NamedTuple):
     dropout: np.ndarray | None  # what _dropout_variance gives (None: nothing to add)
 
 
-def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv=None, vv=None):
+def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv=None, vv=None,
+              gyr_prev=_NO_GYR):
     """Samples ``k`` to the end through the batch kernel, from the filter ``x`` and the current
-    block's ``sums0`` of ``count`` samples: every chunk dispatched (asynchronously), and the
-    host's own part of the result that needs no chunk's output computed meanwhile. Returns the
-    run in flight, which :func:`_collect` writes into the result."""
+    block's ``sums0`` of ``count`` samples (``gyr_prev`` the gyro reading before the run's first
+    sample): every chunk dispatched (asynchronously), and the host's own part of the result that
+    needs no chunk's output computed meanwhile. Returns the run in flight, which
+    :func:`_collect` writes into the result."""
     n = gyr.shape[0]
     pad = count  # the block began before sample k: its samples are in sums0
     base = k - pad  # sample index of virtual position 0 (the current block's start)
@@ -275,13 +286,18 @@ def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv
         m = min(size, nv - v)
         lead = pad if v == 0 else 0
         lo, hi = base + v + lead, base + v + m
+        # the reading before the chunk's first sample, for a gap there (bridged from it): in the
+        # row before that sample, or in the header when there is none
+        before = gyr[lo - 1] if lo > 0 else gyr_prev
+        first_gap = lo < hi and bool(core.gaps_in(dts[lo:lo + 1], p, xp=np)[0])
         data = chunk_data(nb, block, lead, gyr[lo:hi], acc[lo:hi], dts[lo:hi],
-                          None if tv is None else tv[lo:hi], None if vv is None else vv[lo:hi])
+                          None if tv is None else tv[lo:hi], None if vv is None else vv[lo:hi],
+                          gyr_before=before if lead else None)
         n_update = m // block if v + m == nv else nb
-        x, current, outs = tilt_kernels.run_chunk(x, _head(sums0 if v == 0 else None, n_update,
-                                                           nb),
-                                                  data, p_vec, block, p._fields, gaps=gaps,
-                                                  transitions=transitions)
+        head = _head(sums0 if v == 0 else None, n_update, nb,
+                     before if first_gap and not lead else None)
+        x, current, outs = tilt_kernels.run_chunk(x, head, data, p_vec, block, p._fields,
+                                                  gaps=gaps, transitions=transitions)
         if transitions:
             trans.append(outs[-1][:n_update])
             outs = outs[:-1]
@@ -317,17 +333,21 @@ def _collect(res, run_: _Dispatched):
     return np.asarray(x), sums, count, trans
 
 
-def chunk_data(nb: int, block: int, lead: int, gyr, acc, dts, tv=None, vv=None):
+def chunk_data(nb: int, block: int, lead: int, gyr, acc, dts, tv=None, vv=None,
+               gyr_before=None):
     """A chunk's input for ``tilt_kernels.run_chunk``: (``nb * block``, ``CHUNK_SAMPLE``), a row
     per sample, from the ``m`` samples ``gyr``, ``acc`` (m, 3), ``dts``, ``tv``, ``vv`` (m,)
     (None: zeros) placed from position ``lead`` on. The positions without a sample (the ``lead``
     ones, and those after the samples) are skipped samples (dt = NaN: BAD_DT), so that every
-    chunk has one of the two compiled shapes."""
+    chunk has one of the two compiled shapes; the last ``lead`` one holds ``gyr_before``, the
+    reading before the first sample (the rate before a gap there), if given."""
     size = nb * block
     m = lead + gyr.shape[0]
     rows = np.empty((size, CHUNK_SAMPLE.size))
     rows[:lead, :] = 0.0
     rows[:lead, CHUNK_SAMPLE.dt] = np.nan
+    if lead and gyr_before is not None:
+        rows[lead - 1, CHUNK_SAMPLE.gyr] = gyr_before
     rows[lead:m, CHUNK_SAMPLE.gyr] = gyr
     rows[lead:m, CHUNK_SAMPLE.acc] = acc
     rows[lead:m, CHUNK_SAMPLE.dt] = dts

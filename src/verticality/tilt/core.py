@@ -58,12 +58,15 @@ class TiltState(NamedTuple):
     """The filter state: ``x`` the filter at the start of the current block and ``sums`` the
     block's samples so far (flat vectors, fields named in :mod:`~verticality.estimators.
     tilt_layout`: ``X`` and ``S``), ``count`` the samples in the block, ``initialized`` whether an
-    accelerometer sample (or ``x0``) has set the tilt. Read the fields through the properties."""
+    accelerometer sample (or ``x0``) has set the tilt, ``gyr_prev`` the last sample's gyro
+    reading (the rate before a gap). Read the fields through the properties."""
 
     x: jax.Array  # (X.size,)
     sums: jax.Array  # (S.size,)
     count: jax.Array  # () int32
     initialized: jax.Array  # () bool
+    gyr_prev: jax.Array  # (3,) the previous sample's gyro reading (NaN before the first): the
+    #                      rate at a gap's start (bridge_share)
 
     @property
     def quat_E_S(self):
@@ -133,6 +136,27 @@ def gaps_in(dt, p, xp=jnp):
     return is_gap(xp.where(valid_dt(dt), dt, 0.0), p)
 
 
+def gyr_in_range(g, xp=jnp):
+    """Whether gyro readings ``g`` (component axis first, as :func:`masks`) are readings: every
+    component finite and below ``MAX_RATE_RAD_S`` (their time step not judged)."""
+    return ((xp.abs(g[0]) < MAX_RATE_RAD_S) & (xp.abs(g[1]) < MAX_RATE_RAD_S)
+            & (xp.abs(g[2]) < MAX_RATE_RAD_S))
+
+
+def bridge_share(dts, tau_s, xp=jnp):
+    """The share ``2τ tanh(T / 2τ) / T`` of a gap of ``T = dts`` s that the rates at its two ends
+    carry (docs/tilt.md, "Gaps."): the angular rate inside the gap taken as a stationary
+    Ornstein–Uhlenbeck process of correlation time ``τ = tau_s`` known at both ends (ω0 before,
+    ω1 after), its integral over the gap has the conditional mean ``(ω0 + ω1) τ tanh(T / 2τ)``,
+    i.e. the ends' mean rate over ``T`` times this share: 1 for ``T ≪ τ`` (the trapezoid; also
+    ``τ = inf``), ``2τ / T`` for ``T ≫ τ``."""
+    tau = xp.where(tau_s > 0, tau_s, 1.0)
+    x = dts / (2.0 * tau)  # 0 for tau_s = inf
+    small = x < 1e-4
+    xs = xp.where(small, 1.0, x)
+    return xp.where(small, 1.0 - x * x / 3.0, xp.tanh(xs) / xs)
+
+
 def masks(g, a, dt, xp=jnp):
     """``(dt_ok, gyr_ok, acc_ok, |acc|²)`` of samples: ``g``, ``a`` vectors with the component
     axis first (arrays (3, ...) or tuples of three arrays), ``dt`` (...): a valid Δt
@@ -193,7 +217,7 @@ def _each(fn, v):
 
 
 def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0,
-                 vel_var=0.0) -> SampleTerms:
+                 vel_var=0.0, g_prev=None) -> SampleTerms:
     """The per-sample part of the pre-integration: ``g`` (rad/s) and ``a`` (m/s²) vectors with the
     component axis first (arrays (3, ...), or tuples of three arrays), ``dt`` (s) of shape (...):
     the samples' validity and their term in each block sum (``S``; the vector ones in the form of
@@ -205,19 +229,31 @@ def sample_terms(g, a, dt, p, xp=jnp, gaps: bool = True, tilt_var=0.0,
     variance the sample adds besides its own terms (a clipped gyro axis's unknown excess,
     :mod:`~verticality.tilt.limits`), summed with the dropouts' in ``qmiss``;
     ``vel_var`` (m²/s²) likewise the velocity variance of a clipped accelerometer axis's unknown
-    excess (``vmiss``)."""
+    excess (``vmiss``). ``g_prev`` (like ``g``): each sample's previous gyro reading; a gap whose
+    both ends read the rate (``gap_rate_corr_s`` > 0) is bridged: the mean of the two rates over
+    the share of the gap that they carry (:func:`bridge_share`), which is also the gyro time the
+    bias acts over; otherwise (None, or an end without a reading) the rate after the gap over the
+    whole gap."""
     dt_ok, gyr_ok, acc_ok, acc_n2 = masks(g, a, dt, xp)
     dts = xp.where(dt_ok, dt, 0.0)
     wa = xp.where(acc_ok, dts, 0.0)  # Δt of a valid accelerometer sample
     wg = xp.where(gyr_ok, dts, 0.0)  # Δt of a valid gyro sample
     g0 = _each(lambda c: xp.where(gyr_ok, c, 0.0), g)
     a0 = _each(lambda c: xp.where(acc_ok, c, 0.0), a)
-    rot = _each(lambda c: c * dts, g0)
     # the gyro sample does not describe the rotation inside a gap: it counts as a dropout
     gap = is_gap(dts, p) if gaps else xp.zeros_like(dt_ok)
+    wr = dts  # the time the sample's rate is integrated over
+    if gaps and g_prev is not None:
+        bridged = gap & gyr_ok & gyr_in_range(g_prev, xp) & (p.gap_rate_corr_s > 0)
+        wb = dts * bridge_share(dts, p.gap_rate_corr_s, xp)
+        g0 = tuple(xp.where(bridged, 0.5 * (gp + c), c) for gp, c in zip(g_prev, g0, strict=True))
+        g0 = g0 if isinstance(g, tuple) else xp.stack(g0)
+        wr = xp.where(bridged, wb, dts)
+        wg = xp.where(bridged, wb, wg)
+    rot = _each(lambda c: c * wr, g0)
     dev2 = (xp.sqrt(acc_n2) - p.g_m_s2) ** 2
     sums = dict(tau=wg, t_acc=wa, dev2=dev2 * wa,
-                w2=(g0[0] * g0[0] + g0[1] * g0[1] + g0[2] * g0[2]) * dts, t=dts,
+                w2=(g0[0] * g0[0] + g0[1] * g0[1] + g0[2] * g0[2]) * wr, t=dts,
                 qmiss=(xp.where(gyr_ok & ~gap, 0.0, (p.omega_missing_rad_s * dts) ** 2)
                        + xp.where(dt_ok, tilt_var, 0.0)),
                 gsum=rot, asum=_each(lambda c: c * wa, a0), a2=acc_n2 * wa,
@@ -728,7 +764,8 @@ def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0, v
     gyr = jnp.asarray(gyr, dtype=jnp.float64)
     acc = jnp.asarray(acc, dtype=jnp.float64)
     dt = jnp.asarray(dt, dtype=jnp.float64)
-    t = sample_terms(gyr, acc, dt, p, tilt_var=tilt_var, vel_var=vel_var)
+    t = sample_terms(gyr, acc, dt, p, tilt_var=tilt_var, vel_var=vel_var,
+                     g_prev=jnp.asarray(state.gyr_prev, dtype=jnp.float64))
     init_now = ~state.initialized & t.acc_ok
     x = jnp.where(init_now, initialize(state.x, t.acc, p), state.x)
     sums = jnp.where(state.initialized, accumulate(state.sums, t), state.sums)
@@ -752,4 +789,4 @@ def step(state: TiltState, gyr, acc, dt, p, block: int, tilt_var=0.0, flags=0, v
                       out_of_range(gyr, acc)) | jnp.asarray(flags, dtype=jnp.int32)
     var = output_var(x[X.P].reshape(NE, NE), initialized, sums[S.qmiss], p)
     out = TiltOutput(roll, pitch, jnp.stack(up), q, x[X.b], var, flags, t.acc_ok)
-    return TiltState(x, sums, count, initialized), out
+    return TiltState(x, sums, count, initialized, gyr), out

@@ -117,7 +117,7 @@ class TiltFilter:
         x = X.pack(xp=np, q=q0, b=b0, s=np.zeros(3), v=np.zeros(2), P=P0.reshape(-1),
                    acc_dev_var=0.0, rest_s=0.0, reacquire=0.0, reacq_f_E=np.zeros(3), reacq_t=0.0,
                    vel_inn=np.zeros(2), vel_fix=np.zeros(5), speed_var=0.0, dv_var=0.0)
-        return TiltState(x, _EMPTY_SUMS, np.int32(0), np.bool_(initialized))
+        return TiltState(x, _EMPTY_SUMS, np.int32(0), np.bool_(initialized), np.full(3, np.nan))
 
     def predict(self, state: TiltState, gyr, dt) -> TiltState:
         """The sample without its accelerometer: exactly :meth:`step` with ``acc`` all NaN."""
@@ -334,13 +334,14 @@ def concatenate_outputs(outs) -> TiltOutput:
 
 def _state_of(z) -> TiltState:
     return TiltState(z[Z.x], z[Z.sums], jnp.round(z[Z.count]).astype(jnp.int32),
-                     z[Z.initialized] > 0.5)
+                     z[Z.initialized] > 0.5, z[Z.gyr_prev])
 
 
 def _step_packed(filt, z, sample):
     s, o = tilt_core.step(_state_of(z), sample[SAMPLE.gyr], sample[SAMPLE.acc], sample[SAMPLE.dt],
                           filt.params, filt.block)
-    return (Z.pack(x=s.x, sums=s.sums, count=s.count, initialized=s.initialized),
+    return (Z.pack(x=s.x, sums=s.sums, count=s.count, initialized=s.initialized,
+                   gyr_prev=s.gyr_prev),
             OUT.pack(roll=o.roll_rad, pitch=o.pitch_rad, up=o.up_S, quat=o.quat_E_S,
                      bias=o.bias_S_rad_s, flags=o.flags))
 
@@ -392,4 +393,4 @@ def make_step(params: TiltParams = DEFAULT_PARAMS, block: int | None = None, x0=
     filt = TiltFilter(params, block)
     s = filt.init(x0, P0)
     return Stepper(filt, Z.pack(xp=np, x=s.x, sums=s.sums, count=s.count,
-                                initialized=s.initialized))
+                                initialized=s.initialized, gyr_prev=s.gyr_prev))

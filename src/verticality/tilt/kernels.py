@@ -97,8 +97,10 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     :func:`verticality.tilt.batch.chunk_data`). ``head`` (``HEAD``): ``sums0``, the sums
     the first block starts from (the samples of a block begun before the chunk; they stand in for
     as many leading samples of ``data``, which the caller fills with skipped samples, dt = NaN),
-    and ``n_update``, the number of leading blocks whose update is applied: a block after them is
-    the current, unfinished block, whose sums are returned.
+    ``n_update``, the number of leading blocks whose update is applied: a block after them is
+    the current, unfinished block, whose sums are returned; and ``gyr_prev``, the gyro reading
+    before the chunk's first row (the rate before a gap there; each other row's is the row
+    before it).
 
     Returns ``(x, sums, (quat, up, roll, pitch, flags, rows))``: the filter after ``n_update``
     blocks; the sums of block ``n_update`` (of the last block when all are updated); per sample,
@@ -119,9 +121,15 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     # structure of arrays (CHUNK_SAMPLE, block, nb): sample k of every block in a row
     ds = data.reshape(nb, block, CHUNK_SAMPLE.size).transpose(2, 1, 0)
     sums0 = head[HEAD.sums0]
-    t = core.sample_terms(tuple(ds[CHUNK_SAMPLE.gyr]), tuple(ds[CHUNK_SAMPLE.acc]),
+    gyr = tuple(ds[CHUNK_SAMPLE.gyr])
+    # each sample's previous gyro reading (the rate before a gap): the row before, the header's
+    # for the chunk's first (only the kernel with gap handling bridges gaps)
+    g_prev = tuple(jnp.concatenate([jnp.concatenate([head[HEAD.gyr_prev][i:i + 1], c[-1, :-1]])
+                                    [None, :], c[:-1]], axis=0)
+                   for i, c in enumerate(gyr)) if gaps else None
+    t = core.sample_terms(gyr, tuple(ds[CHUNK_SAMPLE.acc]),
                           ds[CHUNK_SAMPLE.dt], p, gaps=gaps, tilt_var=ds[CHUNK_SAMPLE.tilt_var],
-                          vel_var=ds[CHUNK_SAMPLE.vel_var])
+                          vel_var=ds[CHUNK_SAMPLE.vel_var], g_prev=g_prev)
     # (component arrays (block, nb): XLA's faster form here)
     e = quat_exp_batched(*t.rot)
 
@@ -180,7 +188,7 @@ def _run_chunk(x, head, data, params, block: int, names: tuple = (), gaps: bool 
     dist = jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, ROW.disturbed] > 0.5)
     reacq = (jnp.zeros((block, nb), dtype=bool).at[-1].set(rows[:, ROW.reacquired] > 0.5)
              if gaps else False)
-    g, a = tuple(ds[CHUNK_SAMPLE.gyr]), tuple(ds[CHUNK_SAMPLE.acc])
+    g, a = gyr, tuple(ds[CHUNK_SAMPLE.acc])
     fl = core.flag_bits(t.dt_ok, t.gyr_ok, t.acc_ok, dist, t.gap, reacq,
                         beyond=core.out_of_range(g, a))  # (block, nb)
     current = sums[jnp.minimum(head[HEAD.n_update].astype(jnp.int32), nb - 1)]

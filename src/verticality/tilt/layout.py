@@ -28,7 +28,7 @@ arrays. The layouts:
   (neither sensor varies within the block) and ``still0`` (steady with a gyro that reads no
   rotation), the rest tests' state-free parts.
 * :data:`Z` the real-time stepper's state: ``x``, ``sums``, ``count`` (samples in the block),
-  ``initialized`` (1.0 or 0.0).
+  ``initialized`` (1.0 or 0.0), ``gyr_prev`` (the last gyro reading).
 * :data:`SAMPLE` one sample ``[gyr (3), acc (3), dt]`` (the stepper's input).
 * :data:`CHUNK_SAMPLE` a batch chunk's sample: a :data:`SAMPLE` (same offsets), ``tilt_var`` and
   ``vel_var``, the tilt (rad²) and velocity (m²/s²) variances the sample adds besides its own
@@ -41,8 +41,9 @@ arrays. The layouts:
 * :data:`TRANS` the batch kernel's row per block for the offline smoother: the covariance at the
   block's start ``P0`` and the block's :class:`~verticality.tilt.core.BlockTransition`
   (``F``, ``P_prior``, ``dx``, ``split``; matrices row-major).
-* :data:`HEAD` the batch kernel's chunk header: the sums the chunk's first block starts from and
-  the number of blocks whose update the chunk applies.
+* :data:`HEAD` the batch kernel's chunk header: the sums the chunk's first block starts from,
+  the number of blocks whose update the chunk applies and the gyro reading before the chunk's
+  first sample (a gap's rate before it; NaN where no gap starts the chunk).
 """
 
 from __future__ import annotations
@@ -123,7 +124,8 @@ C = Packed([("dquat", 4), ("tau", None), ("f", 3), ("T", None), ("has_acc", None
             ("g_mean", 3), ("steady", None), ("still0", None), ("r_vel", None),
             ("r_vel_rest", None), ("r_b", None), ("gap", None), ("t_acc", None), ("gsum", 3),
             ("lam", None)])
-Z = Packed([("x", X.size), ("sums", S.size), ("count", None), ("initialized", None)])
+Z = Packed([("x", X.size), ("sums", S.size), ("count", None), ("initialized", None),
+            ("gyr_prev", 3)])
 SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None)])
 CHUNK_SAMPLE = Packed([("gyr", 3), ("acc", 3), ("dt", None), ("tilt_var", None),
                        ("vel_var", None)])
@@ -134,4 +136,4 @@ ROW = Packed([("q0", 4), ("b0", 3), ("s0", 3), ("var0", NE), ("q1", 4), ("b1", 3
               ("reacquire1", None)])
 TRANS = Packed([("P0", NE * NE), ("F", NE * NE), ("P_prior", NE * NE), ("dx", NE),
                 ("split", None)])
-HEAD = Packed([("sums0", S.size), ("n_update", None)])
+HEAD = Packed([("sums0", S.size), ("n_update", None), ("gyr_prev", 3)])

@@ -68,6 +68,13 @@ class TiltParams(NamedTuple):
     event may have corrupted), besides the usual ``|ḡ − b̂| < rest_gyr_rad_s``; ``rest_tilt_s``:
     the quiet time after which the velocity takes its rest prior (the bias's rest update waits
     ``rest_min_s``). :data:`NO_SHOCK_RECOVERY` sets the filter without them, for comparison.
+
+    ``gap_rate_corr_s``: the correlation time of the angular rate inside a gap, which bridges
+    the gap from the rates at both its ends (docs/tilt.md, "Gaps."); 0.25 s = 1 / (2π f) at
+    f = 0.64 Hz, the middle (geometric) of hand, head and robot-body motion's 0.2–2 Hz: the
+    exponential that integrates like a sinusoid's rate correlation up to its first zero, chosen
+    before any measurement; ``math.inf`` the trapezoid, 0 the rate after the gap over the whole
+    gap.
     """
 
     gyr_noise: float = 1e-3
@@ -96,6 +103,7 @@ class TiltParams(NamedTuple):
     acc_tau_steady_s: float = 0.0
     rest_gyr_raw_rad_s: float = 0.035
     rest_tilt_s: float = 0.5
+    gap_rate_corr_s: float = 0.25
 
 
 DEFAULT_PARAMS = TiltParams()

@@ -146,6 +146,7 @@ class Stream:
         self.clip_t = [0.0, 0.0, 0.0]  # how long each gyro axis has been clipped
         self.acc_clip_t = [0.0, 0.0, 0.0]  # and each accelerometer axis
         self.prev_bits = None  # the previous sample's six channels, as bytes
+        self.gyr_prev = (math.nan, math.nan, math.nan)  # its gyro reading (a gap's start rate)
         self.p = DEFAULT_PARAMS if params is None else params
         # samples per update: given, or params.update_s at the sampling period (given, or the
         # first step integrated after the initialization)
@@ -222,13 +223,23 @@ class Stream:
             ax = ay = az = 0.0
         init_now = False
         gap = dts > p.gap_flag_s + GAP_TOLERANCE_S
+        wr = dts  # the time the rate is integrated over
+        g0 = self.gyr_prev
+        if (gap and gyr_ok and p.gap_rate_corr_s > 0
+                and all(abs(v) < MAX_RATE_RAD_S for v in g0)):
+            # the gap bridged from the rates at both its ends (the rate an Ornstein-Uhlenbeck
+            # process of correlation time tau): their mean over 2 tau tanh(T / 2 tau)
+            half = dts / (2.0 * p.gap_rate_corr_s)
+            wr = dts * (1.0 - half * half / 3.0 if half < 1e-4 else math.tanh(half) / half)
+            gx, gy, gz = 0.5 * (g0[0] + gx), 0.5 * (g0[1] + gy), 0.5 * (g0[2] + gz)
+        self.gyr_prev = gyr3
         if self.initialized:
             if self.block is None and dt_ok:  # the first step integrated sets the update's length
                 self.block = block_samples(p, dt)
-            self.dq = dq = _qmul(self.dq, _qexp(gx * dts, gy * dts, gz * dts))
+            self.dq = dq = _qmul(self.dq, _qexp(gx * wr, gy * wr, gz * wr))
             wa = dts if acc_ok else 0.0
             if gyr_ok:
-                self.tau += dts
+                self.tau += wr
             if gap or not gyr_ok:  # the rotation inside a gap is unknown
                 self.qmiss += (p.omega_missing_rad_s * dts) ** 2
             if dt_ok:  # a clipped gyro or accelerometer axis's unknown excess, a clock jump's
@@ -239,11 +250,11 @@ class Stream:
             f, gs, as_ = self.f, self.gsum, self.asum
             for i, (gi, ai) in enumerate(((gx, ax), (gy, ay), (gz, az))):
                 f[i] += r[i] * wa
-                gs[i] += gi * dts
+                gs[i] += gi * wr
                 as_[i] += ai * wa
             self.t_acc += wa
             self.dev2 += (math.sqrt(n2) - p.g_m_s2) ** 2 * wa
-            self.w2 += (gx * gx + gy * gy + gz * gz) * dts
+            self.w2 += (gx * gx + gy * gy + gz * gz) * wr
             self.t += dts
             self.a2 += n2 * wa
             self.count += 1
