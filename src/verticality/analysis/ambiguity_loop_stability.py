@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from verticality.core.compiling import jit_evaluated_once
 from verticality.core.integrate import rk4_step_staged
 from verticality.estimators import luenberger as lu
 from verticality.models.planar import HeadInput, PlanarState
@@ -36,7 +37,7 @@ def _loop_map(z, feed: str, sampled: bool, kp, kd, dt_s, disc, obs, truth):
     return jnp.concatenate([jnp.stack(list(x_new)), xh_new])
 
 
-_loop_jacobian = jax.jit(jax.jacfwd(_loop_map), static_argnums=(1, 2))
+_loop_jacobian = jit_evaluated_once(jax.jacfwd(_loop_map), static_argnums=(1, 2))
 
 
 def loop_eigenvalues(feed: str, pd_loop_rad_s: float, dt_s: float | None = None) -> np.ndarray:

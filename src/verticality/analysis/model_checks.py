@@ -71,6 +71,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.compiling import jit_evaluated_once
 from verticality.core.constants import G_M_S2
 from verticality.core.integrate import rk4_step
 from verticality.models import otolith_head, planar
@@ -201,7 +202,7 @@ def still_case(name: str):
     }[name]
 
 
-@jax.jit
+@jit_evaluated_once
 def _run_still(R_I_H, a_I, R_I_S0, omega_S0, beta):
     model = Pendulum(P13_PENDULUM._replace(beta_Nms=beta))
     zero = jnp.zeros(3)
@@ -316,7 +317,7 @@ def impact_table():
     return tabulate(trajectories.impact(duration_s=T_LONG_S).motion, DT_S, _steps(T_LONG_S))
 
 
-@functools.partial(jax.jit, static_argnames=("n",))
+@jit_evaluated_once(static_argnames=("n",))
 def _so3_medial(table, n):
     model = Pendulum(P13_PENDULUM)
 
@@ -340,7 +341,7 @@ def so3_drift_medial() -> tuple[np.ndarray, np.ndarray]:
     return err[0], err[1]
 
 
-@functools.partial(jax.jit, static_argnames=("n",))
+@jit_evaluated_once(static_argnames=("n",))
 def _so3_lateral_free_head(table, n):
     model = otolith_head.lateral(P13_PENDULUM, P13_HEAD)
     x0 = model.rest_state(table.motion(0.0)._replace(R_I_B=so3.exp(jnp.array([0.6, -0.4, 0.2]))))
@@ -394,7 +395,7 @@ def _in_plane(R, w):
     return R, w * jnp.array([1.0, 0.0, 0.0])
 
 
-@functools.partial(jax.jit, static_argnames=("n",))
+@jit_evaluated_once(static_argnames=("n",))
 def _planar_medial(n):
     x0p = planar.PlanarState(*(jnp.asarray(v) for v in (TH_S0, W_S0, TH_H0, W_H0)))
     _, yp = run_model(planar_params(), x0p, _planar_input, DT_S, n,
@@ -409,7 +410,7 @@ def _planar_medial(n):
     return yp, y3
 
 
-@functools.partial(jax.jit, static_argnames=("n",))
+@jit_evaluated_once(static_argnames=("n",))
 def _planar_lateral(n):
     s = [jnp.asarray(v) for v in (TH_S0, W_S0, TH_R0, -W_S0, TH_H0, W_H0)]
     _, yp = run_model(otolith_head.PlanarLateral(planar_params()),
@@ -443,7 +444,7 @@ def planar_vs_3d_max_error_rad(which: str) -> float:
 
 
 # ------------------------------------------------------------------ lateral (r = 0) vs medial
-@functools.partial(jax.jit, static_argnames=("n",))
+@jit_evaluated_once(static_argnames=("n",))
 def _lateral_vs_medial(table, n):
     medial = Pendulum(P13_PENDULUM)
     head0 = table.motion(0.0)
@@ -503,7 +504,7 @@ def p13_outputs_minus_abs_f_max_rad() -> tuple[float, float]:
 
 
 # ------------------------------------------------------------------------------- stabilizers
-@jax.jit
+@jit_evaluated_once
 def _global_stabilizer_run():
     head = FreeHead(P13_HEAD)
     axis = jnp.array([1.0, 1.0, 0.3])
@@ -557,7 +558,7 @@ def pd_poles_error() -> float:
     poles_lin = closed_loop_poles()
     worst = 0.0
     for law in (tilt_pd, tilt_pd_linearized):
-        A = np.asarray(jax.jit(nonlinear_loop_jacobian, static_argnums=0)(
+        A = np.asarray(jit_evaluated_once(nonlinear_loop_jacobian, static_argnums=0)(
             law, J, PD_KP, PD_KD, PD_KD_Z))
         worst = max(worst, float(np.max(np.abs(np.sort_complex(np.linalg.eigvals(A)) - poles_lin))))
     roots = []

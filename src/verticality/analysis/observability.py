@@ -61,6 +61,7 @@ from jax.experimental.jet import jet
 
 from verticality.analysis.observability_taylor import taylor
 from verticality.core import so3
+from verticality.core.compiling import jit_evaluated_once
 from verticality.core.errors import InputError
 
 DEFAULT_RTOL = 1e-8
@@ -185,7 +186,7 @@ class Layout:
         starts = np.cumsum([0] + [_size(s) for s in shapes])
         self.n_state = int(starts[-1])
         self.n_tangent = n_t = int(np.size(jax.eval_shape(problem.model.difference, state, state)))
-        self._retract_jacobian = jax.jit(lambda x: jax.jacfwd(
+        self._retract_jacobian = jit_evaluated_once(lambda x: jax.jacfwd(
             lambda z: flat(problem.model.retract(x, z)))(jnp.zeros(n_t)))
         J = np.asarray(self._retract_jacobian(state))
         owner = [int(np.argmax([np.linalg.norm(J[starts[i]:starts[i + 1], j])
@@ -514,7 +515,7 @@ def _compiled(problem: Problem, lay: Layout, order: int):
             grads[qname] = jax.jacfwd(qz)(z0)
         return O, grads
 
-    fn = jax.jit(jax.vmap(one))
+    fn = jit_evaluated_once(jax.vmap(one))
     _COMPILED[key] = (problem, fn)
     return fn
 
@@ -669,7 +670,7 @@ def _curve_velocities(problem: Problem, chart: str, curves: tuple):
 
         return jnp.stack([velocity(curve) for curve in curves], axis=1)
 
-    fn = jax.jit(velocities)
+    fn = jit_evaluated_once(velocities)
     _DIRECTIONS[key] = (problem, fn)
     return fn
 
