@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 
 from verticality.core import so3
+from verticality.core.compiling import jit_evaluated_once
 
 
 class RigidMotion(NamedTuple):
@@ -98,7 +99,7 @@ def tabulate(motion, dt_s: float, n_steps: int, t0_s: float = 0.0,
     n_pad = -(-n // chunk) * chunk
     step = 0.5 * dt_s
 
-    @jax.jit
+    @jit_evaluated_once
     def sample(k):
         return jax.lax.map(jax.vmap(lambda kk: motion(t0_s + kk * step)), k.reshape(-1, chunk))
 

@@ -86,6 +86,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from verticality.core import so3
+from verticality.core.compiling import jit_evaluated_once
 from verticality.core.errors import InputError
 from verticality.core.integrate import rk4_step_staged
 from verticality.models import gimbal
@@ -498,7 +499,7 @@ def sample_trunk(traj, loop: Loop):
     for kept, kept_clocks, samples in _SAMPLED_TRUNKS:
         if kept is traj and kept_clocks == clocks:
             return samples
-    samples = jax.jit(lambda: (traj.motion(0.0), trunk_stages(traj, loop)))()
+    samples = jit_evaluated_once(lambda: (traj.motion(0.0), trunk_stages(traj, loop)))()
     _SAMPLED_TRUNKS.insert(0, (traj, clocks, samples))
     del _SAMPLED_TRUNKS[_SAMPLED_TRUNKS_KEPT:]
     return samples

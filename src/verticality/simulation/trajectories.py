@@ -32,6 +32,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from verticality.core import so3
+from verticality.core.compiling import jit_evaluated_once
 from verticality.core.constants import G_M_S2
 from verticality.core.errors import InputError
 from verticality.models.kinematics import RigidMotion
@@ -100,12 +101,12 @@ def motion_from(position_fn, rpy_fn, t) -> RigidMotion:
 
 def sample(traj: Trajectory, t_s) -> RigidMotion:
     """The trajectory's :class:`RigidMotion` at every time of ``t_s`` (leading axis = time)."""
-    return jax.jit(jax.vmap(traj.motion))(jnp.asarray(t_s, dtype=jnp.float64))
+    return jit_evaluated_once(jax.vmap(traj.motion))(jnp.asarray(t_s, dtype=jnp.float64))
 
 
 def positions(traj: Trajectory, t_s):
     """Positions (N, 3) at the times ``t_s``."""
-    return jax.jit(jax.vmap(traj.position_I_m))(jnp.asarray(t_s, dtype=jnp.float64))
+    return jit_evaluated_once(jax.vmap(traj.position_I_m))(jnp.asarray(t_s, dtype=jnp.float64))
 
 
 def from_euler(position_fn, rpy_fn, duration_s: float, name: str = "") -> Trajectory:
@@ -481,7 +482,7 @@ def prts_stimulus(peak_rad: float, fs_hz: float, n_cycles: int, dt_s: float = PR
         raise InputError(f"fs_hz must be positive, got {fs_hz}")
     n = int(round(n_cycles * PRTS_LENGTH * dt_s * fs_hz))
     t = np.arange(n) / fs_hz
-    pos = np.asarray(jax.jit(prts_lean_fn(peak_rad, n_cycles, dt_s))(jnp.asarray(t)))
+    pos = np.asarray(jit_evaluated_once(prts_lean_fn(peak_rad, n_cycles, dt_s))(jnp.asarray(t)))
     knots_t, knots_a = prts_knots(peak_rad, n_cycles, dt_s)
     k = np.minimum((t / dt_s).astype(int), knots_t.size - 2)
     vel = (knots_a[k + 1] - knots_a[k]) / dt_s
