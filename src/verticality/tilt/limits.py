@@ -236,7 +236,10 @@ def _noise_std_columns(cols) -> np.ndarray:
     for i, c in enumerate(cols):
         if c.size == 0:
             continue
-        d2 = np.abs(c[2:] - 2.0 * c[1:-1] + c[:-2])
+        d2 = np.multiply(c[1:-1], 2.0)  # |c[2:] − 2 c[1:−1] + c[:−2]|, in one buffer
+        np.subtract(c[2:], d2, out=d2)
+        np.add(d2, c[:-2], out=d2)
+        np.abs(d2, out=d2)
         # (0 to the rounding of the values: 1e-10 of the largest finite one)
         lo, hi = c.min(), c.max()
         top = (max(hi, -lo) if np.isfinite(lo) and np.isfinite(hi)
