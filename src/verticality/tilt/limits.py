@@ -678,6 +678,15 @@ def known_mask(mask, n: int, name: str) -> np.ndarray | None:
     return m.astype(bool)
 
 
+def _in_range(x, limit: float):
+    """``x`` with its components at or beyond ``limit`` in size set to NaN: ``x`` itself when
+    every component is finite and within it (two reductions, no copy: the usual recording)."""
+    if x.size and x.max() < limit and x.min() > -limit:  # (False with a NaN)
+        return x
+    with np.errstate(invalid="ignore"):
+        return np.where(np.abs(x) < limit, x, np.nan)
+
+
 def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=None,
                 infer: bool = True, prev=None, gyr_clipped=None, acc_clipped=None,
                 fit_peaks: bool = True) -> Limits:
@@ -703,9 +712,7 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     held = held_rows(gyr, acc, prev)
     # a reading beyond any sensor's physical range is corrupt, not clipped: the filter takes it
     # as missing (OUT_OF_RANGE), and the search for plateaus does not see it
-    with np.errstate(invalid="ignore"):
-        gyr_read = np.where(np.abs(gyr) < MAX_RATE_RAD_S, gyr, np.nan)
-        acc_read = np.where(np.abs(acc) < MAX_ACC_M_S2, acc, np.nan)
+    gyr_read, acc_read = _in_range(gyr, MAX_RATE_RAD_S), _in_range(acc, MAX_ACC_M_S2)
     gyr_clipped, g_level = _clipped(gyr_read, held, gyr_range_rad_s, "gyr_range_rad_s",
                                     GYR_FLOOR_RAD_S, infer)
     a_axes, a_level = _clipped(acc_read, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2,
