@@ -228,27 +228,31 @@ def noise_std(x) -> np.ndarray:
     return _noise_std_columns(np.ascontiguousarray(np.asarray(x, dtype=np.float64).T))
 
 
-def _noise_std_columns(cols) -> np.ndarray:
+def _noise_std_columns(cols, lows=None, highs=None) -> np.ndarray:
     """:func:`noise_std` of the axes given as contiguous rows ``cols`` (3, N): NumPy reduces and
     compares a contiguous row several times faster than a strided column, and the same values
-    give the same medians."""
+    give the same medians. ``lows``, ``highs``: each row's minimum and maximum when the caller has
+    them."""
     out = np.zeros(cols.shape[0])
+    if cols.shape[1] == 0:
+        return out
+    lows = cols.min(axis=1) if lows is None else lows
+    highs = cols.max(axis=1) if highs is None else highs
     for i, c in enumerate(cols):
-        if c.size == 0:
-            continue
         d2 = np.multiply(c[1:-1], 2.0)  # |c[2:] − 2 c[1:−1] + c[:−2]|, in one buffer
         np.subtract(c[2:], d2, out=d2)
         np.add(d2, c[:-2], out=d2)
         np.abs(d2, out=d2)
         # (0 to the rounding of the values: 1e-10 of the largest finite one)
-        lo, hi = c.min(), c.max()
+        lo, hi = lows[i], highs[i]
         top = (max(hi, -lo) if np.isfinite(lo) and np.isfinite(hi)
                else np.max(np.abs(c), where=np.isfinite(c), initial=0.0))
         col = d2[d2 > 1e-10 * top]  # (a NaN is not above it)
         if col.size and not np.isfinite(col.max()):
             col = col[np.isfinite(col)]
         if col.size:
-            out[i] = np.median(col) / (0.6745 * math.sqrt(6.0))
+            # (col is a temporary of its own: partitioned in place, the same median)
+            out[i] = np.median(col, overwrite_input=True) / (0.6745 * math.sqrt(6.0))
     return out
 
 
@@ -418,14 +422,16 @@ def inferred_clipping(x, held, floor: float):
     # columns several times slower); a recording whose every value is finite and no row held (the
     # usual one) skips the masks
     cols = np.ascontiguousarray(x.T)
-    finite = np.all(np.isfinite(x), axis=1) if not np.isfinite(cols.sum()) else None
+    highs, lows = cols.max(axis=1), cols.min(axis=1)  # (NaN where an axis holds one)
+    all_finite = bool(np.all(np.isfinite(highs)) and np.all(np.isfinite(lows)))
+    finite = None if all_finite else np.all(np.isfinite(x), axis=1)
     ok = finite & ~held if finite is not None else (~held if held.any() else None)
     if ok is not None and not ok.any():
         return clipped, level
     sides = []  # (axis, extreme, sign) beyond the floor: only these are searched
     for i, col in enumerate(cols):
         if ok is None:
-            top, bottom = col.max(), col.min()
+            top, bottom = highs[i], lows[i]
         else:
             top = np.max(col, where=ok, initial=-np.inf)
             bottom = np.min(col, where=ok, initial=np.inf)
@@ -436,7 +442,7 @@ def inferred_clipping(x, held, floor: float):
     finite = np.ones(n, dtype=bool) if finite is None else finite
     xo = x if ok is None else np.where(ok[:, None], x, 0.0)
     ok = np.ones(n, dtype=bool) if ok is None else ok
-    sd = _noise_std_columns(cols)
+    sd = _noise_std_columns(cols, lows, highs)
     res = max(_resolution(c) for c in cols)
     for i, ext, sign in sides:
         col = cols[i]
