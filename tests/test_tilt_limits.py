@@ -262,3 +262,67 @@ def test_estimate_command_finds_the_limits_of_a_csv_read_in_pieces(tmp_path):
     np.testing.assert_array_equal(imu.read_estimate_csv(out).flags, ref.flags)
     with pytest.raises(InputError, match="does not take a sensor range"):
         check_ranges("vqf", {"gyr_range_rad_s": 1.0})
+
+
+def _candidates_by_listed_pools(x, i, sign, band, tol, rng):
+    """``_raw_axis_candidates`` as first written: each trial's pool listed and drawn with
+    ``rng.choice``, the cross product and its test one trial at a time."""
+    k = np.flatnonzero(band[:-1] & band[1:])
+    steps = x[k + 1] - x[k]
+    size = np.linalg.norm(steps, axis=1)
+    other = np.sqrt(np.maximum(size**2 - steps[:, i] ** 2, 0.0))
+    flat = (size > 0) & (np.abs(steps[:, i]) <= np.tan(tilt_limits.PLANE_TILT_RAD) * other + tol)
+    k, steps = k[flat], steps[flat]
+    run = np.cumsum(np.concatenate([[0], np.diff(k) > 1]))
+    found, trials = [], tilt_limits.PLANE_TRIALS
+    while trials > 0:
+        j1 = rng.integers(k.size)
+        same = run == run[j1]
+        far = np.abs(k - k[j1]) >= tilt_limits.MIN_RUN
+        pool = np.flatnonzero(~same if trials % 2 else same & far)
+        trials -= 1
+        if pool.size == 0:
+            continue
+        a = np.cross(steps[j1], steps[rng.choice(pool)])
+        norm = np.linalg.norm(a)
+        if norm == 0:
+            continue
+        a = a / norm * np.sign(a[i])
+        if a[i] < np.cos(tilt_limits.PLANE_TILT_RAD):
+            continue
+        inl = np.abs(steps @ a) <= tol
+        if np.count_nonzero(inl) >= 3:
+            a = np.linalg.svd(steps[inl], full_matrices=False)[2][-1]
+            a = a * np.sign(a[i])
+            inl = np.abs(steps @ a) <= tol
+        found.append((int(np.count_nonzero(inl)), a))
+    found.sort(key=lambda f: -f[0])
+    out = []
+    for _, a in found:
+        if all(np.linalg.norm(a - b) > 1e-9 for b in out):
+            out.append(a)
+        if len(out) == tilt_limits.PLANE_KEEP:
+            break
+    return out
+
+
+def test_plateau_step_pairs_are_drawn_as_from_the_listed_pools():
+    """The search for a raw axis's plateau draws its pairs of steps without listing each trial's
+    pool (the faster form): on plateaus seen through a tilted axis, in one band run and in
+    several, it finds the very directions, bit for bit, of the listed pools drawn with
+    ``rng.choice``."""
+    rng = np.random.default_rng(5)
+    for seed in range(6):
+        x = rng.normal(0, 0.05, (1500, 3)).cumsum(axis=0)
+        a = np.array([1.0, 0.03 * (seed - 2), -0.02 * seed])
+        a /= np.linalg.norm(a)
+        p = x @ a
+        top = np.quantile(p, 0.9 if seed % 2 else 0.97)
+        over = p > top
+        x[over] -= np.outer(p[over] - top, a)  # flat along a above the level
+        band = x[:, 0] >= x[:, 0].max() - 0.5 * abs(x[:, 0].max())
+        got = tilt_limits._raw_axis_candidates(x, 0, 1.0, band, 1e-3, np.random.default_rng(seed))
+        want = _candidates_by_listed_pools(x, 0, 1.0, band, 1e-3, np.random.default_rng(seed))
+        assert len(got) == len(want) > 0
+        for u, v in zip(got, want, strict=True):
+            np.testing.assert_array_equal(u, v)

@@ -225,14 +225,34 @@ def noise_std(x) -> np.ndarray:
     recording upsampled by linear interpolation has second differences only at its knots, where
     they are its noise's, and a quantized quiet sensor only where it steps by a code; 0 for an
     axis with no second difference at all."""
-    d2 = np.abs(x[2:] - 2.0 * x[1:-1] + x[:-2])
-    out = np.zeros(3)
-    for i in range(3):
-        # (0 to the rounding of the values: 1e-10 of the largest)
-        eps = 1e-10 * np.max(np.abs(x[:, i]), where=np.isfinite(x[:, i]), initial=0.0)
-        col = d2[:, i][np.isfinite(d2[:, i]) & (d2[:, i] > eps)]
+    return _noise_std_columns(np.ascontiguousarray(np.asarray(x, dtype=np.float64).T))
+
+
+def _noise_std_columns(cols, lows=None, highs=None) -> np.ndarray:
+    """:func:`noise_std` of the axes given as contiguous rows ``cols`` (3, N): NumPy reduces and
+    compares a contiguous row several times faster than a strided column, and the same values
+    give the same medians. ``lows``, ``highs``: each row's minimum and maximum when the caller has
+    them."""
+    out = np.zeros(cols.shape[0])
+    if cols.shape[1] == 0:
+        return out
+    lows = cols.min(axis=1) if lows is None else lows
+    highs = cols.max(axis=1) if highs is None else highs
+    for i, c in enumerate(cols):
+        d2 = np.multiply(c[1:-1], 2.0)  # |c[2:] − 2 c[1:−1] + c[:−2]|, in one buffer
+        np.subtract(c[2:], d2, out=d2)
+        np.add(d2, c[:-2], out=d2)
+        np.abs(d2, out=d2)
+        # (0 to the rounding of the values: 1e-10 of the largest finite one)
+        lo, hi = lows[i], highs[i]
+        top = (max(hi, -lo) if np.isfinite(lo) and np.isfinite(hi)
+               else np.max(np.abs(c), where=np.isfinite(c), initial=0.0))
+        col = d2[d2 > 1e-10 * top]  # (a NaN is not above it)
+        if col.size and not np.isfinite(col.max()):
+            col = col[np.isfinite(col)]
         if col.size:
-            out[i] = np.median(col) / (0.6745 * math.sqrt(6.0))
+            # (col is a temporary of its own: partitioned in place, the same median)
+            out[i] = np.median(col, overwrite_input=True) / (0.6745 * math.sqrt(6.0))
     return out
 
 
@@ -306,31 +326,51 @@ def _raw_axis_candidates(x, i, sign, band, tol, rng, trials=PLANE_TRIALS):
     if k.size < 2:
         return []
     run = np.cumsum(np.concatenate([[0], np.diff(k) > 1]))  # the band run each step is in
-    found = []
+    # (within a run the steps are consecutive rows: k[j] − k[j1] = j − j1 there)
+    run_start = np.searchsorted(run, run, side="left")
+    run_end = np.searchsorted(run, run, side="right")
+    pairs = []
     while trials > 0:
-        j1 = rng.integers(k.size)
+        j1 = int(rng.integers(k.size))
         # the second step from another run, or from the same run at least MIN_RUN steps away
         # (half the trials each): two neighbouring steps at a high rate are nearly parallel,
-        # and their cross product is mostly noise; a lone plateau needs two of its own steps
-        same = run == run[j1]
-        pool = np.flatnonzero(~same if trials % 2 else same & (np.abs(k - k[j1]) >= MIN_RUN))
+        # and their cross product is mostly noise; a lone plateau needs two of its own steps.
+        # Drawn as rng.choice(pool) draws (an index into the pool, which is sorted), the pool
+        # counted rather than listed
+        rs, re = int(run_start[j1]), int(run_end[j1])
+        if trials % 2:  # the steps of the other runs: [0, rs) and [re, K)
+            base, cut, size = 0, rs, k.size - (re - rs)
+            jump = re - rs
+        else:  # the same run's, MIN_RUN away: [rs, j1 − MIN_RUN] and [j1 + MIN_RUN, re)
+            base, cut = rs, max(0, j1 - MIN_RUN + 1 - rs)
+            size = cut + max(0, re - (j1 + MIN_RUN))
+            jump = j1 + MIN_RUN - rs - cut
         trials -= 1
-        if pool.size == 0:
+        if size == 0:
             continue
-        j2 = rng.choice(pool)
-        a = np.cross(steps[j1], steps[j2])
-        norm = np.linalg.norm(a)
-        if norm == 0:
-            continue
-        a = a / norm * np.sign(a[i])
-        if a[i] < math.cos(PLANE_TILT_RAD):
-            continue
-        inl = np.abs(steps @ a) <= tol
-        if np.count_nonzero(inl) >= 3:
-            a = np.linalg.svd(steps[inl], full_matrices=False)[2][-1]
-            a = a * np.sign(a[i])
+        r = int(rng.integers(size))
+        pairs.append((j1, base + (r if r < cut else r + jump)))
+    found = []
+    if pairs:
+        j1s, j2s = np.array(pairs).T
+        cross = np.cross(steps[j1s], steps[j2s])
+        # (a direction further than PLANE_TILT_RAD from the axis by a clear margin is left out
+        # here; the others are tested exactly as one vector each)
+        approx = np.sqrt(np.sum(cross * cross, axis=1))
+        near = np.abs(cross[:, i]) >= (1.0 - 1e-9) * math.cos(PLANE_TILT_RAD) * approx
+        for a in cross[near & (approx > 0)]:
+            norm = np.linalg.norm(a)
+            if norm == 0:
+                continue
+            a = a / norm * np.sign(a[i])
+            if a[i] < math.cos(PLANE_TILT_RAD):
+                continue
             inl = np.abs(steps @ a) <= tol
-        found.append((int(np.count_nonzero(inl)), a))
+            if np.count_nonzero(inl) >= 3:
+                a = np.linalg.svd(steps[inl], full_matrices=False)[2][-1]
+                a = a * np.sign(a[i])
+                inl = np.abs(steps @ a) <= tol
+            found.append((int(np.count_nonzero(inl)), a))
     found.sort(key=lambda f: -f[0])
     out = []
     for _, a in found:  # distinct directions only
@@ -378,48 +418,59 @@ def inferred_clipping(x, held, floor: float):
     level = np.zeros((n, 3))
     if n < MIN_RUN:
         return clipped, level
-    finite = np.all(np.isfinite(x), axis=1)
-    ok = finite & ~held
-    if not ok.any():
+    # one axis per contiguous row (one transposing copy: NumPy reduces and compares strided
+    # columns several times slower); a recording whose every value is finite and no row held (the
+    # usual one) skips the masks
+    cols = np.ascontiguousarray(x.T)
+    highs, lows = cols.max(axis=1), cols.min(axis=1)  # (NaN where an axis holds one)
+    all_finite = bool(np.all(np.isfinite(highs)) and np.all(np.isfinite(lows)))
+    finite = None if all_finite else np.all(np.isfinite(x), axis=1)
+    ok = finite & ~held if finite is not None else (~held if held.any() else None)
+    if ok is not None and not ok.any():
         return clipped, level
-    sd = noise_std(x)
-    res = max(_resolution(x[:, j]) for j in range(3))
-    xo = np.where(ok[:, None], x, 0.0)
-    for i in range(3):
-        col = x[:, i]
-        top = np.max(col, where=ok, initial=-np.inf)
-        bottom = np.min(col, where=ok, initial=np.inf)
-        for ext, sign in ((top, 1.0), (bottom, -1.0)):
-            if not sign * ext > floor:
-                continue
-            rng = np.random.default_rng(i * 2 + (sign > 0))  # the same answer on every run
-            e_i = np.eye(3)[i]
-            base_tol = PLANE_TOL * sd[i] + res
-            band = ok & (sign * col >= sign * ext - PLANE_BAND * abs(ext) - base_tol)
-            plane_tol = PLANE_TOL * float(np.sqrt(np.sum(sd**2))) + 2.0 * res
-            best = None
-            for j, a in enumerate([e_i] + _raw_axis_candidates(xo, i, sign, band, plane_tol,
-                                                                  rng)):
-                # (the axis itself: a flat top is exact in the stored values, so no tolerance:
-                # a recording upsampled by linear interpolation holds near-flat segments at its
-                # peaks, within σ/16 of their top; a recovered raw axis mixes three stored
-                # values, each rounded, and must be fixed by its plateau, _plateau_found)
-                def tol_of(a, j=j):
-                    if j == 0:
-                        return 0.0
-                    return PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + 2 * res
+    sides = []  # (axis, extreme, sign) beyond the floor: only these are searched
+    for i, col in enumerate(cols):
+        if ok is None:
+            top, bottom = highs[i], lows[i]
+        else:
+            top = np.max(col, where=ok, initial=-np.inf)
+            bottom = np.min(col, where=ok, initial=np.inf)
+        sides += [(i, ext, sign) for ext, sign in ((top, 1.0), (bottom, -1.0))
+                  if sign * ext > floor]
+    if not sides:
+        return clipped, level
+    finite = np.ones(n, dtype=bool) if finite is None else finite
+    xo = x if ok is None else np.where(ok[:, None], x, 0.0)
+    ok = np.ones(n, dtype=bool) if ok is None else ok
+    sd = _noise_std_columns(cols, lows, highs)
+    res = max(_resolution(c) for c in cols)
+    for i, ext, sign in sides:
+        col = cols[i]
+        rng = np.random.default_rng(i * 2 + (sign > 0))  # the same answer on every run
+        base_tol = PLANE_TOL * sd[i] + res
+        band = ok & (sign * col >= sign * ext - PLANE_BAND * abs(ext) - base_tol)
+        plane_tol = PLANE_TOL * float(np.sqrt(np.sum(sd**2))) + 2.0 * res
+        # the axis itself: a flat top is exact in the stored values, so no tolerance (a recording
+        # upsampled by linear interpolation holds near-flat segments at its peaks, within σ/16 of
+        # their top): the samples at the extreme, a plateau when MIN_RUN of them are consecutive
+        at = (col >= ext if sign > 0 else col <= ext) & ok
+        best = (at, abs(ext)) if _long_runs(at, MIN_RUN)[1] else None
+        # a recovered raw axis mixes three stored values, each rounded, and must be fixed by its
+        # plateau (_plateau_found)
+        for a in _raw_axis_candidates(xo, i, sign, band, plane_tol, rng):
+            def tol_of(a):
+                return PLANE_TOL * float(np.sqrt(np.sum((a * sd) ** 2))) + 2 * res
 
-                if j > 0:
-                    a = _refined(xo, a, i, sign, ok, tol_of)
-                p = xo @ a
-                lvl = np.max(sign * p, where=ok, initial=-np.inf) * sign
-                tol = tol_of(a)
-                at, found = _plateau_found(xo, p, lvl, tol, sign, ok, sd, j == 0)
-                if found and (best is None or np.count_nonzero(at) > np.count_nonzero(best[0])):
-                    best = (at | ((sign * p >= sign * lvl - tol) & finite), abs(lvl))
-            if best is not None and best[1] > floor:
-                clipped[:, i] |= best[0]
-                level[:, i] = np.where(best[0], best[1], level[:, i])
+            a = _refined(xo, a, i, sign, ok, tol_of)
+            p = xo @ a
+            lvl = np.max(sign * p, where=ok, initial=-np.inf) * sign
+            tol = tol_of(a)
+            at, found = _plateau_found(xo, p, lvl, tol, sign, ok, sd, False)
+            if found and (best is None or np.count_nonzero(at) > np.count_nonzero(best[0])):
+                best = (at | ((sign * p >= sign * lvl - tol) & finite), abs(lvl))
+        if best is not None and best[1] > floor:
+            clipped[:, i] |= best[0]
+            level[:, i] = np.where(best[0], best[1], level[:, i])
     return clipped, level
 
 
@@ -633,6 +684,15 @@ def known_mask(mask, n: int, name: str) -> np.ndarray | None:
     return m.astype(bool)
 
 
+def _in_range(x, limit: float):
+    """``x`` with its components at or beyond ``limit`` in size set to NaN: ``x`` itself when
+    every component is finite and within it (two reductions, no copy: the usual recording)."""
+    if x.size and x.max() < limit and x.min() > -limit:  # (False with a NaN)
+        return x
+    with np.errstate(invalid="ignore"):
+        return np.where(np.abs(x) < limit, x, np.nan)
+
+
 def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=None,
                 infer: bool = True, prev=None, gyr_clipped=None, acc_clipped=None,
                 fit_peaks: bool = True) -> Limits:
@@ -658,9 +718,7 @@ def find_limits(gyr_rad_s, acc_m_s2, dt_s, gyr_range_rad_s=None, acc_range_m_s2=
     held = held_rows(gyr, acc, prev)
     # a reading beyond any sensor's physical range is corrupt, not clipped: the filter takes it
     # as missing (OUT_OF_RANGE), and the search for plateaus does not see it
-    with np.errstate(invalid="ignore"):
-        gyr_read = np.where(np.abs(gyr) < MAX_RATE_RAD_S, gyr, np.nan)
-        acc_read = np.where(np.abs(acc) < MAX_ACC_M_S2, acc, np.nan)
+    gyr_read, acc_read = _in_range(gyr, MAX_RATE_RAD_S), _in_range(acc, MAX_ACC_M_S2)
     gyr_clipped, g_level = _clipped(gyr_read, held, gyr_range_rad_s, "gyr_range_rad_s",
                                     GYR_FLOOR_RAD_S, infer)
     a_axes, a_level = _clipped(acc_read, held, acc_range_m_s2, "acc_range_m_s2", ACC_FLOOR_M_S2,
