@@ -118,7 +118,6 @@ def _device_time(gyr, acc, dt, reps):
     from verticality.tilt import batch as tilt_batch
     from verticality.tilt import core as tilt_core
     from verticality.tilt import kernels as tilt_kernels
-    from verticality.tilt.layout import HEAD
 
     nb = tilt_batch.chunk_blocks(BLOCK, False)
     chunk = nb * BLOCK
@@ -129,8 +128,7 @@ def _device_time(gyr, acc, dt, reps):
              for a in range(0, n, chunk)]
     p = tilt.DEFAULT_PARAMS
     x0 = jax.device_put(tilt_core.initialize(tilt.TiltFilter().init().x, acc[0], p, xp=np))
-    head = jax.device_put(HEAD.pack(xp=np, sums0=np.asarray(tilt_core.empty_sums(xp=np)),
-                                    n_update=nb))
+    head = tilt_batch.chunk_head(None, nb, nb)  # the usual chunk header, as the batch run builds it
     p_vec = jax.device_put(np.asarray(p, dtype=np.float64))
 
     def chunks():

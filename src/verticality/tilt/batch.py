@@ -211,7 +211,7 @@ _HEADS: dict = {}
 _NO_GYR = np.full(3, np.nan)
 
 
-def _head(sums0, n_update: int, nb: int, gyr_prev=None):
+def chunk_head(sums0, n_update: int, nb: int, gyr_prev=None):
     """The chunk header (``HEAD``); the usual one (no sums carried in: ``sums0`` None or empty;
     every block updated; no gap at the chunk's first sample, which would need ``gyr_prev``, the
     reading before it) is put on the device once per chunk size."""
@@ -294,7 +294,7 @@ def _dispatch(p, block, x, sums0, count, gyr, acc, dts, k, transitions=False, tv
                           None if tv is None else tv[lo:hi], None if vv is None else vv[lo:hi],
                           gyr_before=before if lead else None)
         n_update = m // block if v + m == nv else nb
-        head = _head(sums0 if v == 0 else None, n_update, nb,
+        head = chunk_head(sums0 if v == 0 else None, n_update, nb,
                      before if first_gap and not lead else None)
         x, current, outs = tilt_kernels.run_chunk(x, head, data, p_vec, block, p._fields,
                                                   gaps=gaps, transitions=transitions)
