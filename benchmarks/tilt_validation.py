@@ -8,14 +8,13 @@ defaults, one parameter set for every case, in this run.
         [--rates 50,100] [--shares 0.01,0.2] [--seeds 2] [--json FILE] [--per-case]
         [--no-faults] [--detection] [--loco] [--loco-limits [--offline]]
 
-BROAD_DIR: the folder of BROAD's HDF5 files (CC BY 4.0; docs/references.md); without it the
-BROAD rows are left out. The failure classes (:mod:`verticality.tilt.evaluation.failures`:
-saturated-then-calibrated gyro and accelerometer at each clipped share, shocks, drop-outs, clock
+BROAD_DIR: the folder of BROAD's HDF5 files (CC BY 4.0; docs/references.md); without it the BROAD
+rows are left out. The failure classes (:mod:`verticality.tilt.evaluation.failures`: saturated-
+then-calibrated gyro and accelerometer at each clipped share, shocks, a crash, drop-outs, clock
 jumps, jittered rates) are datasets of their own; ``--detection`` prints the clip detector's hit
-and false-alarm rates on the saturation classes instead, ``--loco`` the leave-one-class-out of
-clip detection on and off, ``--loco-limits`` of what a clipped sample means
-(:data:`LIMITS_VARIANTS`; ``--offline`` the smoother against offlineVQF). Needs the peers extra
-(vqf).
+and false-alarm rates on the saturation classes instead, ``--loco`` the leave-one-class-out of clip
+detection on and off, ``--loco-limits`` of what a clipped sample means (:data:`LIMITS_VARIANTS`;
+``--offline`` the smoother against offlineVQF). Needs the peers extra (vqf).
 """
 
 from __future__ import annotations
@@ -128,8 +127,8 @@ def select_cases(classes, rates, seeds, shares, broad_dir=None):
     return cases
 
 
-ALL_CLASSES = ("broad", "synthetic", "vigorous", "sat-gyro", "sat-acc", "shock", "dropout",
-               "clock-jump", "jitter")
+ALL_CLASSES = ("broad", "synthetic", "vigorous", "sat-gyro", "sat-acc", "shock", "crash",
+               "dropout", "clock-jump", "jitter")
 
 
 def main(argv=None) -> None:

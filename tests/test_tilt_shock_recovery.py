@@ -157,3 +157,23 @@ def test_crash_recording_is_what_it_says(crash):
     up_before = np.asarray(so3.quat_rotate(so3.quat_conjugate(r.quat_E_S[0]), z))
     up_after = np.asarray(so3.quat_rotate(so3.quat_conjugate(r.quat_E_S[-1]), z))
     assert np.degrees(np.arccos(np.clip(up_before @ up_after, -1, 1))) > 20.0
+
+
+def test_the_crash_is_a_class_of_the_validation_set():
+    """The validation set's ``crash`` class is this recording, with the 5 s at rest after the
+    event as its own scored window and nothing clipped (its sensor's ranges hold the event)."""
+    from verticality.tilt.evaluation import failures as fl
+    from verticality.tilt.evaluation import validation as tv
+
+    assert "crash" in fl.CLASSES
+    f = fl.recording("crash", 1, 50.0)
+    r = shock_recording(1, 50.0)
+    np.testing.assert_array_equal(f.gyr_rad_s, r.gyr_rad_s)
+    np.testing.assert_array_equal(f.quat_E_S, r.quat_E_S)
+    after = f.windows["after_impact"]
+    assert not f.clipped.any() and math.isclose(f.period_s, r.dt_s)
+    assert math.isclose(after.sum() * r.dt_s, 5.0, abs_tol=2 * r.dt_s)
+    assert np.all(f.t_s[after] >= r.rest_s)
+    assert np.all(np.linalg.norm(f.acc_m_s2[after], axis=1) < G + 0.3)
+    case = next(iter(tv.failure_cases(["crash"], [1], [50.0])))
+    assert case.dataset == "crash" and case.t_s is None and case.windows["after_impact"].any()

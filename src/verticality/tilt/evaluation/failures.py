@@ -12,6 +12,10 @@ set"), with known truth:
 * ``shock``: rest and slow hand motion broken by impacts of 10–30 g lasting a few ms, each with a
   gyro spike of 10–15 rad/s (the sensor knocked over by a few degrees), then 10 s at rest: the
   tilt must come back at rest (the 1–10 s after each shock are scored apart, ``after_shock``);
+* ``crash``: a crashed drone (:mod:`~verticality.tilt.evaluation.shocks`): slow motion, a free
+  fall, an impact of about 100 m/s² with the body knocked over by 45–180°, then rest; read by a
+  ±2000 °/s, ±16 g sensor (no clipping). The 5 s at rest after the event are scored apart
+  (``after_impact``): the tilt must come back there as fast as the evidence of rest allows;
 * ``dropout``: runs of missing rows (the time stamps skip 0.05–1 s);
 * ``clock-jump``: the time stamps step forward or back by 2–10 s (a logger's clock reset), the
   readings continuous;
@@ -38,7 +42,7 @@ from verticality.tilt.evaluation import realistic as rr
 
 SATURATION = ("sat-gyro", "sat-acc")
 TIMING = ("dropout", "clock-jump", "jitter")
-CLASSES = SATURATION + ("shock",) + TIMING
+CLASSES = SATURATION + ("shock", "crash") + TIMING
 CLIP_SHARES = (0.01, 0.02, 0.05, 0.10, 0.20)
 DURATION_S = 40.0
 DEG = np.pi / 180.0
@@ -299,6 +303,20 @@ def timing(kind: str, seed: int, rate_hz: float, duration_s: float = DURATION_S)
     return Failure(gyr[keep], acc[keep], stamps[keep], period, quat[keep], clipped, {})
 
 
+def crash(seed: int, rate_hz: float) -> Failure:
+    """The ``crash`` class: :func:`~verticality.tilt.evaluation.shocks.shock_recording` (30 s,
+    the impact at 15 s) as a failure recording, with the 5 s at rest after the event as the window
+    ``after_impact``. Its sensor's ranges hold the event: nothing is clipped."""
+    from verticality.tilt.evaluation.shocks import shock_recording
+
+    r = shock_recording(seed, rate_hz)
+    n = r.gyr_rad_s.shape[0]
+    t = np.arange(n) * r.dt_s
+    after = (t >= r.rest_s) & (t < r.rest_s + 5.0)
+    return Failure(r.gyr_rad_s, r.acc_m_s2, t, r.dt_s, r.quat_E_S, np.zeros(n, dtype=bool),
+                   {"after_impact": after})
+
+
 def recording(cls: str, seed: int, rate_hz: float, share: float | None = None) -> Failure:
     """The recording of failure class ``cls`` (:data:`CLASSES`; ``share`` the clipped share for
     the saturation classes)."""
@@ -308,6 +326,8 @@ def recording(cls: str, seed: int, rate_hz: float, share: float | None = None) -
         return saturated("acc", share, seed, rate_hz)
     if cls == "shock":
         return shock(seed, rate_hz)
+    if cls == "crash":
+        return crash(seed, rate_hz)
     if cls in TIMING:
         return timing(cls, seed, rate_hz)
     raise ValueError(f"unknown failure class {cls!r}; choose from {', '.join(CLASSES)}")
