@@ -164,8 +164,7 @@ def masks(g, a, dt, xp=jnp):
     with it a non-zero accelerometer whose components are finite and below ``MAX_ACC_M_S2``
     (``|acc|²`` is 0 where they are not)."""
     dt_ok = valid_dt(dt)
-    gyr_ok = ((xp.abs(g[0]) < MAX_RATE_RAD_S) & (xp.abs(g[1]) < MAX_RATE_RAD_S)
-              & (xp.abs(g[2]) < MAX_RATE_RAD_S) & dt_ok)
+    gyr_ok = gyr_in_range(g, xp) & dt_ok
     acc_in = ((xp.abs(a[0]) < MAX_ACC_M_S2) & (xp.abs(a[1]) < MAX_ACC_M_S2)
               & (xp.abs(a[2]) < MAX_ACC_M_S2))
     a = _each(lambda c: xp.where(acc_in, c, 0.0), a)
